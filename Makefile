@@ -1,0 +1,32 @@
+# Two entry points on a fresh machine with only Python 3.11: `make run` and `make test`.
+# Each creates .venv if missing and installs the package with its pinned dependencies,
+# CPU torch first so that nothing later can pull a CUDA build.
+PYTHON ?= $(shell command -v python3.11 || command -v python3)
+VENV := .venv
+PY := $(VENV)/bin/python
+STAMP := $(VENV)/.installed-stamp
+# Extra pip arguments for torch, e.g. a CPU-only wheel index on a machine without a local CPU wheel.
+TORCH_PIP_ARGS ?=
+
+.PHONY: run test bench test-cmu clean-venv
+
+$(STAMP): pyproject.toml
+	test -x $(PY) || $(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install --quiet torch==2.13.0 $(TORCH_PIP_ARGS)
+	$(PY) -m pip install --quiet -e '.[test]'
+	touch $(STAMP)
+
+run: $(STAMP)
+	$(PY) -m mocapbench.experiments.main
+
+test: $(STAMP)
+	$(PY) -m pytest -q
+
+test-cmu: $(STAMP)
+	$(PY) -m pytest -q -m cmu
+
+bench: $(STAMP)
+	$(PY) -m mocapbench.experiments.main --cmu
+
+clean-venv:
+	rm -rf $(VENV)

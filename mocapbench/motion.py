@@ -1,0 +1,279 @@
+"""Skeletons and motions: the one data type every reader, codec and metric shares.
+
+Conventions (used everywhere in mocapbench):
+
+* lengths in **centimetres**; readers convert on load;
+* quaternions scalar-last ``(x, y, z, w)``, as :class:`scipy.spatial.transform.Rotation`;
+* joint ``j``'s local rotation maps vectors of its own frame into its parent's frame; a joint's
+  position is its parent's position plus the parent's global rotation applied to ``offsets[j]``
+  (the BVH convention);
+* parents come before children (``parents[j] < j``), the root is joint 0 with parent ``-1``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+__all__ = ["Skeleton", "Motion", "MotionFormatError"]
+
+
+class MotionFormatError(ValueError):
+    """A motion file or motion array is malformed; the message names the file, line and expectation."""
+
+
+def _as_float_array(name: str, value, shape: tuple[int | None, ...]) -> np.ndarray:
+    """Return ``value`` as a float64 array of ``shape`` (``None`` = any), or raise naming ``name``."""
+    array = np.asarray(value, dtype=np.float64)
+    if array.ndim != len(shape) or any(s is not None and s != a for s, a in zip(shape, array.shape)):
+        expected = "(" + ", ".join("*" if s is None else str(s) for s in shape) + ")"
+        raise ValueError(f"Expected `{name}` to have shape {expected}, got {array.shape}.")
+    if not np.all(np.isfinite(array)):
+        bad = np.argwhere(~np.isfinite(array))[0]
+        raise ValueError(f"`{name}` holds a non-finite value (NaN or inf) at index {tuple(int(i) for i in bad)}.")
+    return array
+
+
+@dataclass(frozen=True, eq=False)
+class Skeleton:
+    """A joint tree with its rest pose.
+
+    Parameters
+    ----------
+    names : tuple of str, length J
+        Joint names, unique.
+    parents : ndarray, shape (J,), int
+        Parent index of each joint; ``-1`` for the root (joint 0 only); ``parents[j] < j``.
+    offsets : ndarray, shape (J, 3), float, cm
+        Rest offset of each joint from its parent, in the parent's frame (the root's is ignored by FK).
+    channel_orders : tuple of str, length J
+        Euler order of each joint's rotation channels as written to BVH, e.g. ``"ZYX"`` for
+        ``Zrotation Yrotation Xrotation`` (intrinsic, the BVH reading).
+    end_site_parents : ndarray, shape (E,), int
+        Joint that each BVH ``End Site`` hangs from (may be empty).
+    end_site_offsets : ndarray, shape (E, 3), float, cm
+        Offset of each end site from its joint.
+    """
+
+    names: tuple[str, ...]
+    parents: np.ndarray
+    offsets: np.ndarray
+    channel_orders: tuple[str, ...] = ()
+    end_site_parents: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    end_site_offsets: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+
+    def __post_init__(self) -> None:
+        names = tuple(str(n) for n in self.names)
+        num_joints = len(names)
+        if num_joints == 0:
+            raise ValueError("A skeleton needs at least one joint, got 0 names.")
+        if len(set(names)) != num_joints:
+            dup = sorted({n for n in names if names.count(n) > 1})
+            raise ValueError(f"Joint names must be unique; repeated: {dup}.")
+        parents = np.asarray(self.parents, dtype=np.int64)
+        if parents.shape != (num_joints,):
+            raise ValueError(f"Expected `parents` to have shape ({num_joints},), got {parents.shape}.")
+        if parents[0] != -1:
+            raise ValueError(f"Joint 0 ({names[0]!r}) must be the root with parent -1, got {parents[0]}.")
+        for j in range(1, num_joints):
+            if not 0 <= parents[j] < j:
+                raise ValueError(
+                    f"Parents must come before children: joint {j} ({names[j]!r}) has parent {parents[j]}."
+                )
+        offsets = _as_float_array("offsets", self.offsets, (num_joints, 3))
+        orders = tuple(self.channel_orders) or ("ZYX",) * num_joints
+        if len(orders) != num_joints:
+            raise ValueError(f"Expected {num_joints} `channel_orders`, got {len(orders)}.")
+        for j, order in enumerate(orders):
+            if sorted(order) != ["X", "Y", "Z"]:
+                raise ValueError(
+                    f"Channel order of joint {names[j]!r} must be a permutation of 'XYZ', got {order!r}."
+                )
+        end_parents = np.asarray(self.end_site_parents, dtype=np.int64).reshape(-1)
+        end_offsets = _as_float_array("end_site_offsets", self.end_site_offsets, (len(end_parents), 3))
+        if end_parents.size and (end_parents.min() < 0 or end_parents.max() >= num_joints):
+            raise ValueError(f"`end_site_parents` must index joints 0..{num_joints - 1}, got {end_parents}.")
+        for attr, value in [
+            ("names", names),
+            ("parents", parents),
+            ("offsets", offsets),
+            ("channel_orders", orders),
+            ("end_site_parents", end_parents),
+            ("end_site_offsets", end_offsets),
+        ]:
+            if isinstance(value, np.ndarray):
+                value.setflags(write=False)
+            object.__setattr__(self, attr, value)
+
+    @property
+    def num_joints(self) -> int:
+        """J, the number of joints (end sites excluded)."""
+        return len(self.names)
+
+    def index(self, name: str) -> int:
+        """Index of the joint called ``name``; ``KeyError`` listing the names if absent."""
+        try:
+            return self.names.index(name)
+        except ValueError:
+            raise KeyError(f"No joint named {name!r}; joints are {list(self.names)}.") from None
+
+    def children(self, joint: int) -> list[int]:
+        """Direct children of ``joint``."""
+        return [int(j) for j in np.flatnonzero(self.parents == joint)]
+
+    def descendants(self, joint: int) -> list[int]:
+        """All joints below ``joint`` in the tree (not including it)."""
+        inside = np.zeros(self.num_joints, dtype=bool)
+        for j in range(joint + 1, self.num_joints):
+            parent = self.parents[j]
+            inside[j] = parent == joint or inside[parent]
+        return [int(j) for j in np.flatnonzero(inside)]
+
+    def rest_positions(self) -> np.ndarray:
+        """Joint positions of the rest pose (identity rotations, root at the origin).
+
+        Returns
+        -------
+        ndarray, shape (J, 3), float, cm
+        """
+        positions = np.zeros((self.num_joints, 3))
+        for j in range(1, self.num_joints):
+            positions[j] = positions[self.parents[j]] + self.offsets[j]
+        return positions
+
+    def rest_height(self) -> float:
+        """Extent of the rest pose along the up axis (Y), end sites included, in cm.
+
+        The neural Fourier paper quotes errors in % of the character's height; this is that height.
+        """
+        joints = self.rest_positions()
+        ends = joints[self.end_site_parents] + self.end_site_offsets
+        heights = np.concatenate([joints[:, 1], ends[:, 1]])
+        return float(heights.max() - heights.min())
+
+    def same_structure(self, other: "Skeleton") -> bool:
+        """True when ``other`` has the same joints, parents and offsets (within 1e-9 cm)."""
+        return (
+            self.names == other.names
+            and np.array_equal(self.parents, other.parents)
+            and np.allclose(self.offsets, other.offsets, rtol=0, atol=1e-9)
+        )
+
+
+@dataclass(frozen=True, eq=False)
+class Motion:
+    """A skeletal motion: root trajectory and local joint rotations on a skeleton.
+
+    Parameters
+    ----------
+    skeleton : Skeleton
+    fps : float
+        Frames per second, > 0.
+    root_positions : ndarray, shape (F, 3), float, cm
+        Root joint position per frame.
+    rotations : ndarray, shape (F, J, 4), float, or Rotation of shape (F, J)
+        Local joint rotations as unit quaternions, scalar-last. Stored normalized, float64.
+    name : str
+        Clip name for reports (e.g. ``"09_06"``).
+    """
+
+    skeleton: Skeleton
+    fps: float
+    root_positions: np.ndarray
+    rotations: np.ndarray
+    name: str = ""
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.skeleton, Skeleton):
+            raise TypeError(f"`skeleton` must be a Skeleton, got {type(self.skeleton).__name__}.")
+        fps = float(self.fps)
+        if not np.isfinite(fps) or fps <= 0:
+            raise ValueError(f"`fps` must be a finite number > 0, got {self.fps}.")
+        num_joints = self.skeleton.num_joints
+        rotations = self.rotations
+        if isinstance(rotations, Rotation):
+            if rotations.single or len(rotations.shape) != 2:
+                raise ValueError(f"Expected `rotations` as a Rotation of shape (F, {num_joints}), got {rotations.shape}.")
+            rotations = rotations.as_quat()
+        quats = _as_float_array("rotations", rotations, (None, num_joints, 4))
+        num_frames = quats.shape[0]
+        if num_frames == 0:
+            raise ValueError("A motion needs at least one frame, got 0.")
+        roots = _as_float_array("root_positions", self.root_positions, (num_frames, 3))
+        norms = np.linalg.norm(quats, axis=-1, keepdims=True)
+        if np.any(norms < 1e-8):
+            frame, joint = np.argwhere(norms[..., 0] < 1e-8)[0]
+            raise ValueError(f"Found a zero-norm quaternion in `rotations` at frame {frame}, joint {joint}.")
+        quats = quats / norms
+        quats.setflags(write=False)
+        roots.setflags(write=False)
+        object.__setattr__(self, "fps", fps)
+        object.__setattr__(self, "rotations", quats)
+        object.__setattr__(self, "root_positions", roots)
+
+    @property
+    def num_frames(self) -> int:
+        """F, the number of frames."""
+        return self.rotations.shape[0]
+
+    @property
+    def num_joints(self) -> int:
+        """J, the number of joints."""
+        return self.skeleton.num_joints
+
+    def rotation(self) -> Rotation:
+        """Local rotations as a scipy ``Rotation`` of shape (F, J)."""
+        return Rotation.from_quat(self.rotations)
+
+    def global_transforms(self) -> tuple[np.ndarray, np.ndarray]:
+        """Forward kinematics: global rotation matrices and positions of every joint.
+
+        Vectorized over frames; loops over joints only.
+
+        Returns
+        -------
+        matrices : ndarray, shape (F, J, 3, 3), float
+            Global rotation of each joint (joint frame to world).
+        positions : ndarray, shape (F, J, 3), float, cm
+        """
+        local = Rotation.from_quat(self.rotations.reshape(-1, 4)).as_matrix()
+        local = local.reshape(self.num_frames, self.num_joints, 3, 3)
+        skeleton = self.skeleton
+        matrices = np.empty_like(local)
+        positions = np.empty((self.num_frames, self.num_joints, 3))
+        matrices[:, 0] = local[:, 0]
+        positions[:, 0] = self.root_positions
+        for j in range(1, self.num_joints):
+            parent = skeleton.parents[j]
+            parent_matrix = matrices[:, parent]
+            matrices[:, j] = parent_matrix @ local[:, j]
+            positions[:, j] = positions[:, parent] + parent_matrix @ skeleton.offsets[j]
+        return matrices, positions
+
+    def positions(self) -> np.ndarray:
+        """Global joint positions by forward kinematics.
+
+        Returns
+        -------
+        ndarray, shape (F, J, 3), float, cm
+        """
+        return self.global_transforms()[1]
+
+    def end_site_positions(self) -> np.ndarray:
+        """Global positions of the skeleton's end sites.
+
+        Returns
+        -------
+        ndarray, shape (F, E, 3), float, cm
+        """
+        matrices, positions = self.global_transforms()
+        parents = self.skeleton.end_site_parents
+        return positions[:, parents] + np.einsum("fejk,ek->fej", matrices[:, parents], self.skeleton.end_site_offsets)
+
+    def slice(self, start: int, stop: int) -> "Motion":
+        """Frames ``start:stop`` as a new motion."""
+        if not 0 <= start < stop <= self.num_frames:
+            raise ValueError(f"Frame range {start}:{stop} is outside 0:{self.num_frames} or empty.")
+        return Motion(self.skeleton, self.fps, self.root_positions[start:stop], self.rotations[start:stop], self.name)
