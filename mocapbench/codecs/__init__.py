@@ -1,0 +1,30 @@
+"""Codecs: one interface (:class:`Codec`), one registry (:data:`CODECS`, :func:`create`).
+
+Importing this package imports every codec module in it so that the registry is full (a new codec module
+only needs ``@register_codec``). Codecs live inside the ``mocapbench`` package because a top-level ``codecs``
+package would shadow Python's standard ``codecs`` module.
+"""
+
+import importlib
+import pkgutil
+
+from mocapbench.codecs.base import BitstreamError, Codec, CodecConfig, Decoded, NotFittedError, param
+from mocapbench.codecs.registry import CODECS, codec_names, create, register_codec
+
+_INFRASTRUCTURE = {"base", "registry", "container", "skeleton_blob"}
+for _module in pkgutil.iter_modules(__path__):
+    if _module.name not in _INFRASTRUCTURE and not _module.name.startswith("_"):
+        importlib.import_module(f"{__name__}.{_module.name}")
+
+__all__ = [
+    "BitstreamError",
+    "Codec",
+    "CodecConfig",
+    "Decoded",
+    "NotFittedError",
+    "param",
+    "CODECS",
+    "codec_names",
+    "create",
+    "register_codec",
+]

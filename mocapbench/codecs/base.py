@@ -1,0 +1,218 @@
+"""The one codec interface: ``fit`` (optional), ``encode(motion) -> bytes``, ``decode(bytes) -> Decoded``.
+
+A codec writes only its payload; :meth:`Codec.encode` wraps it in the self-describing container
+(:mod:`mocapbench.codecs.container`) and :meth:`Codec.decode` checks the container before the payload is read.
+The rate of a codec is ``len(encode(motion))``. Learned state shared across clips is reported by
+:attr:`Codec.model_bytes`, never hidden.
+
+Configs are frozen dataclasses derived from :class:`CodecConfig`; declare fields with :func:`param` so that
+range, unit and meaning live beside the default and are checked on construction::
+
+    @dataclass(frozen=True)
+    class Config(CodecConfig):
+        step_cm: float = param(0.5, low=1e-6, high=100.0, unit="cm", doc="quantization step")
+"""
+
+from __future__ import annotations
+
+import abc
+import dataclasses
+import hashlib
+import json
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+import numpy as np
+
+from mocapbench.codecs import container
+from mocapbench.codecs.container import BitstreamError, Header
+from mocapbench.motion import Motion, Skeleton
+
+__all__ = ["Codec", "CodecConfig", "Decoded", "param", "BitstreamError", "Header", "NotFittedError"]
+
+
+class NotFittedError(RuntimeError):
+    """A codec that needs training state was used before :meth:`Codec.fit`."""
+
+
+def param(
+    default: Any,
+    *,
+    low: float | None = None,
+    high: float | None = None,
+    choices: Sequence[Any] | None = None,
+    unit: str = "",
+    doc: str = "",
+) -> Any:
+    """A config field with its allowed range (inclusive) or choices, unit and meaning."""
+    metadata = {"low": low, "high": high, "choices": tuple(choices) if choices else None, "unit": unit, "doc": doc}
+    return dataclasses.field(default=default, metadata=metadata)
+
+
+@dataclass(frozen=True)
+class CodecConfig:
+    """Base of every codec's frozen config: validates types and ranges of :func:`param` fields."""
+
+    def __post_init__(self) -> None:
+        owner = type(self).__qualname__.split(".")[0]
+        for field in dataclasses.fields(self):
+            value = getattr(self, field.name)
+            meta = field.metadata
+            kind = type(field.default) if field.default is not dataclasses.MISSING else None
+            if kind is float and isinstance(value, int) and not isinstance(value, bool):
+                value = float(value)
+                object.__setattr__(self, field.name, value)
+            if kind is tuple and isinstance(value, list):
+                value = tuple(value)
+                object.__setattr__(self, field.name, value)
+            if kind is not None and not isinstance(value, kind) or isinstance(value, bool) and kind is not bool:
+                raise ValueError(
+                    f"{owner}.{field.name} must be of type {kind.__name__}, got {value!r} ({type(value).__name__})."
+                )
+            unit = f" {meta.get('unit')}" if meta.get("unit") else ""
+            if meta.get("choices") is not None and value not in meta["choices"]:
+                raise ValueError(f"{owner}.{field.name} must be one of {list(meta['choices'])}, got {value!r}.")
+            low, high = meta.get("low"), meta.get("high")
+            if isinstance(value, (int, float)) and not isinstance(value, bool):
+                if not np.isfinite(value):
+                    raise ValueError(f"{owner}.{field.name} must be finite, got {value!r}.")
+                if (low is not None and value < low) or (high is not None and value > high):
+                    lo = "-inf" if low is None else low
+                    hi = "inf" if high is None else high
+                    raise ValueError(f"{owner}.{field.name} must be in [{lo}, {hi}]{unit}, got {value!r}.")
+
+    def as_dict(self) -> dict[str, Any]:
+        """Field values, for the results row."""
+        return dataclasses.asdict(self)
+
+    def config_hash(self) -> str:
+        """Short stable hash of the field values (ACL's ``get_hash``), for grouping results."""
+        text = json.dumps(self.as_dict(), sort_keys=True, default=str)
+        return hashlib.sha1(text.encode()).hexdigest()[:12]
+
+    @classmethod
+    def describe_fields(cls) -> str:
+        """One line per field: name, default, range/choices, unit, meaning."""
+        lines = []
+        for field in dataclasses.fields(cls):
+            meta = field.metadata
+            if meta.get("choices") is not None:
+                allowed = f"one of {list(meta['choices'])}"
+            else:
+                allowed = f"[{meta.get('low', '-inf')}, {meta.get('high', 'inf')}]"
+            unit = f" {meta['unit']}" if meta.get("unit") else ""
+            lines.append(f"{field.name} (default {field.default!r}, {allowed}{unit}): {meta.get('doc', '')}")
+        return "\n".join(lines)
+
+
+@dataclass(frozen=True, eq=False)
+class Decoded:
+    """What a decoder returns.
+
+    Attributes
+    ----------
+    positions : ndarray, shape (F, J, 3), float, cm
+        Decoded joint positions (always present).
+    motion : Motion or None
+        The full decoded motion (rotations) when the codec codes rotations, so it can be written as BVH.
+    header : Header
+        The container fields of the stream.
+    """
+
+    positions: np.ndarray
+    motion: Motion | None
+    header: Header
+
+
+class Codec(abc.ABC):
+    """Base class of every codec. Subclasses set ``name`` and ``Config`` and implement the payload methods.
+
+    Subclasses implement :meth:`encode_payload` (motion → payload bytes) and :meth:`decode_payload`
+    (header + payload → ``(positions, motion_or_None)``); this class adds the container, the checks and the
+    conversion of every low-level failure on corrupt input into :class:`BitstreamError`.
+    """
+
+    name: ClassVar[str]
+    Config: ClassVar[type[CodecConfig]]
+    codes_rotations: ClassVar[bool] = False
+    # A fast configuration and the L-inf bound (cm) it must meet on the synthetic fixture
+    # (tests/codecs/test_registry.py runs every registered codec with them).
+    smoke_params: ClassVar[dict[str, Any]] = {}
+    smoke_max_error_cm: ClassVar[float] = 1.0
+
+    def __init__(self, config: CodecConfig | None = None) -> None:
+        if config is None:
+            config = self.Config()
+        if not isinstance(config, self.Config):
+            raise TypeError(f"{self.name}: expected a {self.Config.__qualname__}, got {type(config).__name__}.")
+        self.config = config
+        # Extra columns for the results row from the last encode (e.g. the paper's own ratio, a training time).
+        self.last_encode_stats: dict[str, Any] = {}
+
+    # -- learned state ---------------------------------------------------------------------------------
+    def fit(self, motions: Sequence[Motion]) -> "Codec":
+        """Learn shared state from training motions. Default: nothing to learn."""
+        return self
+
+    @property
+    def model_bytes(self) -> int:
+        """Bytes of learned state shared across clips that a decoder needs beside the stream (0 if none)."""
+        return 0
+
+    # -- coding ----------------------------------------------------------------------------------------
+    def encode(self, motion: Motion) -> bytes:
+        """Encode ``motion`` into a self-describing bitstream; ``len()`` of the result is the rate."""
+        if not isinstance(motion, Motion):
+            raise TypeError(f"{self.name}: encode expects a Motion, got {type(motion).__name__}.")
+        self.last_encode_stats = {}
+        payload = self.encode_payload(motion)
+        return container.pack(self.name, motion.num_frames, motion.num_joints, motion.fps, payload)
+
+    def decode(self, data: bytes) -> Decoded:
+        """Decode a stream written by this codec from its bytes alone.
+
+        Raises
+        ------
+        BitstreamError
+            If the stream is malformed, truncated, corrupted or written by another codec.
+        """
+        header, payload = container.unpack(data, self.name)
+        try:
+            positions, motion = self.decode_payload(header, payload)
+        except BitstreamError:
+            raise
+        except (ValueError, IndexError, KeyError, OverflowError, EOFError, TypeError) as error:
+            # The CRC passed, so this is a stream that is well-formed outside but inconsistent inside.
+            raise BitstreamError(f"{self.name}: payload is inconsistent with its header: {error}") from error
+        positions = np.asarray(positions, dtype=np.float64)
+        expected = (header.num_frames, header.num_joints, 3)
+        if positions.shape != expected:
+            raise BitstreamError(f"{self.name}: decoded positions have shape {positions.shape}, expected {expected}.")
+        if not np.all(np.isfinite(positions)):
+            raise BitstreamError(f"{self.name}: decoded positions hold non-finite values.")
+        return Decoded(positions=positions, motion=motion, header=header)
+
+    @abc.abstractmethod
+    def encode_payload(self, motion: Motion) -> bytes:
+        """The codec's payload for ``motion`` (the container header is added by :meth:`encode`)."""
+
+    @abc.abstractmethod
+    def decode_payload(self, header: Header, payload: memoryview) -> tuple[np.ndarray, Motion | None]:
+        """Positions ``(F, J, 3)`` cm and, for rotation codecs, the decoded motion."""
+
+    def describe_payload(self, header: Header, payload: memoryview) -> dict[str, Any]:
+        """Human-readable facts about a payload for ``mocapbench inspect`` (default: none)."""
+        return {}
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}({self.config!r})"
+
+
+def require_skeleton_match(codec: str, expected: Skeleton, motion: Motion) -> None:
+    """Raise if ``motion`` is not on the skeleton a learned codec was fit on."""
+    if motion.num_joints != expected.num_joints:
+        raise ValueError(
+            f"{codec}: the codec was fit on {expected.num_joints} joints, the motion {motion.name!r} has "
+            f"{motion.num_joints}."
+        )

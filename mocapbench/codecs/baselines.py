@@ -1,0 +1,181 @@
+"""Generic baselines: what a user would pick instead of a research codec.
+
+* ``raw-zstd``: float32 joint positions through zstd, lossless. The floor every lossy codec must beat.
+* ``quant-delta-zstd``: positions uniformly quantized with a step in cm, delta-coded along time, zstd.
+  Its step sets the error (per coordinate ≤ step/2, so ≤ step·√3/2 per joint), giving a full RD curve.
+* ``quant-rot-zstd``: local rotations and root translation quantized and zstd-coded, decoded through FK;
+  the way game engines store clips. Each quaternion is made scalar-positive (``w >= 0``), its x, y, z are
+  range-reduced per joint over the clip and quantized to ``rotation_bits``, ``w`` is rebuilt from the unit
+  norm (ACL's "drop W" format, ``quatf_drop_w_variable``). Tracks constant over the clip cost no bits per frame.
+
+All three byte-plane the quantized integers per channel (time-major, delta-coded) before zstd, which is
+what makes a general-purpose compressor see the temporal coherence.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from mocapbench.codecs.base import Codec, CodecConfig, Header, param
+from mocapbench.codecs.registry import register_codec
+from mocapbench.codecs.skeleton_blob import pack_skeleton, unpack_skeleton
+from mocapbench.entropy.backend import zstd_compress, zstd_decompress
+from mocapbench.entropy.bitio import ByteReader, ByteWriter
+from mocapbench.entropy.errors import BitstreamError
+from mocapbench.motion import Motion
+
+__all__ = ["RawZstdCodec", "QuantDeltaZstdCodec", "QuantRotZstdCodec"]
+
+_ZSTD_LEVEL_DOC = "zstd compression level (higher: smaller and slower to encode; decode speed barely changes)"
+
+
+def _pack_int_tracks(values: np.ndarray, level: int) -> bytes:
+    """Delta-code int64 tracks along axis 0, zigzag them, store in the narrowest width, zstd the whole.
+
+    Parameters
+    ----------
+    values : ndarray, shape (F, C), int64
+        C integer tracks of F samples.
+    """
+    deltas = np.diff(values, axis=0, prepend=np.zeros((1, values.shape[1]), dtype=np.int64))
+    zigzag = ((deltas << 1) ^ (deltas >> 63)).astype(np.uint64)
+    peak = int(zigzag.max()) if zigzag.size else 0
+    width = next(w for w in (1, 2, 4, 8) if peak < 1 << (8 * w))
+    channels_first = np.ascontiguousarray(zigzag.T).astype(f"<u{width}")
+    return bytes([width]) + zstd_compress(channels_first.tobytes(), level=level)
+
+
+def _unpack_int_tracks(blob: bytes, num_frames: int, num_channels: int) -> np.ndarray:
+    """Inverse of :func:`_pack_int_tracks`: ``(F, C)`` int64."""
+    if len(blob) < 1 or blob[0] not in (1, 2, 4, 8):
+        raise BitstreamError(f"Integer tracks: expected a width byte of 1, 2, 4 or 8, found {bytes(blob[:1])!r}.")
+    width = blob[0]
+    expected = num_frames * num_channels * width
+    raw = zstd_decompress(bytes(blob[1:]), expected)
+    if len(raw) != expected:
+        raise BitstreamError(f"Integer tracks: expected {expected} bytes after zstd, found {len(raw)}.")
+    zigzag = np.frombuffer(raw, dtype=f"<u{width}").astype(np.uint64).reshape(num_channels, num_frames).T
+    deltas = (zigzag >> np.uint64(1)).astype(np.int64) ^ -(zigzag & np.uint64(1)).astype(np.int64)
+    return np.cumsum(deltas, axis=0)
+
+
+@register_codec
+class RawZstdCodec(Codec):
+    """Lossless float32 joint positions through zstd (the floor every lossy codec must beat)."""
+
+    name = "raw-zstd"
+    smoke_max_error_cm = 1e-3  # float32 rounding only
+
+    @dataclass(frozen=True)
+    class Config(CodecConfig):
+        zstd_level: int = param(19, low=1, high=22, doc=_ZSTD_LEVEL_DOC)
+
+    def encode_payload(self, motion: Motion) -> bytes:
+        positions = motion.positions().astype("<f4")
+        return zstd_compress(positions.tobytes(), level=self.config.zstd_level)
+
+    def decode_payload(self, header: Header, payload: memoryview):
+        expected = header.num_frames * header.num_joints * 12
+        raw = zstd_decompress(bytes(payload), expected)
+        if len(raw) != expected:
+            raise BitstreamError(f"raw-zstd: expected {expected} bytes of positions, found {len(raw)}.")
+        positions = np.frombuffer(raw, dtype="<f4").reshape(header.num_frames, header.num_joints, 3)
+        return positions.astype(np.float64), None
+
+
+@register_codec
+class QuantDeltaZstdCodec(Codec):
+    """Uniformly quantized positions, delta-coded along time, zstd: the generic lossy baseline."""
+
+    name = "quant-delta-zstd"
+    smoke_params = {"step_cm": 0.1}
+    smoke_max_error_cm = 0.1 * 3**0.5 / 2 + 1e-9  # step/2 per coordinate
+
+    @dataclass(frozen=True)
+    class Config(CodecConfig):
+        step_cm: float = param(0.1, low=1e-4, high=100.0, unit="cm", doc="quantization step of each coordinate")
+        zstd_level: int = param(19, low=1, high=22, doc=_ZSTD_LEVEL_DOC)
+
+    def encode_payload(self, motion: Motion) -> bytes:
+        positions = motion.positions()
+        step = self.config.step_cm
+        indices = np.rint(positions.reshape(motion.num_frames, -1) / step).astype(np.int64)
+        writer = ByteWriter()
+        writer.write_array(np.array([step]), np.float64)
+        writer.write_blob(_pack_int_tracks(indices, self.config.zstd_level))
+        return writer.getvalue()
+
+    def decode_payload(self, header: Header, payload: memoryview):
+        reader = ByteReader(payload)
+        step = float(reader.read_array(1, np.float64, "step")[0])
+        if not (step > 0 and np.isfinite(step)):
+            raise BitstreamError(f"quant-delta-zstd: expected a positive step, found {step}.")
+        indices = _unpack_int_tracks(reader.read_blob("positions"), header.num_frames, header.num_joints * 3)
+        reader.expect_end()
+        return (indices * step).reshape(header.num_frames, header.num_joints, 3), None
+
+    def describe_payload(self, header: Header, payload: memoryview):
+        return {"step_cm": float(ByteReader(payload).read_array(1, np.float64, "step")[0])}
+
+
+@register_codec
+class QuantRotZstdCodec(Codec):
+    """Quantized local rotations (drop-W quaternions) and root translation, zstd, decoded through FK."""
+
+    name = "quant-rot-zstd"
+    codes_rotations = True
+    smoke_params = {"rotation_bits": 12, "translation_step_cm": 0.05}
+    smoke_max_error_cm = 0.5
+
+    @dataclass(frozen=True)
+    class Config(CodecConfig):
+        rotation_bits: int = param(12, low=2, high=24, unit="bits", doc="bits per quaternion x, y, z over its range")
+        translation_step_cm: float = param(0.05, low=1e-4, high=100.0, unit="cm", doc="root translation step")
+        zstd_level: int = param(19, low=1, high=22, doc=_ZSTD_LEVEL_DOC)
+
+    def encode_payload(self, motion: Motion) -> bytes:
+        quats = motion.rotations * np.where(motion.rotations[..., 3:] < 0, -1.0, 1.0)  # w >= 0
+        xyz = quats[..., :3].reshape(motion.num_frames, -1)  # (F, 3J)
+        # Bounds rounded to float32 first: the decoder sees exactly the grid the encoder used.
+        low = xyz.min(axis=0).astype(np.float32).astype(np.float64)
+        high = xyz.max(axis=0).astype(np.float32).astype(np.float64)
+        levels = (1 << self.config.rotation_bits) - 1
+        scale = np.where(high > low, (high - low) / levels, 1.0)
+        rotation_indices = np.rint((xyz - low) / scale).astype(np.int64)
+        step = self.config.translation_step_cm
+        root_indices = np.rint(motion.root_positions / step).astype(np.int64)
+        writer = ByteWriter()
+        writer.write_bytes(pack_skeleton(motion.skeleton))
+        writer.write_array(np.array([step]), np.float64)
+        writer.write_varint(self.config.rotation_bits)
+        writer.write_array(low, np.float32)
+        writer.write_array(high, np.float32)
+        writer.write_blob(_pack_int_tracks(np.concatenate([root_indices, rotation_indices], axis=1), self.config.zstd_level))
+        return writer.getvalue()
+
+    def decode_payload(self, header: Header, payload: memoryview):
+        reader = ByteReader(payload)
+        skeleton = unpack_skeleton(reader)
+        if skeleton.num_joints != header.num_joints:
+            raise BitstreamError(f"quant-rot-zstd: header says {header.num_joints} joints, skeleton has {skeleton.num_joints}.")
+        step = float(reader.read_array(1, np.float64, "translation step")[0])
+        bits = reader.read_varint("rotation bits")
+        if not (step > 0 and np.isfinite(step)) or not 2 <= bits <= 24:
+            raise BitstreamError(f"quant-rot-zstd: expected step > 0 and 2..24 bits, found {step}, {bits}.")
+        channels = 3 * header.num_joints
+        low = reader.read_array(channels, np.float32, "rotation minima").astype(np.float64)
+        high = reader.read_array(channels, np.float32, "rotation maxima").astype(np.float64)
+        tracks = _unpack_int_tracks(reader.read_blob("tracks"), header.num_frames, 3 + channels)
+        reader.expect_end()
+        scale = np.where(high > low, (high - low) / ((1 << bits) - 1), 1.0)
+        xyz = (low + tracks[:, 3:] * scale).reshape(header.num_frames, header.num_joints, 3)
+        w = np.sqrt(np.clip(1.0 - np.sum(xyz**2, axis=-1, keepdims=True), 0.0, None))
+        motion = Motion(
+            skeleton=skeleton,
+            fps=header.fps,
+            root_positions=tracks[:, :3] * step,
+            rotations=np.concatenate([xyz, w], axis=-1),
+        )
+        return motion.positions(), motion

@@ -1,0 +1,1 @@
+"""Experiments: the evaluation row, Hydra sweeps, aggregation and reports."""
