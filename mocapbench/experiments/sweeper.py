@@ -1,0 +1,215 @@
+"""The benchmark's Hydra sweeper: the basic sweeper's grids, a union of every codec's curve, stable job folders, resume.
+
+Hydra's basic sweeper runs one cartesian grid. A benchmark wants the *union* of one grid per codec (a quantization
+step for one, a rank for another), so ``sweep=all`` sets ``hydra.sweeper.union: true`` and this sweeper builds,
+for every registered codec, the grid that its own ``configs/sweep/rd_<name>.yaml`` declares (composed through
+Hydra, so a codec added later with its two yaml files joins ``sweep=all`` without any change here). The
+command-line overrides (``dataset=cmu_test``, or a sweep like ``dataset=cmu_test,synthetic``) apply to every job.
+
+Each job writes into ``<sweep dir>/<codec>/<its varying overrides>`` instead of ``<sweep dir>/<job number>``,
+so a sweep that is killed and re-run with the same ``hydra.sweep.dir`` finds the folders of the jobs that
+finished (``job.json`` with ``"status": "done"``) and does not launch them again; a half-finished job resumes
+clip by clip (:mod:`mocapbench.experiments.run`).
+
+Selected with ``override hydra/sweeper: mocapbench`` in ``configs/benchmark.yaml``.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import itertools
+import json
+import logging
+import re
+import time
+from collections import OrderedDict
+from pathlib import Path
+from typing import Any, Sequence
+
+from hydra._internal.core_plugins.basic_sweeper import BasicSweeper
+from hydra.core.override_parser.overrides_parser import OverridesParser
+from hydra.core.override_parser.types import Override
+from hydra.types import RunMode
+from omegaconf import OmegaConf
+
+__all__ = ["RdSweeper", "job_folder", "is_job_done", "JOB_FILE"]
+
+log = logging.getLogger(__name__)
+
+JOB_FILE = "job.json"
+_MAX_SLUG = 100
+
+
+def job_folder(codec: str, varying: Sequence[str]) -> str:
+    """The job's folder below the sweep dir: ``<codec>/<k=v,...>`` of its varying overrides (``default`` if none).
+
+    Characters outside ``[A-Za-z0-9._=,+-]`` become ``_``; a slug longer than 100 characters is shortened and
+    suffixed with a hash of the full text, so distinct jobs never share a folder.
+    """
+    text = ",".join(sorted(varying)) or "default"
+    slug = re.sub(r"[^A-Za-z0-9._=,+-]", "_", text)
+    if len(slug) > _MAX_SLUG:
+        slug = slug[: _MAX_SLUG - 13] + "-" + hashlib.sha1(text.encode()).hexdigest()[:12]
+    return f"{re.sub(r'[^A-Za-z0-9._+-]', '_', codec)}/{slug}"
+
+
+def is_job_done(folder: Path) -> bool:
+    """Whether the job folder holds a finished job (``job.json`` says done)."""
+    try:
+        return json.loads((folder / JOB_FILE).read_text()).get("status") == "done"
+    except (OSError, ValueError):
+        return False
+
+
+def _evenly(items: list[Any], count: int | None) -> list[Any]:
+    """At most ``count`` items spread evenly over ``items``, the first and the last included."""
+    if count is None or count <= 0 or len(items) <= count:
+        return items
+    if count == 1:
+        return [items[len(items) // 2]]
+    picks = sorted({round(i * (len(items) - 1) / (count - 1)) for i in range(count)})
+    return [items[i] for i in picks]
+
+
+class RdSweeper(BasicSweeper):
+    """Basic sweeper + ``union`` of every codec's ``rd_<name>`` grid + stable job folders + skipping finished jobs.
+
+    Parameters
+    ----------
+    max_batch_size : int or None
+        Jobs handed to the launcher at once (progress is reported per batch).
+    params : dict or None
+        The grid, as the basic sweeper's ``hydra.sweeper.params`` (what ``rd_<name>.yaml`` sets).
+    union : bool
+        Run the union of every registered codec's ``rd_<name>`` grid (``sweep=all``).
+    codecs : list of str or None
+        With ``union``: only these codecs (default: every registered codec).
+    exclude : list of str
+        With ``union``: codecs to leave out.
+    max_points : int or None
+        Keep at most this many evenly spread points of each codec's grid (``sweep=small``).
+    skip_done : bool
+        Do not launch jobs whose folder already holds a finished job.
+    """
+
+    def __init__(
+        self,
+        max_batch_size: int | None = None,
+        params: dict[str, str] | None = None,
+        union: bool = False,
+        codecs: Sequence[str] | None = None,
+        exclude: Sequence[str] = (),
+        max_points: int | None = None,
+        skip_done: bool = True,
+    ) -> None:
+        super().__init__(max_batch_size=max_batch_size, params=params)
+        self.union = bool(union)
+        self.codecs = list(codecs) if codecs else None
+        self.exclude = list(exclude or ())
+        self.max_points = max_points
+        self.skip_done = skip_done
+        self.skipped: list[str] = []
+
+    # -- job list --------------------------------------------------------------------------------------
+    def _parser(self) -> OverridesParser:
+        return OverridesParser.create(config_loader=self.hydra_context.config_loader)
+
+    def _grid(self, texts: Sequence[str]) -> list[list[str]]:
+        """Cartesian product of parsed overrides (one list of ``k=v`` strings per point)."""
+        overrides = self._parser().parse_overrides(list(texts))
+        return self.split_arguments(overrides, None)[0] if overrides else [[]]
+
+    def _rd_params(self, codec: str) -> dict[str, str] | None:
+        """``hydra.sweeper.params`` of ``configs/sweep/rd_<codec>.yaml``, or None if that file is missing."""
+        loader = self.hydra_context.config_loader
+        option = f"rd_{codec}"
+        if not loader.repository.group_exists("sweep") or option not in loader.get_group_options("sweep"):
+            return None
+        cfg = loader.load_configuration(
+            config_name=self.config.hydra.job.config_name, overrides=[f"sweep={option}"], run_mode=RunMode.MULTIRUN
+        )
+        params = cfg.hydra.sweeper.get("params") or {}
+        return {str(key): str(value) for key, value in OmegaConf.to_container(params).items()}
+
+    def build_jobs(self, arguments: list[str]) -> list[tuple[str, list[str]]]:
+        """Every job as ``(folder, overrides)``, folder relative to the sweep dir."""
+        parsed: list[Override] = self._parser().parse_overrides(list(arguments))
+        fixed = [a for a, o in zip(arguments, parsed) if not o.is_sweep_override()]
+        swept = [a for a, o in zip(arguments, parsed) if o.is_sweep_override()]
+        codec_arg = [o for o in parsed if o.get_key_element() == "codec"]
+        jobs: list[tuple[str, list[str]]] = []
+        if not self.union:
+            codec = self.config.codec.name if "codec" in self.config else "job"
+            if codec_arg and not codec_arg[0].is_sweep_override():
+                codec = codec_arg[0].get_value_element_as_str()
+            params = [f"{k}={v}" for k, v in (self.params or {}).items()]
+            points = _evenly(self._grid(params + swept), self.max_points)
+            for point in points:
+                names = [p for p in point if p.split("=", 1)[0] == "codec"]
+                name = names[0].split("=", 1)[1] if names else codec
+                jobs.append((job_folder(name, [p for p in point if p not in names]), [*fixed, *point]))
+            return jobs
+        from mocapbench.codecs import codec_names
+
+        fixed = [a for a, o in zip(arguments, parsed) if not o.is_sweep_override() and o.get_key_element() != "sweep"]
+        names = self.codecs or codec_names()
+        if codec_arg:  # `codec=a,b` on the command line restricts the union to those codecs
+            wanted = [v for o in codec_arg for v in (o.sweep_string_iterator() if o.is_sweep_override() else [o.get_value_element_as_str()])]
+            names = [n for n in names if n in wanted]
+            fixed = [a for a in fixed if not a.startswith("codec=")]
+            swept = [a for a in swept if not a.startswith("codec=")]
+        for name in names:
+            if name in self.exclude:
+                continue
+            if name not in self.hydra_context.config_loader.get_group_options("codec"):
+                log.warning("codec %s is registered but has no configs/codec/%s.yaml: left out of the sweep", name, name)
+                continue
+            rd = self._rd_params(name)
+            if rd is None:
+                log.warning("codec %s has no configs/sweep/rd_%s.yaml: running its default config only", name, name)
+                selector, params = f"codec={name}", []
+            else:
+                selector, params = f"sweep=rd_{name}", [f"{k}={v}" for k, v in rd.items()]
+            points = _evenly(self._grid(params), self.max_points)
+            for point, extra in itertools.product(points, self._grid(swept)):
+                jobs.append((job_folder(name, [*point, *extra]), [selector, *fixed, *point, *extra]))
+        return jobs
+
+    # -- running ---------------------------------------------------------------------------------------
+    def sweep(self, arguments: list[str]) -> Any:
+        assert self.config is not None and self.launcher is not None and self.hydra_context is not None
+        sweep_dir = Path(self.config.hydra.sweep.dir)
+        sweep_dir.mkdir(parents=True, exist_ok=True)
+        OmegaConf.save(self.config, sweep_dir / "multirun.yaml")
+        jobs = self.build_jobs(arguments)
+        seen: OrderedDict[str, list[str]] = OrderedDict()
+        for folder, overrides in jobs:
+            if folder in seen:
+                raise ValueError(f"two jobs of the sweep map to the same folder {folder!r}: {seen[folder]} and {overrides}")
+            seen[folder] = overrides
+        todo = []
+        for folder, overrides in jobs:
+            if self.skip_done and is_job_done(sweep_dir / folder):
+                self.skipped.append(folder)
+                continue
+            todo.append([*overrides, f"hydra.sweep.subdir='{folder}'"])
+        (sweep_dir / "jobs.json").write_text(json.dumps([{"folder": f, "overrides": o} for f, o in jobs], indent=1))
+        log.info("sweep %s: %d jobs, %d already done, %d to run", sweep_dir, len(jobs), len(self.skipped), len(todo))
+        from tqdm import tqdm
+
+        size = self.max_batch_size or len(todo) or 1
+        batches = [todo[i : i + size] for i in range(0, len(todo), size)]
+        returns = []
+        index = 0
+        with tqdm(total=len(todo), desc="jobs", unit="job", disable=None) as progress:
+            for batch in batches:
+                tic = time.perf_counter()
+                self.validate_batch_is_legal(batch)
+                log.debug("validated %d jobs in %.2f s", len(batch), time.perf_counter() - tic)
+                results = self.launcher.launch(batch, initial_job_idx=index)
+                for result in results:
+                    _ = result.return_value  # re-raises a job's exception (jobs catch their own errors)
+                index += len(batch)
+                progress.update(len(batch))
+                returns.append(results)
+        return returns
