@@ -9,9 +9,10 @@ A dataset config is a plain mapping with a ``kind``:
     ``split`` (``cmu_train``, ``cmu_test``, ``cmu_all``) or an explicit ``clips`` list (e.g. ``[09_06]``) read
     from ASF/AMC under ``data_dir``; ``train`` names a split or a clip list in the same form.
 ``folder``
-    Every ``*.bvh`` and ``*.amc`` file under ``path`` (an AMC needs its subject's ``.asf`` in the same folder or
-    its parent); ``train`` another folder (``train: {kind: folder, path: ...}``) or ``null`` to fit learned
-    codecs on the measured clips themselves (stated in the report as in-sample).
+    Every ``*.bvh`` and ``*.amc`` file in the folder ``path`` (:func:`mocapbench.datasets.cmu.load_folder`: an AMC
+    is read on the folder's ASF; ``length_unit_cm``, ``drop_first_frame`` and ``fps`` are passed on); ``train``
+    another folder (``train: {path: ...}``) or ``null`` to fit learned codecs on the measured clips themselves
+    (stated in the report as in-sample).
 
 Loaded clips are cached per process, so the jobs of a sweep that a worker runs one after another parse them once.
 """
@@ -160,45 +161,35 @@ def _synthetic(spec: Mapping[str, Any], where: str) -> list[Motion]:
     return [sinusoidal_motion(seed=int(seed), **extra) for seed in seeds]
 
 
+def _resolve_data_dir(value: Any) -> Path | None:
+    """``data_dir`` of the config; a relative path is taken from the working directory, else the repository root."""
+    if value is None:
+        return None
+    path = Path(str(value)).expanduser()
+    if not path.is_absolute() and not path.exists():
+        from_repo = Path(__file__).resolve().parents[2] / path
+        if from_repo.exists():
+            return from_repo
+    return path
+
+
 def _cmu(spec: Mapping[str, Any], where: str) -> list[Motion]:
     from mocapbench.datasets import cmu
 
-    data_dir = cmu.cmu_data_dir(spec.get("data_dir"))
+    data_dir = cmu.cmu_data_dir(_resolve_data_dir(spec.get("data_dir")))
     split, clips = spec.get("split"), spec.get("clips")
     if (split is None) == (clips is None):
         raise DatasetError(f"dataset {where}: give exactly one of `split` or `clips`, got split={split!r}, clips={clips!r}.")
+    fmt = str(spec.get("format", "amc"))
     if split is not None:
-        return list(cmu.load_split(str(split), data_dir))
-    return [cmu.load_clip(str(clip), data_dir) for clip in clips]
+        return list(cmu.load_split(str(split), fmt=fmt, data_dir=data_dir))
+    return [cmu.load_clip(str(clip), fmt=fmt, data_dir=data_dir) for clip in clips]
 
 
 def _folder(spec: Mapping[str, Any], where: str) -> list[Motion]:
-    from mocapbench.io import read_amc, read_asf, read_bvh
+    from mocapbench.datasets import cmu
 
-    root = Path(str(_require(spec, "path", where))).expanduser()
-    if not root.is_dir():
-        raise DatasetError(f"dataset {where}: `path` {str(root)!r} is not a folder of BVH/AMC files.")
-    motions: list[Motion] = []
-    for path in sorted(root.rglob("*")):
-        suffix = path.suffix.lower()
-        if suffix == ".bvh":
-            motions.append(read_bvh(path))
-        elif suffix == ".amc":
-            asf = _find_asf(path)
-            motions.append(read_amc(path, read_asf(asf)))
-    if not motions:
-        raise DatasetError(f"dataset {where}: no *.bvh or *.amc file under {str(root)!r}.")
-    return motions
-
-
-def _find_asf(amc: Path) -> Path:
-    """The subject's ASF for ``SS_TT.amc``: ``SS.asf`` beside it or in its parent, else the only ASF beside it."""
-    subject = amc.stem.split("_")[0]
-    for folder in (amc.parent, amc.parent.parent):
-        candidate = folder / f"{subject}.asf"
-        if candidate.exists():
-            return candidate
-    beside = sorted(amc.parent.glob("*.asf"))
-    if len(beside) == 1:
-        return beside[0]
-    raise DatasetError(f"{amc}: no skeleton {subject}.asf beside it or in its parent folder.")
+    path = Path(str(_require(spec, "path", where))).expanduser()
+    return list(cmu.load_folder(path, length_unit_cm=float(spec.get("length_unit_cm", 1.0)),
+                                drop_first_frame=bool(spec.get("drop_first_frame", False)),
+                                fps=float(spec.get("fps", 120.0))))

@@ -1,0 +1,138 @@
+"""Read one or more sweep folders (every ``results.jsonl`` below them) into one pandas DataFrame.
+
+Usage: ``python -m mocapbench.experiments.aggregate SWEEP_DIR... [--csv out.csv]`` prints a summary per codec.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+from typing import Iterable
+
+import numpy as np
+import pandas as pd
+
+from mocapbench.experiments.document import markdown_table
+from mocapbench.experiments.run import ERRORS_FILE, RESULTS_FILE, read_rows
+
+__all__ = ["aggregate", "read_errors", "curve_points", "AggregateError"]
+
+
+class AggregateError(ValueError):
+    """No results where results were expected (the message names the folders)."""
+
+
+def _result_files(folders: Iterable[str | Path], name: str) -> list[Path]:
+    files: list[Path] = []
+    for folder in folders:
+        folder = Path(folder)
+        if folder.is_file() and folder.name == name:
+            files.append(folder)
+        elif folder.is_dir():
+            files.extend(sorted(folder.rglob(name)))
+        elif name == RESULTS_FILE:
+            raise AggregateError(f"{folder}: no such sweep folder or {RESULTS_FILE} file.")
+    return files
+
+
+def aggregate(folders: Iterable[str | Path]) -> pd.DataFrame:
+    """Every results row below ``folders``, one DataFrame, with ``sweep_dir`` (the folder given) added.
+
+    Rows repeated across folders (same codec, config hash, dataset, clip and job folder) are kept once.
+
+    Raises
+    ------
+    AggregateError
+        A folder does not exist or no folder holds a single row.
+    """
+    folders = list(folders)
+    frames = []
+    for folder in folders:
+        for path in _result_files([folder], RESULTS_FILE):
+            rows = read_rows(path)
+            if rows:
+                frame = pd.DataFrame(rows)
+                frame["sweep_dir"] = str(folder)
+                frame["job_dir"] = str(path.parent)
+                frames.append(frame)
+    if not frames:
+        raise AggregateError(f"no {RESULTS_FILE} rows under {[str(f) for f in folders]}.")
+    data = pd.concat(frames, ignore_index=True, sort=False)
+    if "dataset" not in data:
+        data["dataset"] = "unknown"
+    data["dataset"] = data["dataset"].fillna("unknown")
+    key = [c for c in ("codec", "config_hash", "dataset", "clip", "job_dir") if c in data]
+    return data.drop_duplicates(subset=key, keep="last").reset_index(drop=True)
+
+
+def read_errors(folders: Iterable[str | Path]) -> pd.DataFrame:
+    """Every ``errors.jsonl`` record below ``folders`` (empty DataFrame if there is none)."""
+    records = []
+    for path in _result_files(folders, ERRORS_FILE):
+        for record in read_rows(path):
+            record["job_dir"] = str(path.parent)
+            records.append(record)
+    return pd.DataFrame(records)
+
+
+def curve_points(data: pd.DataFrame) -> pd.DataFrame:
+    """One point per (dataset, codec, config) over the clips of the dataset.
+
+    Rate is pooled (total bytes over total joint-frames, so long clips weigh more, as a whole dataset would be
+    stored); ``max_err_cm`` is the worst clip's L-inf, ``p99_err_cm`` the worst clip's p99, ``mean_err_cm`` and
+    ``kg_percent`` frame-weighted means; speeds are total frames over total seconds. ``clips`` counts the clips;
+    a config that failed on some clip of the dataset has fewer clips than the others and is flagged in
+    ``complete``.
+    """
+    if data.empty:
+        return data.copy()
+    frame = data.copy()
+    frame["_joint_frames"] = frame["frames"] * frame["joints"]
+    for column in ("mean_err_cm", "kg_percent"):
+        frame[f"_w_{column}"] = frame[column] * frame["frames"]
+    groups = frame.groupby(["dataset", "codec", "config_hash"], sort=True, dropna=False)
+    params = [c for c in frame.columns if c.startswith("param_")]
+    out = groups.agg(
+        clips=("clip", "nunique"),
+        frames=("frames", "sum"),
+        raw_bytes=("raw_bytes", "sum"),
+        bitstream_bytes=("bitstream_bytes", "sum"),
+        model_bytes=("model_bytes", "max"),
+        joint_frames=("_joint_frames", "sum"),
+        max_err_cm=("max_err_cm", "max"),
+        p99_err_cm=("p99_err_cm", "max"),
+        max_err_percent_height=("max_err_percent_height", "max"),
+        w_mean=("_w_mean_err_cm", "sum"),
+        w_kg=("_w_kg_percent", "sum"),
+        encode_s=("encode_s", "sum"),
+        decode_s=("decode_s", "sum"),
+        **{c: (c, "first") for c in params},
+    ).reset_index()
+    out["compression_ratio"] = out["raw_bytes"] / out["bitstream_bytes"]
+    out["bits_per_joint_frame"] = 8 * out["bitstream_bytes"] / out["joint_frames"]
+    out["mean_err_cm"] = out["w_mean"] / out["frames"]
+    out["kg_percent"] = out["w_kg"] / out["frames"]
+    out["encode_fps"] = out["frames"] / out["encode_s"].replace(0, np.nan)
+    out["decode_fps"] = out["frames"] / out["decode_s"].replace(0, np.nan)
+    most = out.groupby("dataset")["clips"].transform("max")
+    out["complete"] = out["clips"] == most
+    return out.drop(columns=["w_mean", "w_kg"])
+
+
+def _main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("folders", nargs="+", help="sweep folders (or results.jsonl files)")
+    parser.add_argument("--csv", help="write every row to this CSV file")
+    args = parser.parse_args(argv)
+    data = aggregate(args.folders)
+    if args.csv:
+        data.to_csv(args.csv, index=False)
+    points = curve_points(data)
+    columns = ["dataset", "codec", "clips", "compression_ratio", "bits_per_joint_frame", "max_err_cm", "mean_err_cm"]
+    print(markdown_table(points[columns]))
+    print(json.dumps({"rows": len(data), "configs": len(points)}))
+
+
+if __name__ == "__main__":
+    _main()

@@ -1,0 +1,107 @@
+"""``make run`` and ``make bench``: run the sweeps, write the report, print the headline table and the report path.
+
+``python -m mocapbench.experiments.main``
+    The small benchmark (``make run``): every registered codec at a few points of its RD curve
+    (``sweep=small``) on the embedded synthetic clips, plus the real CMU clip 09_06 when the CMU data folder
+    exists (otherwise one line says so and the run goes on).
+``python -m mocapbench.experiments.main --cmu``
+    The CMU benchmark (``make bench``): ``sweep=all`` over ``cmu_test`` (learned state fit on ``cmu_train``).
+
+Each sweep runs as its own ``python -m mocapbench.experiments.run -m ...`` process (Hydra owns its process);
+``--resume DIR`` re-runs into an existing sweep root, skipping the finished jobs.
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime as _dt
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+__all__ = ["main", "cmu_available"]
+
+
+def cmu_available(data_dir: str | None) -> tuple[bool, str]:
+    """Whether the CMU data folder can be used, and the folder (or the reason it cannot)."""
+    try:
+        from mocapbench.datasets.cmu import cmu_data_dir
+    except ImportError as error:  # the CMU loader is not installed in this checkout
+        return False, f"the CMU loader is unavailable ({error})"
+    try:
+        return True, str(cmu_data_dir(data_dir))
+    except Exception as error:  # noqa: BLE001 - DataNotFoundError, or anything else that says why
+        return False, str(error)
+
+
+def _sweep(root: Path, name: str, overrides: list[str]) -> tuple[Path, int]:
+    folder = root / name
+    command = [sys.executable, "-m", "mocapbench.experiments.run", "-m", *overrides, f"hydra.sweep.dir={folder}"]
+    print("$ " + " ".join(command[1:]), flush=True)
+    return folder, subprocess.run(command).returncode
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--cmu", action="store_true", help="the CMU benchmark (sweep=all over cmu_test)")
+    parser.add_argument("--data-dir", default=None, help="CMU data folder (default: the config's data_dir)")
+    parser.add_argument("--resume", help="an existing sweep root to continue (skips finished jobs)")
+    parser.add_argument("--reports-root", default="reports")
+    parser.add_argument("--max-points", type=int, default=None, help="RD points per codec (make run: 3)")
+    parser.add_argument("extra", nargs="*", help="more Hydra overrides for every sweep")
+    args = parser.parse_args(argv)
+    start = time.perf_counter()
+    stamp = f"{_dt.datetime.now():%Y-%m-%d-%H%M%S}"
+    kind = "bench" if args.cmu else "run"
+    root = Path(args.resume) if args.resume else Path("multirun") / f"{stamp}-{kind}"
+    common = list(args.extra)
+    if args.data_dir:
+        common.append(f"data_dir={args.data_dir}")
+    if args.max_points:
+        common.append(f"hydra.sweeper.max_points={args.max_points}")
+    folders, failures = [], 0
+    if args.cmu:
+        ok, where = cmu_available(args.data_dir)
+        if not ok:
+            print(f"make bench needs the CMU clips: {where}", file=sys.stderr)
+            return 2
+        folder, code = _sweep(root, "cmu_test", ["sweep=all", "dataset=cmu_test", *common])
+        folders.append(folder)
+        failures += code != 0
+    else:
+        folder, code = _sweep(root, "synthetic", ["sweep=small", "dataset=synthetic", *common])
+        folders.append(folder)
+        failures += code != 0
+        ok, where = cmu_available(args.data_dir)
+        if ok:
+            folder, code = _sweep(root, "cmu_09_06", ["sweep=small", "dataset=cmu_09_06", *common])
+            folders.append(folder)
+            failures += code != 0
+        else:
+            print(f"CMU data not found, running on synthetic data only ({where})", flush=True)
+    sweep_s = time.perf_counter() - start
+    from mocapbench.experiments.aggregate import aggregate, curve_points
+    from mocapbench.experiments.document import markdown_table
+    from mocapbench.experiments.report import build_report, headline_table
+
+    present = [f for f in folders if any(f.rglob("results.jsonl"))]
+    if not present:
+        print("no results were written; see the sweep logs above", file=sys.stderr)
+        return 1
+    command = "make bench" if args.cmu else "make run"
+    report = build_report(present, name=kind, reports_root=args.reports_root,
+                          command=f"{command}  # = python -m mocapbench.experiments.main {' '.join(argv or sys.argv[1:])}")
+    headline = headline_table(curve_points(aggregate(present)))
+    print()
+    print(markdown_table(headline))
+    print()
+    total = time.perf_counter() - start
+    print(f"sweeps {sweep_s:.0f} s, total {total:.0f} s on {os.cpu_count()} cores; results in {root}")
+    print(f"report: {report / 'index.html'} (and {report / 'report.md'})")
+    return 1 if failures else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
