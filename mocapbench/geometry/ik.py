@@ -198,8 +198,15 @@ class GeodesicIK:
 
     # -- solver -------------------------------------------------------------------------------------
     def solve(
-        self, target: np.ndarray, x_prev: np.ndarray, lam: float, iterations: int, *, tol: float = 1e-10
-    ) -> np.ndarray:
+        self,
+        target: np.ndarray,
+        x_prev: np.ndarray,
+        lam: float,
+        iterations: int,
+        *,
+        tol: float = 1e-5,
+        start: tuple[np.ndarray, np.ndarray] | None = None,
+    ) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray]]:
         """One frame: Levenberg–Marquardt on ``||f(x) - y0||^2 + lam ||x - x_prev||^2`` from ``x_prev``.
 
         Parameters
@@ -212,22 +219,27 @@ class GeodesicIK:
             Weight of the smoothness term (the paper uses 1).
         iterations : int
             Maximum LM iterations (each costs one evaluation of f and its Jacobian).
+        tol : float
+            Stop once an accepted step is shorter than this (max-norm, units of x).
+        start : (ends (d, 3), jacobian (3d, k)), optional
+            f and its Jacobian at ``x_prev`` if known (the previous frame's result): saves one evaluation.
 
         Returns
         -------
-        ndarray, shape (k,)
+        x : ndarray, shape (k,)
+        state : (ends, jacobian) at x, to pass as ``start`` to the next frame.
         """
         y0 = np.asarray(target, dtype=np.float64).reshape(-1)
         anchor = np.asarray(x_prev, dtype=np.float64)
         x = anchor.copy()
-        ends, jac = self._evaluate(x, True)
+        ends, jac = self._evaluate(x, True) if start is None else start
         residual = ends.reshape(-1) - y0
         cost = residual @ residual  # x = x_prev: the smoothness term is 0
         damping = 1e-3
-        identity = np.eye(self.num_geodesics)
+        regularizer = lam * np.eye(self.num_geodesics)
         for _ in range(iterations):
+            hessian = jac.T @ jac + regularizer
             gradient = jac.T @ residual + lam * (x - anchor)
-            hessian = jac.T @ jac + lam * identity
             step = np.linalg.solve(hessian + damping * np.diag(np.diag(hessian)), -gradient)
             trial = x + step
             trial_ends, trial_jac = self._evaluate(trial, True)
@@ -235,13 +247,13 @@ class GeodesicIK:
             delta = trial - anchor
             trial_cost = trial_residual @ trial_residual + lam * (delta @ delta)
             if trial_cost < cost:
-                x, jac, residual, cost = trial, trial_jac, trial_residual, trial_cost
+                x, ends, jac, residual, cost = trial, trial_ends, trial_jac, trial_residual, trial_cost
                 damping = max(damping * 0.3, 1e-9)
-                if step @ step < tol:
+                if np.max(np.abs(step)) < tol:
                     break
             else:
                 damping *= 10.0
-        return x
+        return x, (ends, jac)
 
     def solve_sequence(
         self, targets: np.ndarray, lam: float, iterations: int, first_iterations: int | None = None
@@ -266,9 +278,10 @@ class GeodesicIK:
             raise ValueError(f"Expected `targets` of shape (F, {len(self.end_joints)}, 3), got {targets.shape}.")
         out = np.zeros((targets.shape[0], self.num_geodesics))
         x = np.zeros(self.num_geodesics)
+        state = None
         first = 10 * iterations if first_iterations is None else first_iterations
         for frame in range(targets.shape[0]):
             # Frame 0 is anchored at the mean pose (x = 0), every later frame at its predecessor.
-            x = self.solve(targets[frame], x, lam, first if frame == 0 else iterations)
+            x, state = self.solve(targets[frame], x, lam, first if frame == 0 else iterations, start=state)
             out[frame] = x
         return out
