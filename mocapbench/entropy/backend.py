@@ -1,0 +1,156 @@
+"""General-purpose back ends: zstd and raw LZMA2 over whole byte payloads.
+
+Baseline codecs compress their serialized payload with these; structured codecs may run them over a Huffman blob
+when a second pass helps. Both are deterministic (same library version, same level, same input -> same bytes) and
+both decoders bound their output (``max_output_size``) and reject truncated, corrupt or trailing data with
+:class:`~mocapbench.entropy.errors.BitstreamError`.
+
+Frame layouts
+-------------
+zstd
+    One standard zstd frame (RFC 8878) with the content size in its header and no checksum (the codec container
+    carries a CRC32 of the whole bitstream, so 4 more bytes here would be counted twice in the rate).
+lzma
+    A raw LZMA2 stream (``lzma.FORMAT_RAW``, no .xz/.lzma header: those add 13-60 bytes that every decoder here
+    already knows), dictionary size fixed at 16 MiB, terminated by LZMA2's end marker.
+"""
+
+from __future__ import annotations
+
+import lzma
+
+import zstandard
+
+from mocapbench.entropy.errors import BitstreamError
+
+__all__ = [
+    "LZMA_DICT_SIZE",
+    "lzma_compress",
+    "lzma_decompress",
+    "zstd_compress",
+    "zstd_decompress",
+]
+
+#: Dictionary size of the raw LZMA2 filter, bytes. Fixed because a raw stream does not record it.
+LZMA_DICT_SIZE = 1 << 24
+
+
+def _check_level(name: str, level, lo: int, hi: int) -> int:
+    if isinstance(level, bool) or not isinstance(level, int) or not lo <= level <= hi:
+        raise ValueError(f"`{name}` must be an int in [{lo}, {hi}], got {level!r}")
+    return level
+
+
+def _check_max_output_size(max_output_size) -> int:
+    if isinstance(max_output_size, bool) or not isinstance(max_output_size, int) or max_output_size < 0:
+        raise ValueError(f"`max_output_size` must be a non-negative int (bytes), got {max_output_size!r}")
+    return max_output_size
+
+
+def zstd_compress(data, level: int = 19) -> bytes:
+    """Compress ``data`` into one zstd frame that records its content size.
+
+    Parameters
+    ----------
+    data : bytes-like
+    level : int
+        zstd level in [1, 22]; 19 is the highest level that does not need the "ultra" window sizes.
+
+    Returns
+    -------
+    bytes
+    """
+    level = _check_level("level", level, 1, zstandard.MAX_COMPRESSION_LEVEL)
+    compressor = zstandard.ZstdCompressor(level=level, write_content_size=True, write_checksum=False, threads=0)
+    return compressor.compress(bytes(data))
+
+
+def zstd_decompress(data, max_output_size: int) -> bytes:
+    """Decompress one frame written by :func:`zstd_compress`.
+
+    Parameters
+    ----------
+    data : bytes-like
+        Exactly one zstd frame, nothing after it.
+    max_output_size : int
+        Largest accepted decompressed size, bytes; checked against the frame header before decompressing.
+
+    Returns
+    -------
+    bytes
+
+    Raises
+    ------
+    BitstreamError
+        If the frame header is invalid or does not declare its content size, the declared size exceeds
+        ``max_output_size``, the data is corrupt or truncated, or bytes follow the frame.
+    """
+    max_output_size = _check_max_output_size(max_output_size)
+    data = bytes(data)
+    try:
+        params = zstandard.get_frame_parameters(data)
+    except zstandard.ZstdError as exc:
+        raise BitstreamError(f"expected a zstd frame header in {len(data)} bytes, found none: {exc}") from None
+    size = params.content_size
+    if size == zstandard.CONTENTSIZE_UNKNOWN:
+        raise BitstreamError("expected a zstd frame that declares its content size, found one that does not")
+    if size > max_output_size:
+        raise BitstreamError(f"expected at most {max_output_size} bytes from zstd, the frame declares {size}")
+    decompressor = zstandard.ZstdDecompressor().decompressobj()
+    try:
+        out = decompressor.decompress(data)
+    except zstandard.ZstdError as exc:
+        raise BitstreamError(f"zstd: corrupt frame: {exc}") from None
+    if not decompressor.eof:
+        raise BitstreamError(f"zstd: expected a complete frame of {size} bytes, the data ended after {len(out)}")
+    if decompressor.unused_data:
+        raise BitstreamError(f"zstd: expected the end of data after the frame, found {len(decompressor.unused_data)} "
+                             f"more bytes")
+    if len(out) != size:
+        raise BitstreamError(f"zstd: expected {size} decompressed bytes as declared, found {len(out)}")
+    return out
+
+
+def _lzma_filters(preset: int | None = None) -> list[dict]:
+    spec = {"id": lzma.FILTER_LZMA2, "dict_size": LZMA_DICT_SIZE}
+    if preset is not None:
+        spec["preset"] = preset
+    return [spec]
+
+
+def lzma_compress(data, preset: int = 9) -> bytes:
+    """Compress ``data`` into a raw LZMA2 stream (layout in the module docstring).
+
+    Parameters
+    ----------
+    data : bytes-like
+    preset : int
+        LZMA preset in [0, 9]; the dictionary size stays :data:`LZMA_DICT_SIZE` whatever the preset.
+    """
+    preset = _check_level("preset", preset, 0, 9)
+    return lzma.compress(bytes(data), format=lzma.FORMAT_RAW, filters=_lzma_filters(preset))
+
+
+def lzma_decompress(data, max_output_size: int) -> bytes:
+    """Decompress a stream written by :func:`lzma_compress`.
+
+    Raises
+    ------
+    BitstreamError
+        If the stream is corrupt or truncated, decompresses to more than ``max_output_size`` bytes, or bytes follow
+        its end marker.
+    """
+    max_output_size = _check_max_output_size(max_output_size)
+    decompressor = lzma.LZMADecompressor(format=lzma.FORMAT_RAW, filters=_lzma_filters())
+    try:
+        out = decompressor.decompress(bytes(data), max_length=max_output_size + 1)
+    except lzma.LZMAError as exc:
+        raise BitstreamError(f"lzma: corrupt stream: {exc}") from None
+    if len(out) > max_output_size:
+        raise BitstreamError(f"expected at most {max_output_size} bytes from lzma, the stream holds more")
+    if not decompressor.eof:
+        raise BitstreamError(f"lzma: expected the stream's end marker, the data ended after {len(out)} output bytes")
+    if decompressor.unused_data:
+        raise BitstreamError(f"lzma: expected the end of data after the stream, found "
+                             f"{len(decompressor.unused_data)} more bytes")
+    return out
