@@ -178,7 +178,7 @@ def _read_symbols(reader: ByteReader, payload: memoryview, count: int, what: str
     if coding == _CODING_EMPTY:
         symbols = np.zeros(0, dtype=np.int64)
     elif coding == _CODING_HUFFMAN:
-        symbols, end = decode_symbols(payload, reader.offset, max_count=count)
+        symbols, end = decode_symbols(payload, reader.offset, expected_count=count, max_count=max(count, 1))
         reader.read_bytes(end - reader.offset, what)
     elif coding == _CODING_ZSTD:
         packed = reader.read_blob(what)
