@@ -1,0 +1,180 @@
+"""pga-ik (Tournier et al. 2008): Karcher mean, PGA, end-joint choice, paper ratio, stream checks, a real clip."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from mocapbench import metrics
+from mocapbench.codecs import BitstreamError, create
+from mocapbench.codecs import container
+from mocapbench.codecs.pga import PgaIkCodec, select_end_joints
+from mocapbench.geometry import fit_pga, geodesic_poses, karcher_mean
+from mocapbench.geometry.pga import variance_count
+from mocapbench.motion import Skeleton
+from mocapbench.synthetic import cmu_like_skeleton, sinusoidal_motion
+from mocapbench.geometry.model_motion import geodesic_model_motion as model_motion
+
+
+# -- Karcher mean ------------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("angle", [0.3, 1.0, 3.0])
+def test_karcher_mean_recovers_the_centre_of_symmetric_spreads(angle):
+    rng = np.random.default_rng(int(angle * 10))
+    centre = Rotation.from_rotvec(rng.normal(size=(4, 3)) * angle / np.sqrt(3))  # 4 joints, up to ~pi
+    noise = rng.normal(scale=0.4, size=(25, 4, 3))
+    noise = np.concatenate([noise, -noise])  # symmetric in the tangent space at the centre
+    samples = (centre * Rotation.from_rotvec(noise)).as_quat()
+    samples *= rng.choice([-1.0, 1.0], size=samples.shape[:2] + (1,))  # sign flips
+    mean = karcher_mean(samples)
+    assert np.max((mean.inv() * centre).magnitude()) < 1e-10
+
+
+def test_karcher_mean_is_not_the_chordal_mean_of_skewed_data():
+    # Intrinsic vs extrinsic: for a skewed spread the fixed point must zero the mean tangent vector.
+    rng = np.random.default_rng(0)
+    samples = Rotation.from_rotvec(np.abs(rng.normal(scale=1.0, size=(200, 1, 3))))
+    mean = karcher_mean(samples)
+    tangent = (mean.inv() * samples).as_rotvec()
+    assert np.max(np.abs(tangent.mean(axis=0))) < 1e-10
+
+
+# -- PGA -----------------------------------------------------------------------------------------------------------
+def test_pga_recovers_an_exact_k_geodesic_model():
+    k = 4
+    motion, mean, directions, coords = model_motion(num_frames=200, k=k, seed=11)
+    model = fit_pga(motion.rotations[:, 1:], k + 3)
+    total = model.variances.sum()
+    assert model.variances[k:].sum() / total < 1e-20  # nothing beyond k
+    assert model.variances[k - 1] / total > 1e-5  # ... and all k are used
+    assert variance_count(model.variances, 0.999999) == k
+    assert np.max((Rotation.from_quat(model.mean).inv() * Rotation.from_quat(mean)).magnitude()) < 1e-10
+    fitted = model.directions[:k].reshape(k, -1)
+    true = directions.reshape(k, -1)
+    np.testing.assert_allclose(fitted.T @ fitted, true.T @ true, atol=1e-9)  # same subspace
+    rebuilt = geodesic_poses(model.mean, model.directions[:k], model.coordinates[:, :k])
+    assert np.max((rebuilt.inv() * Rotation.from_quat(motion.rotations[:, 1:])).magnitude()) < 1e-9
+
+
+def test_pga_of_non_commuting_directions_is_close_to_k():
+    # General directions: the product of exponentials leaves only second-order terms off the k-plane.
+    rng = np.random.default_rng(4)
+    k, n = 3, 10
+    directions = np.linalg.qr(rng.normal(size=(3 * n, k)))[0].T.reshape(k, n, 3)
+    coords = rng.normal(scale=[0.3, 0.2, 0.1], size=(300, k))
+    coords -= coords.mean(axis=0)
+    poses = geodesic_poses(Rotation.identity(n), directions, coords)
+    model = fit_pga(poses, k)
+    assert model.explained_variance() > 0.99
+
+
+def test_pga_rejects_bad_k():
+    with pytest.raises(ValueError, match="num_geodesics"):
+        fit_pga(np.tile([0, 0, 0, 1.0], (5, 2, 1)), 7)
+
+
+# -- end joints, ratio, config -----------------------------------------------------------------------------------
+def test_end_joints_by_cmu_asf_bvh_names_and_leaves():
+    bvh = cmu_like_skeleton()
+    assert [bvh.names[j] for j in select_end_joints(bvh)] == ["LeftHand", "RightHand", "LeftFoot", "RightFoot", "Head"]
+    asf_names = ("root", "lhand", "rhand", "lfoot", "rfoot", "head", "x")
+    asf = Skeleton(names=asf_names, parents=np.array([-1, 0, 0, 0, 0, 0, 5]), offsets=np.ones((7, 3)))
+    assert select_end_joints(asf) == [1, 2, 3, 4, 5]
+    odd = Skeleton(names=("a", "b", "c", "d"), parents=np.array([-1, 0, 1, 0]), offsets=np.ones((4, 3)))
+    assert select_end_joints(odd) == [2, 3]  # the leaves
+
+
+def test_paper_ratio_of_the_table_2_setting():
+    # 09_06: 141 frames, 31 joints, 6 geodesics, 4 of 9 levels kept = 5 samples per coordinate:
+    # 3 * 31 * 141 / ((6 + 1) * 90 + 7 * 3 * 5) = 13113 / 735 (the paper prints 1:18).
+    motion = sinusoidal_motion(num_frames=141, seed=2)
+    codec = create("pga-ik", num_geodesics=6, root_levels_dropped=5, end_levels_dropped=5)
+    codec.encode(motion)
+    stats = codec.last_encode_stats
+    assert stats["root_lod"] == "4/9" and stats["end_lod"] == "4/9"
+    assert stats["paper_compression_ratio"] == pytest.approx(13113 / 735)
+    assert stats["K"] == 6 and 0 < stats["explained_variance"] <= 1
+
+
+def test_variance_fraction_chooses_k():
+    motion, _, directions, _ = model_motion(num_frames=100, k=3, seed=2)
+    codec = create("pga-ik", num_geodesics=20, variance_fraction=0.999999)
+    codec.encode(motion)
+    assert codec.last_encode_stats["K"] == 3
+
+
+def test_config_rejects_out_of_range_values():
+    with pytest.raises(ValueError, match="variance_fraction must be in"):
+        create("pga-ik", variance_fraction=1.5)
+    with pytest.raises(ValueError, match="lm_iterations must be in"):
+        create("pga-ik", lm_iterations=0)
+
+
+# -- bitstream -----------------------------------------------------------------------------------------------------
+def test_round_trip_from_bytes_is_deterministic_and_describable():
+    motion = sinusoidal_motion(num_frames=77, seed=5)
+    params = dict(num_geodesics=10, root_levels_dropped=1, end_levels_dropped=2, trajectory_bits=10)
+    data = create("pga-ik", **params).encode(motion)
+    first = create("pga-ik").decode(bytes(data))  # the settings travel in the stream
+    second = create("pga-ik", num_geodesics=3).decode(bytes(data))
+    np.testing.assert_array_equal(first.positions, second.positions)
+    assert first.motion.num_frames == 77
+    np.testing.assert_allclose(first.motion.positions(), first.positions, atol=1e-9)
+    header, payload = container.unpack(data, "pga-ik")
+    info = PgaIkCodec().describe_payload(header, payload)
+    assert info["num_geodesics"] == 10 and info["end_levels_dropped"] == 2
+    assert info["end_joints"] == ["LeftHand", "RightHand", "LeftFoot", "RightFoot", "Head"]
+
+
+def test_dropping_levels_costs_error_and_saves_bytes():
+    motion = sinusoidal_motion(num_frames=240, seed=1)
+    fine = create("pga-ik", num_geodesics=12, root_levels_dropped=0, end_levels_dropped=0)
+    coarse = create("pga-ik", num_geodesics=12, root_levels_dropped=4, end_levels_dropped=4)
+    data_fine, data_coarse = fine.encode(motion), coarse.encode(motion)
+    assert len(data_coarse) < 0.6 * len(data_fine)
+    err_fine = metrics.max_joint_error(motion.positions(), fine.decode(data_fine).positions)
+    err_coarse = metrics.max_joint_error(motion.positions(), coarse.decode(data_coarse).positions)
+    assert err_coarse > err_fine
+
+
+def _payload(motion, **params) -> bytes:
+    data = create("pga-ik", **params).encode(motion)
+    return bytes(container.unpack(data, "pga-ik")[1])
+
+
+def test_inconsistent_payload_with_valid_crc_is_a_bitstream_error():
+    motion = sinusoidal_motion(num_frames=20, seed=3)
+    payload = _payload(motion, num_geodesics=4, root_levels_dropped=0, end_levels_dropped=0)
+    # Same payload declared for fewer frames: the coefficient count no longer matches.
+    wrong = container.pack("pga-ik", 19, motion.num_joints, motion.fps, payload)
+    with pytest.raises(BitstreamError):
+        create("pga-ik").decode(wrong)
+    with pytest.raises(BitstreamError):
+        create("pga-ik").decode(container.pack("pga-ik", 20, motion.num_joints, motion.fps, payload + b"\0"))
+
+
+def test_motion_with_only_a_root_is_rejected():
+    skeleton = Skeleton(names=("root",), parents=np.array([-1]), offsets=np.zeros((1, 3)))
+    from mocapbench.motion import Motion
+
+    motion = Motion(skeleton, 30.0, np.zeros((4, 3)), np.tile([0, 0, 0, 1.0], (4, 1, 1)))
+    with pytest.raises(ValueError, match="only a root joint"):
+        create("pga-ik").encode(motion)
+
+
+# -- one real clip (fast) ------------------------------------------------------------------------------------------
+def test_cmu_09_06_lossless_trajectories_and_paper_setting():
+    cmu = pytest.importorskip("mocapbench.datasets.cmu")
+    try:
+        motion = cmu.load_clip("09_06")
+    except cmu.DataNotFoundError:
+        pytest.skip("CMU data not found")
+    reference = motion.positions()
+    lossless = create("pga-ik", num_geodesics=12, root_levels_dropped=0, end_levels_dropped=0)
+    decoded = lossless.decode(lossless.encode(motion)).positions
+    assert metrics.kg_distortion(reference, decoded) < 1.5  # measured 0.55 %
+    assert metrics.max_joint_error(reference, decoded) < 10.0  # measured 5.9 cm
+    paper = create("pga-ik", num_geodesics=6, root_levels_dropped=5, end_levels_dropped=5)
+    data = paper.encode(motion)
+    assert paper.last_encode_stats["paper_compression_ratio"] == pytest.approx(13113 / 735)
+    assert metrics.raw_position_bytes(31, 141) / len(data) > 15
