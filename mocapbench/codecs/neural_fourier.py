@@ -198,7 +198,8 @@ class _Trainer:
         self.t = torch.tensor(_time_grid(targets.shape[0]), dtype=self.dtype)
         self.params: list[Any] | None = None
         self.rounds = 0
-        self.loss_history: list[np.ndarray] = []  # one array of per-step losses per round
+        # Per round, the loss before each step and after the last one (iterations + 1 values).
+        self.loss_history: list[np.ndarray] = []
 
     def _uniform(self, shape: tuple[int, ...], fan_in: int):
         bound = 1.0 / math.sqrt(fan_in)
@@ -249,9 +250,11 @@ class _Trainer:
         peak = config.learning_rate * max(config.round_lr_decay**self.rounds, _LR_FLOOR)
         warmup = max(1, int(round(config.warmup_fraction * iterations))) if config.warmup_fraction > 0 else 0
         optimizer = torch.optim.Adam(self.params, lr=peak, fused=True)
-        elu = torch.nn.functional.elu
+        functional = torch.nn.functional
+        elu, linear = functional.elu, functional.linear
         w0, b0, w1, b1, w2, b2 = self.params
-        losses = np.empty(iterations)
+        weighted_targets = self.targets * self.loss_weights
+        losses = np.empty(iterations + 1)
         for step in range(iterations):
             if step < warmup:
                 rate = peak * (step + 1) / warmup
@@ -261,11 +264,15 @@ class _Trainer:
             for group in optimizer.param_groups:
                 group["lr"] = rate
             optimizer.zero_grad(set_to_none=True)
-            output = elu(elu(features @ w0.T + b0) @ w1.T + b1) @ w2.T + b2
-            loss = (((output - self.targets) * self.loss_weights) ** 2).mean()  # eq. (3), up to a constant
+            output = linear(elu(linear(elu(linear(features, w0, b0)), w1, b1)), w2, b2)  # eq. (2)
+            # eq. (3) up to a constant factor: mean over entries of ((y - F(x)) o w)^2 (fewer torch ops this way).
+            loss = functional.mse_loss(output * self.loss_weights, weighted_targets)
             loss.backward()
             optimizer.step()
             losses[step] = float(loss.detach())
+        with torch.no_grad():  # the loss of the weights this round ends with (the last step's is one step behind)
+            output = linear(elu(linear(elu(linear(features, w0, b0)), w1, b1)), w2, b2)
+            losses[iterations] = float(functional.mse_loss(output * self.loss_weights, weighted_targets))
         self.rounds += 1
         self.loss_history.append(losses)
 
