@@ -198,6 +198,23 @@ def _save_example(folder: Path, codec: Any, motion: Any, reference: np.ndarray) 
     os.replace(tmp, folder / EXAMPLE_FILE)
 
 
+def _ensure_sweeper_plugin() -> None:
+    """Make the benchmark sweeper importable as ``hydra_plugins.mocapbench_sweeper`` (Hydra's plugin check).
+
+    It is packaged with mocapbench; in a source checkout where the installed package does not carry it, the
+    checkout's own ``hydra_plugins/`` folder is used.
+    """
+    # Only look for it: importing it before Hydra's plugin scan would leave a stale class behind.
+    import importlib.util
+
+    try:
+        found = importlib.util.find_spec("hydra_plugins.mocapbench_sweeper") is not None
+    except ImportError:
+        found = False
+    if not found:
+        sys.path.append(str(Path(__file__).resolve().parents[2]))
+
+
 @hydra.main(version_base="1.3", config_path="../../configs", config_name="benchmark")
 def main(cfg: DictConfig) -> float:
     """The Hydra task: run one job in ``HydraConfig.get().runtime.output_dir``; returns its row count (NaN if failed)."""
@@ -206,4 +223,5 @@ def main(cfg: DictConfig) -> float:
 
 
 if __name__ == "__main__":
+    _ensure_sweeper_plugin()
     main()

@@ -26,9 +26,9 @@ from collections import OrderedDict
 from pathlib import Path
 from typing import Any, Sequence
 
-from hydra._internal.core_plugins.basic_sweeper import BasicSweeper
 from hydra.core.override_parser.overrides_parser import OverridesParser
 from hydra.core.override_parser.types import Override
+from hydra.plugins.sweeper import Sweeper
 from hydra.types import RunMode
 from omegaconf import OmegaConf
 
@@ -71,8 +71,25 @@ def _evenly(items: list[Any], count: int | None) -> list[Any]:
     return [items[i] for i in picks]
 
 
-class RdSweeper(BasicSweeper):
+def _product(overrides: Sequence[Override]) -> list[list[str]]:
+    """Cartesian product of parsed overrides, as the basic sweeper builds it (one ``k=v`` list per job)."""
+    lists: OrderedDict[str, list[str]] = OrderedDict()
+    for override in overrides:
+        key = override.get_key_element()
+        if override.is_sweep_override():
+            if not override.is_discrete_sweep():
+                raise ValueError(f"the mocapbench sweeper supports comma lists only, got {override.input_line!r}")
+            lists[key] = [f"{key}={value}" for value in override.sweep_string_iterator()]
+        else:
+            lists[key] = [f"{key}={override.get_value_element_as_str()}"]
+    return [list(point) for point in itertools.product(*lists.values())]
+
+
+class RdSweeper(Sweeper):
     """Basic sweeper + ``union`` of every codec's ``rd_<name>`` grid + stable job folders + skipping finished jobs.
+
+    It derives from Hydra's abstract ``Sweeper``, not from ``BasicSweeper``: Hydra's plugin scan re-executes the
+    modules of its core plugins, which would leave a subclass of the old ``BasicSweeper`` class behind.
 
     Parameters
     ----------
@@ -90,6 +107,8 @@ class RdSweeper(BasicSweeper):
         Keep at most this many evenly spread points of each codec's grid (``sweep=small``).
     skip_done : bool
         Do not launch jobs whose folder already holds a finished job.
+    dry_run : bool
+        Write ``jobs.json`` (every job's folder and overrides) and launch nothing.
     """
 
     def __init__(
@@ -101,14 +120,30 @@ class RdSweeper(BasicSweeper):
         exclude: Sequence[str] = (),
         max_points: int | None = None,
         skip_done: bool = True,
+        dry_run: bool = False,
     ) -> None:
-        super().__init__(max_batch_size=max_batch_size, params=params)
+        super().__init__()
+        self.max_batch_size = max_batch_size
+        self.params = dict(params or {})
+        self.hydra_context = None
+        self.config = None
+        self.launcher = None
         self.union = bool(union)
         self.codecs = list(codecs) if codecs else None
         self.exclude = list(exclude or ())
         self.max_points = max_points
         self.skip_done = skip_done
+        self.dry_run = dry_run
         self.skipped: list[str] = []
+
+    def setup(self, *, hydra_context, task_function, config) -> None:
+        from hydra.core.plugins import Plugins
+
+        self.hydra_context = hydra_context
+        self.config = config
+        self.launcher = Plugins.instance().instantiate_launcher(
+            hydra_context=hydra_context, task_function=task_function, config=config
+        )
 
     # -- job list --------------------------------------------------------------------------------------
     def _parser(self) -> OverridesParser:
@@ -117,7 +152,7 @@ class RdSweeper(BasicSweeper):
     def _grid(self, texts: Sequence[str]) -> list[list[str]]:
         """Cartesian product of parsed overrides (one list of ``k=v`` strings per point)."""
         overrides = self._parser().parse_overrides(list(texts))
-        return self.split_arguments(overrides, None)[0] if overrides else [[]]
+        return _product(overrides) if overrides else [[]]
 
     def _rd_params(self, codec: str) -> dict[str, str] | None:
         """``hydra.sweeper.params`` of ``configs/sweep/rd_<codec>.yaml``, or None if that file is missing."""
@@ -195,6 +230,8 @@ class RdSweeper(BasicSweeper):
             todo.append([*overrides, f"hydra.sweep.subdir='{folder}'"])
         (sweep_dir / "jobs.json").write_text(json.dumps([{"folder": f, "overrides": o} for f, o in jobs], indent=1))
         log.info("sweep %s: %d jobs, %d already done, %d to run", sweep_dir, len(jobs), len(self.skipped), len(todo))
+        if self.dry_run:
+            return []
         from tqdm import tqdm
 
         size = self.max_batch_size or len(todo) or 1

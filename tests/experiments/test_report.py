@@ -1,0 +1,183 @@
+"""Report generation from a small fixture results file: tables, figures, BD-rate, reproduction, no overwrite."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from mocapbench.codecs import create
+from mocapbench.experiments.aggregate import AggregateError, aggregate, curve_points
+from mocapbench.experiments.bdrate import bd_rate_percent, pareto_front
+from mocapbench.experiments.evaluate import evaluate
+from mocapbench.experiments.reproduction import compare_at_equal_rate, neural_fourier_tables, pga_tables
+from mocapbench.experiments.report import CMU_ACKNOWLEDGEMENT, build_report, headline_table
+from mocapbench.experiments.run import write_rows_atomic
+from mocapbench.synthetic import sinusoidal_motion
+
+STEPS = (0.05, 0.2, 0.8, 3.0)
+BITS = (6, 8, 10)
+
+
+@pytest.fixture(scope="module")
+def sweep_dir(tmp_path_factory):
+    """A sweep-like folder: quant-delta-zstd (4 steps) and quant-rot-zstd (3 bit depths) on 2 short clips."""
+    root = tmp_path_factory.mktemp("sweep")
+    motions = [sinusoidal_motion(num_frames=60, seed=seed) for seed in (1, 2)]
+    jobs = [("quant-delta-zstd", {"step_cm": s}) for s in STEPS] + [("quant-rot-zstd", {"rotation_bits": b}) for b in BITS]
+    for name, params in jobs:
+        codec = create(name, **params)
+        folder = root / name / ",".join(f"codec.{k}={v}" for k, v in params.items())
+        rows = []
+        for motion in motions:
+            row = evaluate(codec, motion)
+            row.update({"dataset": "synthetic", "train_set": "synthetic seeds 11-13", "cmu_data": False})
+            rows.append(row)
+        write_rows_atomic(folder / "results.jsonl", rows)
+        reference = motions[0].positions()
+        np.savez_compressed(folder / "example.npz", original=reference.astype(np.float32),
+                            decoded=codec.decode(codec.encode(motions[0])).positions.astype(np.float32),
+                            parents=np.asarray(motions[0].skeleton.parents),
+                            names=np.asarray(motions[0].skeleton.names), clip=np.asarray(motions[0].name),
+                            fps=np.asarray(motions[0].fps))
+    (root / "quant-rot-zstd" / "codec.rotation_bits=6" / "errors.jsonl").write_text(
+        json.dumps({"codec": "quant-rot-zstd", "clip": "synthetic-seed9", "stage": "evaluate", "error": "boom"}) + "\n")
+    return root
+
+
+def test_aggregate_reads_every_row(sweep_dir):
+    data = aggregate([sweep_dir])
+    assert len(data) == (len(STEPS) + len(BITS)) * 2
+    assert set(data["codec"]) == {"quant-delta-zstd", "quant-rot-zstd"}
+    assert (data["sweep_dir"] == str(sweep_dir)).all()
+    assert len(aggregate([sweep_dir, sweep_dir])) == len(data)  # the same rows twice are kept once
+
+
+def test_aggregate_of_nothing_is_a_clear_error(tmp_path):
+    with pytest.raises(AggregateError, match="no results.jsonl rows"):
+        aggregate([tmp_path])
+    with pytest.raises(AggregateError, match="no such sweep folder"):
+        aggregate([tmp_path / "missing"])
+
+
+def test_curve_points_pool_clips(sweep_dir):
+    data = aggregate([sweep_dir])
+    points = curve_points(data)
+    assert len(points) == len(STEPS) + len(BITS)
+    one = points[(points["codec"] == "quant-delta-zstd") & (points["param_step_cm"] == 0.8)].iloc[0]
+    rows = data[(data["codec"] == "quant-delta-zstd") & (data["param_step_cm"] == 0.8)]
+    assert one["clips"] == 2
+    assert one["bitstream_bytes"] == rows["bitstream_bytes"].sum()
+    assert one["max_err_cm"] == rows["max_err_cm"].max()
+    assert one["compression_ratio"] == pytest.approx(rows["raw_bytes"].sum() / rows["bitstream_bytes"].sum())
+
+
+def test_headline_picks_the_highest_ratio_under_each_bound(sweep_dir):
+    points = curve_points(aggregate([sweep_dir]))
+    table = headline_table(points)
+    assert set(table["L∞ bound"]) == {"< 1 cm", "< 3 cm"}
+    assert len(table) == 2 * 2  # 2 codecs x 2 bounds
+    for _, row in table.iterrows():
+        if row["config"] == "no config under the bound":
+            continue
+        bound = float(row["L∞ bound"].split()[1])
+        assert row["L∞ cm"] < bound
+        candidates = points[(points["codec"] == row["codec"]) & (points["max_err_cm"] < bound)]
+        assert row["CR"] == pytest.approx(candidates["compression_ratio"].max())
+
+
+def test_report_writes_tables_and_figures_and_never_overwrites(sweep_dir, tmp_path):
+    first = build_report([sweep_dir], name="fixture", reports_root=tmp_path)
+    second = build_report([sweep_dir], name="fixture", reports_root=tmp_path)
+    assert first != second and first.exists() and second.exists()
+    markdown = (first / "report.md").read_text()
+    html = (first / "index.html").read_text()
+    for text in ("Headline", "ACL 2.1 [quoted, not measured here]", "BD-rate against quant-delta-zstd",
+                 "Neural Fourier", "LSDT", "PGA", "Data and method", "12·J·F bytes", "Failed jobs", "boom"):
+        assert text in markdown, text
+        assert text in html or text.replace("·", "&middot;") in html, text
+    assert "not run" in markdown  # the paper codecs are absent from this fixture
+    assert CMU_ACKNOWLEDGEMENT not in markdown  # no CMU clip was used
+    figures = sorted(p.name for p in (first / "figures").glob("*.png"))
+    assert figures == ["heatmap_synthetic.png", "overlay_synthetic.png", "rd_bits_synthetic.png",
+                       "rd_per_clip_synthetic.png", "rd_synthetic.png"]
+    for name in figures:
+        assert f"figures/{name}" in markdown and f"figures/{name}" in html
+        assert (first / "figures" / name).stat().st_size > 5000
+
+
+def test_report_carries_the_cmu_acknowledgement_when_cmu_was_used(tmp_path):
+    codec = create("quant-delta-zstd", step_cm=0.5)
+    motion = sinusoidal_motion(num_frames=30, seed=3)
+    row = {**evaluate(codec, motion), "dataset": "cmu_test", "cmu_data": True, "train_set": "CMU cmu_train"}
+    write_rows_atomic(tmp_path / "sweep" / "job" / "results.jsonl", [row])
+    report = build_report([tmp_path / "sweep"], reports_root=tmp_path / "reports")
+    assert CMU_ACKNOWLEDGEMENT in (report / "report.md").read_text()
+
+
+def test_bd_rate_of_half_the_rate_is_minus_50_percent():
+    rate = np.array([1.0, 2.0, 4.0, 8.0])
+    error = np.array([4.0, 2.0, 1.0, 0.5])
+    value, note = bd_rate_percent(rate, error, rate / 2, error)
+    assert value == pytest.approx(-50.0, abs=1e-6)
+    value, _ = bd_rate_percent(rate, error, rate * 1.1, error)
+    assert value == pytest.approx(10.0, abs=1e-6)
+
+
+def test_bd_rate_says_why_it_cannot_be_computed():
+    value, note = bd_rate_percent([1.0, 2.0], [2.0, 1.0], [3.0], [0.0])
+    assert np.isnan(value) and "Pareto" in note
+    value, note = bd_rate_percent([1.0, 2.0], [2.0, 1.0], [1.0, 2.0], [20.0, 10.0])
+    assert np.isnan(value) and "overlap" in note
+
+
+def test_pareto_front_drops_dominated_and_lossless_points():
+    rate, error = pareto_front([1, 2, 3, 4, 5], [3.0, 3.5, 1.0, 0.0, 0.5])
+    assert rate.tolist() == [1, 3, 5] and error.tolist() == [3.0, 1.0, 0.5]
+
+
+def _rows(codec, clip, rates, errors, **extra):
+    return pd.DataFrame({"codec": codec, "clip": clip, "bits_per_joint_frame": rates, "mean_err_cm": errors,
+                         "max_err_cm": errors, **extra})
+
+
+def test_compare_at_equal_rate_measures_the_reduction():
+    rates = np.array([1.0, 2.0, 4.0])
+    test = _rows("a", "c1", rates, np.array([2.0, 1.0, 0.5]))
+    ref = _rows("b", "c1", rates, np.array([4.0, 2.0, 1.0]))
+    table = compare_at_equal_rate(test, ref)
+    assert len(table) == 1
+    assert table["mean_reduction_percent"].iloc[0] == pytest.approx(50.0)
+    assert bool(table["test_better"].iloc[0])
+    assert not compare_at_equal_rate(ref, test)["test_better"].iloc[0]
+
+
+def test_neural_fourier_table_uses_the_paper_ratio_and_two_percent_of_height():
+    rows = pd.concat([
+        _rows("fourier-mlp-dct", "c1", [1.0, 2.0], [5.0, 2.0], max_err_percent_height=[3.0, 1.2],
+              compression_ratio=[30.0, 12.0], paper_compression_ratio=[9.0, 4.0], param_K=[2, 5]),
+        _rows("fourier-mlp-dct", "c2", [1.0, 2.0], [5.0, 2.0], max_err_percent_height=[2.5, 1.9],
+              compression_ratio=[30.0, 12.0], paper_compression_ratio=[9.0, 1.5], param_K=[2, 5]),
+        _rows("fourier-mlp-dct", "c3", [1.0, 2.0], [5.0, 2.0], max_err_percent_height=[1.0, 0.5],
+              compression_ratio=[30.0, 12.0], paper_compression_ratio=[9.0, 4.0], param_K=[2, 5]),
+    ])
+    detail, claims = neural_fourier_tables(rows)
+    first = claims.iloc[0]
+    assert "2/3" in first["measured here"] and first["holds?"] == "yes"
+    assert claims.iloc[1]["holds?"] == "not run"  # fourier-mlp-int absent
+    assert detail.loc[detail["clip"] == "c3", "CR (paper's raw)"].iloc[0] == 9.0
+
+
+def test_pga_table_compares_09_06_at_the_paper_distortion():
+    rows = _rows("pga-ik", "09_06", [1.0, 2.0], [3.0, 1.0], kg_percent=[0.5, 0.3],
+                 compression_ratio=[40.0, 20.0], paper_compression_ratio=[45.0, 25.0], decode_fps=[100.0, 100.0],
+                 param_num_geodesics=[6, 12])
+    table = pga_tables(rows)
+    first = table[table["clip"] == "09_06"].iloc[0]
+    assert first["ours"] == "yes"  # 1:25 (paper's raw) at 0.3 % <= 0.36 %, better than 1:18
+    assert first["ours: ratio (paper's raw)"] == "1:25"
+    assert "not available" in table[table["clip"] == "17_08"].iloc[0]["ours"]
+    assert "not run" in pga_tables(rows.iloc[:0])["ours"].iloc[0]
