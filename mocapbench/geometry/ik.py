@@ -236,7 +236,8 @@ class GeodesicIK:
         residual = ends.reshape(-1) - y0
         cost = residual @ residual  # x = x_prev: the smoothness term is 0
         damping = 1e-3
-        regularizer = lam * np.eye(self.num_geodesics)
+        # (+1e-9: keeps the system solvable when lam = 0 and a direction moves no end joint)
+        regularizer = (lam + 1e-9) * np.eye(self.num_geodesics)
         for _ in range(iterations):
             hessian = jac.T @ jac + regularizer
             gradient = jac.T @ residual + lam * (x - anchor)
@@ -260,6 +261,9 @@ class GeodesicIK:
     ) -> np.ndarray:
         """Every frame in order, each warm-started from the previous solution (the first from x = 0, the mean pose).
 
+        Frame 0 has no previous frame: it starts from the mean pose with a weak anchor there (``1e-3 lam``,
+        enough to keep the problem well posed when k > 3d, too weak to bias the solution).
+
         Parameters
         ----------
         targets : ndarray, shape (F, d, 3), cm, in the root frame
@@ -281,7 +285,9 @@ class GeodesicIK:
         state = None
         first = 10 * iterations if first_iterations is None else first_iterations
         for frame in range(targets.shape[0]):
-            # Frame 0 is anchored at the mean pose (x = 0), every later frame at its predecessor.
-            x, state = self.solve(targets[frame], x, lam, first if frame == 0 else iterations, start=state)
+            if frame == 0:
+                x, state = self.solve(targets[0], x, 1e-3 * lam, first)
+            else:
+                x, state = self.solve(targets[frame], x, lam, iterations, start=state)
             out[frame] = x
         return out
