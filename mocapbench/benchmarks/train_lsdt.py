@@ -91,11 +91,14 @@ def plot_convergence(runs: dict, out_dir: Path, num_frames: int) -> Path:
 
     fig, axes = plt.subplots(1, 3, figsize=(13, 3.8))
     for d, axis in enumerate(axes):
-        for init, style in (("dct", "-"), ("dwt", "--")):
-            result = runs[(init, 8)][1][d]
-            axis.plot(np.arange(len(result.objective)), result.objective, style, label=f"{init.upper()} init")
+        longest = 0
+        for init, style, label in (("dct", "-", "DCT init"), ("dwt", "--", "Haar DWT init")):
+            objective = runs[(init, 8)][1][d].objective
+            axis.plot(np.arange(len(objective)), objective, style, label=label)
+            longest = max(longest, len(objective) - 1)
         axis.set_yscale("log")
         axis.set_xscale("symlog", linthresh=10)
+        axis.set_xlim(0, longest)
         axis.set_xlabel("iteration")
         axis.set_title(f"({'abc'[d]}) {COORDINATES[d]}-coordinate")
         axis.grid(True, which="both", alpha=0.3)
@@ -117,8 +120,24 @@ def write_objective_csv(runs: dict, out_dir: Path) -> Path:
         for (init, sparsity), (_, results, _) in sorted(runs.items()):
             for coord, result in zip(COORDINATES, results):
                 for iteration, value in enumerate(result.objective):
-                    handle.write(f"{init},{sparsity},{coord},{iteration},{value!r}\n")
+                    handle.write(f"{init},{sparsity},{coord},{iteration},{float(value)!r}\n")
     return path
+
+
+def read_objective_csv(path: Path) -> dict:
+    """Inverse of :func:`write_objective_csv`: ``{(init, P): (None, [records x 3], nan)}`` for plotting."""
+    from types import SimpleNamespace
+
+    values: dict = {}
+    with path.open() as handle:
+        next(handle)
+        for line in handle:
+            init, sparsity, coord, _, value = line.strip().split(",")
+            values.setdefault((init, int(sparsity)), {}).setdefault(coord, []).append(float(value))
+    return {
+        key: (None, [SimpleNamespace(objective=np.array(per[c])) for c in COORDINATES], float("nan"))
+        for key, per in values.items()
+    }
 
 
 def write_model(runs: dict, clips: list, num_frames: int, max_iterations: int, tol: float) -> None:
@@ -166,7 +185,12 @@ def main(argv=None) -> None:
     parser.add_argument("--tol", type=float, default=1e-10, help="stop when one iteration lowers the objective by less than tol × its value")
     parser.add_argument("--out", default="reports/lsdt", help="folder for the figure and the CSV")
     parser.add_argument("--write-model", action="store_true", help="write mocapbench/models/lsdt_bases_v1.npz")
+    parser.add_argument("--plot-only", action="store_true", help="redraw Fig. 3 from the CSV of an earlier run under --out")
     args = parser.parse_args(argv)
+    if args.plot_only:
+        runs = read_objective_csv(Path(args.out) / "fig3_objective.csv")
+        print(f"wrote {plot_convergence(runs, Path(args.out), 13063)}")
+        return
 
     motions = load_split("cmu_train", data_dir=args.data_dir)
     positions = np.concatenate([motion.positions() for motion in motions])
