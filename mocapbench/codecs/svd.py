@@ -9,8 +9,8 @@ sign-continuous root quaternion, axis-angles). With the column means μ::
 
     Y − μ ≈ U_r S_r V_rᵀ = A Bᵀ,    A = U_r S_r  (F × r),   B = V_r  (m × r)
 
-The stream holds the skeleton (for FK), r, μ (float32), A and B quantized (float16, or uniform n-bit per
-tensor with the range as float32). Decoding is ``μ + A Bᵀ`` → normalized quaternion, axis-angles → FK.
+The stream holds the skeleton (for FK), r, μ (float32), A and B quantized (float16, or uniform n-bit with a
+float32 range per column of A, i.e. per component, and per row of B, i.e. per pose parameter). Decoding is ``μ + A Bᵀ`` → normalized quaternion, axis-angles → FK.
 
 Departures from the paper, and why
 ----------------------------------
@@ -96,7 +96,7 @@ class SvdCodec(Codec):
     class Config(CodecConfig):
         rank: int = param(8, low=1, high=4096, doc="kept singular values r (clipped to min(F, m) per clip)")
         weighted: bool = param(False, doc="SVD of (Y - mean) * w (eq. 3 weights) instead of plain Y (the paper)")
-        factor_format: str = param("float16", choices=TENSOR_FORMATS, doc="storage of the factors: float16 or uniform n-bit per tensor")
+        factor_format: str = param("float16", choices=TENSOR_FORMATS, doc="storage of the factors: float16, or uniform n-bit per column of U*S and per row of V")
         factor_bits: int = param(12, low=2, high=16, unit="bits", doc="bits per factor entry for the uniform format")
 
     def encode_payload(self, motion: Motion) -> bytes:
@@ -105,20 +105,24 @@ class SvdCodec(Codec):
         weights = pose_weights(motion) if config.weighted else None
         mean, a, b = low_rank_factors(y, config.rank, weights)
         mean = mean.astype(np.float32).astype(np.float64)
-        rank = a.shape[1]
+        rank, m = a.shape[1], y.shape[1]
         writer = ByteWriter()
         writer.write_bytes(pack_skeleton(motion.skeleton))
         writer.write_varint(rank)
         writer.write_u8(_FORMAT_CODES[config.factor_format])
         writer.write_u8(config.factor_bits if config.factor_format == "uniform" else 0)
         writer.write_array(mean, np.float32)
-        write_tensor(writer, a, config.factor_format, config.factor_bits)
-        write_tensor(writer, b, config.factor_format, config.factor_bits)
-        m = y.shape[1]
+        # Uniform format: one range per column of A (the components' scales differ by orders of magnitude) and per
+        # row of B (one pose parameter: cm of translation and radians have nothing in common).
+        for column in range(rank):
+            write_tensor(writer, a[:, column], config.factor_format, config.factor_bits)
+        for row in range(m):
+            write_tensor(writer, b[row], config.factor_format, config.factor_bits)
         num_params = rank * (motion.num_frames + m) + m
-        y_hat = mean + quantize_tensor(a, config.factor_format, config.factor_bits) @ quantize_tensor(
-            b, config.factor_format, config.factor_bits
-        ).T
+        fmt, bits = config.factor_format, config.factor_bits
+        a_stored = np.stack([quantize_tensor(a[:, k], fmt, bits) for k in range(rank)], axis=1)
+        b_stored = np.stack([quantize_tensor(b[j], fmt, bits) for j in range(m)], axis=0)
+        y_hat = mean + a_stored @ b_stored.T
         self.last_encode_stats = {
             "rank": rank,
             "num_parameters": num_params,
@@ -148,8 +152,12 @@ class SvdCodec(Codec):
         mean = reader.read_array(m, np.float32, "column means").astype(np.float64)
         if not np.all(np.isfinite(mean)):
             raise BitstreamError("svd: the column means hold non-finite values.")
-        a = read_tensor(reader, (header.num_frames, rank), fmt, bits, "temporal factor U*S")
-        b = read_tensor(reader, (m, rank), fmt, bits, "pose factor V")
+        a = np.empty((header.num_frames, rank))
+        b = np.empty((m, rank))
+        for column in range(rank):
+            a[:, column] = read_tensor(reader, (header.num_frames,), fmt, bits, f"temporal factor U*S, column {column}")
+        for row in range(m):
+            b[row] = read_tensor(reader, (rank,), fmt, bits, f"pose factor V, row {row}")
         reader.expect_end()
         return {"skeleton": skeleton, "rank": rank, "format": fmt, "bits": bits, "mean": mean, "a": a, "b": b}
 
