@@ -12,9 +12,9 @@ import csv
 import os
 from pathlib import Path
 
-from mocapbench.io.asf_amc import CMU_CM_PER_UNIT, AsfSkeleton, read_amc, read_asf
+from mocapbench.io.asf_amc import CMU_CM_PER_UNIT, AsfSkeleton, find_asf, read_amc, read_asf
 from mocapbench.io.bvh import read_bvh
-from mocapbench.motion import Motion
+from mocapbench.motion import Motion, MotionFormatError
 
 __all__ = [
     "DataNotFoundError",
@@ -191,22 +191,16 @@ def load_folder(
     files = sorted(p for p in folder.iterdir() if p.suffix.lower() in (".bvh", ".amc") and p.is_file())
     if not files:
         raise DataNotFoundError(f"{folder} holds no .bvh or .amc file.")
-    asf_files = sorted(p for p in folder.iterdir() if p.suffix.lower() == ".asf")
     cache: dict[Path, AsfSkeleton] = {}
     motions = []
     for file in files:
         if file.suffix.lower() == ".bvh":
             motions.append(read_bvh(file, length_unit_cm=length_unit_cm, drop_first_frame=drop_first_frame))
             continue
-        if len(asf_files) == 1:
-            asf_path = asf_files[0]
-        else:
-            asf_path = folder / f"{file.stem.split('_', 1)[0]}.asf"
-            if not asf_path.is_file():
-                raise DataNotFoundError(
-                    f"{file}: no skeleton: expected one .asf in {folder} or {asf_path.name}, found "
-                    f"{[p.name for p in asf_files]}."
-                )
+        try:
+            asf_path = find_asf(file)
+        except MotionFormatError as error:
+            raise DataNotFoundError(str(error)) from None
         if asf_path not in cache:
             cache[asf_path] = read_asf(asf_path)
         motions.append(read_amc(file, cache[asf_path], fps=fps))

@@ -20,6 +20,7 @@ __all__ = [
     "AsfSkeleton",
     "read_asf",
     "read_amc",
+    "find_asf",
     "CMU_CM_PER_UNIT",
 ]
 
@@ -61,5 +62,5 @@ def read_text(path: str | Path, what: str) -> str:
 
 
 # The readers import the helpers above, so they come after them.
-from mocapbench.io.asf_amc import CMU_CM_PER_UNIT, AsfSkeleton, read_amc, read_asf  # noqa: E402
+from mocapbench.io.asf_amc import CMU_CM_PER_UNIT, AsfSkeleton, find_asf, read_amc, read_asf  # noqa: E402
 from mocapbench.io.bvh import read_bvh, write_bvh  # noqa: E402

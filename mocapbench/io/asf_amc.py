@@ -321,6 +321,28 @@ class _AsfParser:
         )
 
 
+def find_asf(amc_path: str | Path) -> Path:
+    """The skeleton of an AMC file: the only ``.asf`` in its folder, else ``SS.asf`` for ``SS_TT.amc``.
+
+    Raises
+    ------
+    MotionFormatError
+        If neither exists (the message lists the ``.asf`` files found).
+    """
+    amc_path = Path(amc_path)
+    folder = amc_path.parent
+    candidates = sorted(p for p in folder.iterdir() if p.suffix.lower() == ".asf") if folder.is_dir() else []
+    if len(candidates) == 1:
+        return candidates[0]
+    by_subject = folder / f"{amc_path.stem.split('_', 1)[0]}.asf"
+    if by_subject.is_file():
+        return by_subject
+    raise MotionFormatError(
+        f"{amc_path}: no skeleton: expected one .asf in {folder} or {by_subject.name}, "
+        f"found {[p.name for p in candidates]}."
+    )
+
+
 def read_asf(path: str | Path, *, cm_per_unit: float | None = None) -> AsfSkeleton:
     """Read an Acclaim ASF skeleton.
 
