@@ -347,12 +347,8 @@ class _FourierMlpCodec(Codec):
         """Train on ``prep`` (from :meth:`_prepare`); return (Ω, stored weights, L∞ cm, extra stats)."""
         raise NotImplementedError
 
-    def encode_payload(self, motion: Motion) -> bytes:
-        start = time.perf_counter()
-        prep = self._prepare(motion)
-        omegas, stored, error, extra = self._train(motion, prep)
-        train_s = time.perf_counter() - start
-        m = num_pose_parameters(motion.num_joints)
+    def _serialize(self, motion: Motion, prep: dict[str, Any], omegas: list[float], stored: list[np.ndarray]) -> bytes:
+        """The payload for network ``stored`` (already quantized) with frequencies ``omegas``."""
         config = self.config
         writer = ByteWriter()
         writer.write_bytes(pack_skeleton(motion.skeleton))
@@ -364,18 +360,27 @@ class _FourierMlpCodec(Codec):
         writer.write_array(prep["std"], np.float16)
         for tensor in stored:
             write_tensor(writer, tensor, config.weight_format, config.weight_bits)
+        return writer.getvalue()
+
+    def encode_payload(self, motion: Motion) -> bytes:
+        start = time.perf_counter()
+        self._start = start
+        prep = self._prepare(motion)
+        omegas, stored, error, extra = self._train(motion, prep)
+        payload = self._serialize(motion, prep, omegas, stored)
+        train_s = time.perf_counter() - start
+        m = num_pose_parameters(motion.num_joints)
         num_params = num_network_parameters(len(omegas), m)
-        y_size = motion.num_frames * m
         self.last_encode_stats = {
             "K": len(omegas),
             "omegas": [round(float(o), 4) for o in omegas],
             "train_s": train_s,
             "num_parameters": num_params,
-            "paper_compression_ratio": y_size / num_params,
+            "paper_compression_ratio": motion.num_frames * m / num_params,
             "encoder_max_err_cm": error,
             **extra,
         }
-        return writer.getvalue()
+        return payload
 
     # -- decoding -----------------------------------------------------------------------------------------
     def _read(self, header: Header, payload: memoryview) -> dict[str, Any]:
@@ -496,12 +501,18 @@ class FourierMlpDctCodec(_FourierMlpCodec):
         omegas: list[float] = []
         used: set[int] = set()
         errors: list[float] = []
+        round_bytes: list[int] = []
+        round_seconds: list[float] = []
         with _TorchThreads():
             trainer = _Trainer((prep["y"] - prep["mean"]) / prep["std"], prep["w"] * prep["std"], config)
             while True:
                 trainer.train_round(omegas, config.iterations_per_round)  # Algorithm 1, lines 3-4
                 stored, y_hat, error = self._evaluate(prep, motion, trainer.weights(), omegas)
                 errors.append(error)
+                # What the stream would be if Algorithm 1 stopped here (a larger threshold stops exactly here:
+                # training does not depend on the threshold), for rate-distortion curves from a single run.
+                round_bytes.append(len(self._serialize(motion, prep, omegas, stored)))
+                round_seconds.append(time.perf_counter() - self._start)
                 if error <= limit or len(omegas) >= config.K_max:  # line 5
                     break
                 index = _dominant_dct_index(prep["y"] - y_hat, prep["w"], used)  # lines 7-9
@@ -513,7 +524,9 @@ class FourierMlpDctCodec(_FourierMlpCodec):
         extra = {
             "threshold_cm": limit,
             "threshold_met": bool(errors[-1] <= limit),
-            "round_max_err_cm": [round(e, 3) for e in errors],
+            "round_max_err_cm": [round(e, 4) for e in errors],
+            "round_payload_bytes": round_bytes,
+            "round_train_s": [round(t, 3) for t in round_seconds],
         }
         return omegas, stored, error, extra
 

@@ -343,3 +343,17 @@ def test_real_clip_round_trip_quick(cmu_09_06):
     assert error == pytest.approx(codec.last_encode_stats["encoder_max_err_cm"], abs=1e-6)
     assert error < 40.0  # two frequencies and 600 steps on a 141-frame run: coarse but a run
     assert len(data) < metrics.raw_position_bytes(31, cmu_09_06.num_frames) / 2
+
+
+def test_a_larger_threshold_stops_at_the_recorded_round(adaptive_run):
+    """Training does not depend on the threshold: the per-round record of one run gives every threshold's stream."""
+    codec, motion, data = adaptive_run
+    stats = codec.last_encode_stats
+    errors = stats["round_max_err_cm"]
+    assert len(errors) == len(stats["round_payload_bytes"]) == stats["K"] + 1
+    threshold = (errors[0] + errors[1]) / 2
+    again = create("fourier-mlp-dct", K_max=2, threshold=threshold, threshold_unit="cm", **FAST)
+    stream = again.encode(motion)
+    assert again.last_encode_stats["K"] == 1
+    assert again.last_encode_stats["encoder_max_err_cm"] == pytest.approx(errors[1], abs=1e-4)
+    assert len(stream) - len(data) == stats["round_payload_bytes"][1] - stats["round_payload_bytes"][2]
