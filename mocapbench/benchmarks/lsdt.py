@@ -92,7 +92,7 @@ def distortion_at(rows: list[dict], cr: float) -> float:
 
 
 def _label(row: dict) -> str:
-    extra = [f"{key}={row[key]}" for key in ("clip_length", "sparsity") if key in row]
+    extra = [f"{key}={row[key]}" for key in ("clip_length", "sparsity", "count_coding") if key in row]
     return row["codec"] + (f" ({', '.join(extra)})" if extra else "")
 
 
@@ -241,10 +241,13 @@ def fig67(motions, out: Path) -> str:
         "lsdt-clip L=240": ("lsdt-clip", {"clip_length": 240}),
         "dct-spatial-clip L=120": ("dct-spatial-clip", {"clip_length": 120}),
         "dwt-spatial-clip L=120": ("dwt-spatial-clip", {"clip_length": 120}),
+        # Not in the paper: the per-vector nonzero counts Huffman-coded instead of fixed-length.
+        "lsdt-frame, Huffman counts": ("lsdt-frame", {"count_coding": "huffman"}),
+        "lsdt-clip L=120, Huffman counts": ("lsdt-clip", {"clip_length": 120, "count_coding": "huffman"}),
     }
     curves = {label: rd_curve(name, motions, **params) for label, (name, params) in configs.items()}
     _write_csv([dict(row, label=label) for label, rows in curves.items() for row in rows], out / "fig67_rd.csv")
-    frame_curves = {k: v for k, v in curves.items() if "frame" in k}
+    frame_curves = {k: v for k, v in curves.items() if "frame" in k and "Huffman" not in k}
     _plot_curves(frame_curves, out / "fig6_frame_based.png", "Fig. 6: frame-based schemes, cmu_test")
     _plot_curves(curves, out / "fig7_clip_based.png", "Fig. 7: clip-based schemes (and frame-based), cmu_test")
     text = ["\n**RD points** (totals over cmu_test; CR = raw float32 bytes / stream bytes)\n"]
@@ -292,6 +295,10 @@ def fig67(motions, out: Path) -> str:
             if not np.isnan(other):
                 ratios.append((row["cr"], 100 * (1 - other / row["distortion_cm"])))
         text.append(f"{label_a} vs {label_b}: distortion reduction at equal CR: " + ", ".join(f"CR {cr:.1f}: {r:.0f}%" for cr, r in ratios))
+    for base in ("lsdt-frame", "lsdt-clip L=120"):
+        pairs = [(a["step_cm"], 100 * (1 - b["bytes"] / a["bytes"])) for a, b in zip(curves[base], curves[f"{base}, Huffman counts"])]
+        text.append(f"{base} with Huffman-coded counts (not in the paper): bytes saved at the same step: "
+                    + ", ".join(f"step {step:g}: {saved:.0f}%" for step, saved in pairs))
     return "\n".join(text)
 
 

@@ -30,10 +30,9 @@ Departures from the paper (each also in the report of the issue that added this 
 * The rate–distortion knob is the quantization step ``step_cm`` (Δ, cm in the transform domain; the transforms are
   orthonormal, so Δ is also a step in position space) rather than the paper's "quantization bits"; the hard
   threshold is ``threshold_steps`` × Δ, by default 0.5 Δ, i.e. exactly the dead zone of the rounding quantizer.
-* Values are Huffman-coded in two streams with their own tables: the "DC" vectors (the intra-coded first frame of
-  the frame scheme; the temporal-DC column k = 0 of each clip of the clip scheme), whose values are large and
-  nearly all distinct, and all other vectors. The paper says only "Huffman codes"; one shared table would give the
-  frequent small residuals longer codes.
+* ``count_coding="huffman"`` (an option; the default ``"fixed"`` is the paper's fixed-length count) Huffman-codes the
+  per-vector counts of nonzeros. At high compression most vectors are empty and the fixed 5-bit counts (15 bits per
+  frame for J = 31) become the largest part of the stream.
 * The Huffman tables are built over the whole stream and sent in it, so the *bitstream* is written at the end of the
   clip; the coefficient decisions themselves are causal (frame i reads no frame after i, see
   :class:`FrameEncoder`). A deployed streaming coder would use pre-trained tables; the rate would then differ.
@@ -51,6 +50,7 @@ from importlib import resources
 from typing import Any, ClassVar, Sequence
 
 import numpy as np
+import scipy.fft
 
 from mocapbench.codecs import container
 from mocapbench.codecs.base import Codec, CodecConfig, Header, NotFittedError, param
@@ -60,7 +60,7 @@ from mocapbench.entropy.errors import BitstreamError
 from mocapbench.entropy.huffman import decode_symbols, encode_symbols
 from mocapbench.motion import Motion
 from mocapbench.transforms.lsdt import train_lsdt_bases
-from mocapbench.transforms.spatial import dct_matrix, spatial_basis
+from mocapbench.transforms.spatial import spatial_basis
 
 __all__ = [
     "BASES_FILE",
@@ -72,6 +72,7 @@ __all__ = [
     "LsdtClipCodec",
     "LsdtFrameCodec",
     "basis_fingerprint",
+    "COUNT_CODINGS",
     "code_vectors",
     "decode_vectors",
     "load_committed_bases",
@@ -158,76 +159,99 @@ def _count_width(num_joints: int) -> int:
     return int(num_joints).bit_length()
 
 
-def code_vectors(indices: np.ndarray, is_dc: np.ndarray) -> bytes:
-    """Entropy-code quantized coefficient vectors (§3.1): counts fixed-length, locations and values Huffman.
+#: Ways to code the count of nonzeros per vector: the paper's fixed-length field, or canonical Huffman (an option).
+COUNT_CODINGS = ("fixed", "huffman")
+
+
+def code_vectors(indices: np.ndarray, count_coding: str = "fixed") -> bytes:
+    """Entropy-code quantized coefficient vectors (§3.1): counts, then locations and values with Huffman codes.
 
     Parameters
     ----------
     indices : ndarray, shape (V, J), int64
         One quantized coefficient vector per row, in stream order.
-    is_dc : ndarray, shape (V,), bool
-        Vectors whose values go to the "DC" Huffman stream (see the module docstring).
+    count_coding : {"fixed", "huffman"}
+        "fixed": the count of nonzeros of every vector in ``bit_length(J)`` bits (the paper); "huffman": the counts
+        through the same canonical Huffman coder (not in the paper; most high temporal frequencies have none).
 
     Returns
     -------
     bytes
-        Length-prefixed count block, then three Huffman blobs: locations, DC values, other values.
+        The counts (a length-prefixed bit block, or a Huffman blob), then two Huffman blobs: the locations
+        (0..J−1, ascending within each vector) and the values of the nonzero coefficients.
     """
-    num_vectors, num_joints = indices.shape
-    nonzero = indices != 0
-    counts = nonzero.sum(axis=1)
+    if count_coding not in COUNT_CODINGS:
+        raise ValueError(f"Unknown count coding {count_coding!r}; expected one of {list(COUNT_CODINGS)}.")
+    counts = np.count_nonzero(indices, axis=1)
     rows, locations = np.nonzero(indices)  # row-major: vector by vector, locations ascending
-    values = indices[rows, locations]
-    dc_value = is_dc[rows]
-    counts_writer = BitWriter()
-    counts_writer.write_array(counts, _count_width(num_joints))
     writer = ByteWriter()
-    writer.write_blob(counts_writer.getvalue())
+    if count_coding == "fixed":
+        counts_writer = BitWriter()
+        counts_writer.write_array(counts, _count_width(indices.shape[1]))
+        writer.write_blob(counts_writer.getvalue())
+    else:
+        writer.write_bytes(encode_symbols(counts))
     writer.write_bytes(encode_symbols(locations))
-    writer.write_bytes(encode_symbols(values[dc_value]))
-    writer.write_bytes(encode_symbols(values[~dc_value]))
+    writer.write_bytes(encode_symbols(indices[rows, locations]))
     return writer.getvalue()
 
 
-def decode_vectors(reader: ByteReader, num_vectors: int, num_joints: int, is_dc: np.ndarray) -> np.ndarray:
+def decode_vectors(data, num_vectors: int, num_joints: int, count_coding: str = "fixed") -> np.ndarray:
     """Inverse of :func:`code_vectors`, checking every count, location and value.
+
+    Parameters
+    ----------
+    data : bytes-like
+        Exactly what :func:`code_vectors` returned (trailing bytes are an error).
+    num_vectors, num_joints : int
+        V and J, known to the decoder from the container header.
+    count_coding : {"fixed", "huffman"}
 
     Returns
     -------
     ndarray, shape (V, J), int64
+
+    Raises
+    ------
+    BitstreamError
+        On any inconsistency (counts above J, locations out of range or not ascending, zero values, sizes).
     """
-    counts_blob = reader.read_blob("nonzero counts")
-    width = _count_width(num_joints)
-    if len(counts_blob) != (num_vectors * width + 7) // 8:
-        raise BitstreamError(
-            f"expected {(num_vectors * width + 7) // 8} bytes of {width}-bit nonzero counts for {num_vectors} "
-            f"vectors, found {len(counts_blob)}"
-        )
-    counts = BitReader(counts_blob).read_array(num_vectors, width, "nonzero counts").astype(np.int64)
+    data = bytes(data)
+    if count_coding == "fixed":
+        reader = ByteReader(data)
+        counts_blob = reader.read_blob("nonzero counts")
+        width = _count_width(num_joints)
+        if len(counts_blob) != (num_vectors * width + 7) // 8:
+            raise BitstreamError(
+                f"expected {(num_vectors * width + 7) // 8} bytes of {width}-bit nonzero counts for {num_vectors} "
+                f"vectors, found {len(counts_blob)}"
+            )
+        counts = BitReader(counts_blob).read_array(num_vectors, width, "nonzero counts").astype(np.int64)
+        offset = reader.offset
+    elif count_coding == "huffman":
+        counts, offset = decode_symbols(data, 0, expected_count=num_vectors)
+        if counts.size and counts.min() < 0:
+            raise BitstreamError(f"expected nonnegative nonzero counts, found {int(counts.min())}")
+    else:
+        raise BitstreamError(f"unknown count coding {count_coding!r}")
     if counts.size and counts.max() > num_joints:
         raise BitstreamError(f"expected at most J={num_joints} nonzeros per vector, found {int(counts.max())}")
     total = int(counts.sum())
-    data = reader.read_bytes(reader.remaining, "Huffman streams")
-    locations, offset = decode_symbols(data, 0, expected_count=total)
+    locations, offset = decode_symbols(data, offset, expected_count=total)
+    values, offset = decode_symbols(data, offset, expected_count=total)
+    if offset != len(data):
+        raise BitstreamError(f"expected the payload to end after the value stream, found {len(data) - offset} more bytes")
     rows = np.repeat(np.arange(num_vectors), counts)
     if total:
         if locations.min() < 0 or locations.max() >= num_joints:
-            raise BitstreamError(f"expected coefficient locations in [0, {num_joints - 1}], found "
-                                 f"[{int(locations.min())}, {int(locations.max())}]")
-        same_vector = rows[1:] == rows[:-1]
-        if np.any(same_vector & (locations[1:] <= locations[:-1])):
+            raise BitstreamError(
+                f"expected coefficient locations in [0, {num_joints - 1}], found "
+                f"[{int(locations.min())}, {int(locations.max())}]"
+            )
+        if np.any((rows[1:] == rows[:-1]) & (locations[1:] <= locations[:-1])):
             raise BitstreamError("expected strictly increasing coefficient locations within each vector")
-    dc_value = is_dc[rows]
-    num_dc = int(dc_value.sum())
-    dc_values, offset = decode_symbols(data, offset, expected_count=num_dc)
-    other_values, offset = decode_symbols(data, offset, expected_count=total - num_dc)
-    if offset != len(data):
-        raise BitstreamError(f"expected the payload to end after the value streams, found {len(data) - offset} more bytes")
-    values = np.empty(total, dtype=np.int64)
-    values[dc_value] = dc_values
-    values[~dc_value] = other_values
-    if total and np.any(values == 0):
-        raise BitstreamError("expected only nonzero coefficient values in the value streams, found a zero")
+        if np.any(values == 0):
+            raise BitstreamError("expected only nonzero coefficient values, found a zero")
     indices = np.zeros((num_vectors, num_joints), dtype=np.int64)
     indices[rows, locations] = values
     return indices
@@ -373,8 +397,8 @@ def _clip_lengths(num_frames: int, clip_length: int) -> list[int]:
     return lengths
 
 
-def _clip_forward(frames: np.ndarray, bases: np.ndarray, length: int) -> np.ndarray:
-    """eq. (4)-(5) for a batch of clips of one length.
+def _clip_forward(frames: np.ndarray, bases: np.ndarray) -> np.ndarray:
+    """eq. (4)-(5) for a batch of clips of one length L.
 
     Parameters
     ----------
@@ -385,22 +409,25 @@ def _clip_forward(frames: np.ndarray, bases: np.ndarray, length: int) -> np.ndar
     -------
     ndarray, shape (n, 3, L, J)
         ``C^d`` of each clip, one coefficient vector (a column of C, over the J joints) per temporal frequency k.
+
+    Notes
+    -----
+    ``C~ = M~ U_t`` (eq. 4) with the orthonormal DCT-II matrix is ``scipy.fft.dct(..., norm="ortho")`` along time:
+    O(L log L) per trajectory and no L × L matrix, so any clip length fits in memory.
     """
-    n, _, _, num_joints = frames.shape
-    temporal = dct_matrix(length)  # rows = cosines; C~ = M~ U_t with U_t = temporal.T
-    spectra = temporal @ frames.transpose(1, 0, 2, 3).reshape(length, -1)  # (L, n*3*J)
-    spectra = spectra.reshape(length, n, 3, num_joints).transpose(2, 1, 0, 3).reshape(3, n * length, num_joints)
-    coefficients = np.matmul(spectra, bases.transpose(0, 2, 1))  # row form of B C~, per coordinate
+    n, length, _, num_joints = frames.shape
+    spectra = scipy.fft.dct(frames, type=2, norm="ortho", axis=1)  # eq. (4), (n, L, 3, J)
+    rows = spectra.transpose(2, 0, 1, 3).reshape(3, n * length, num_joints)
+    coefficients = np.matmul(rows, bases.transpose(0, 2, 1))  # eq. (5) in row form: (B C~)ᵀ = C~ᵀ Bᵀ
     return coefficients.reshape(3, n, length, num_joints).transpose(1, 0, 2, 3)
 
 
-def _clip_inverse(coefficients: np.ndarray, bases: np.ndarray, length: int) -> np.ndarray:
+def _clip_inverse(coefficients: np.ndarray, bases: np.ndarray) -> np.ndarray:
     """Inverse of :func:`_clip_forward`: ``(n, 3, L, J)`` coefficients to ``(n, L, 3, J)`` frames, cm."""
-    n, _, _, num_joints = coefficients.shape
-    spectra = np.matmul(coefficients.transpose(1, 0, 2, 3).reshape(3, n * length, num_joints), bases)
-    spectra = spectra.reshape(3, n, length, num_joints).transpose(2, 1, 0, 3).reshape(length, -1)
-    frames = dct_matrix(length).T @ spectra
-    return frames.reshape(length, n, 3, num_joints).transpose(1, 0, 2, 3)
+    n, _, length, num_joints = coefficients.shape
+    rows = np.matmul(coefficients.transpose(1, 0, 2, 3).reshape(3, n * length, num_joints), bases)  # Bᵀ C
+    spectra = rows.reshape(3, n, length, num_joints).transpose(1, 2, 0, 3)  # (n, L, 3, J)
+    return scipy.fft.idct(spectra, type=2, norm="ortho", axis=1)
 
 
 # ---------------------------------------------------------------------------------------------------------------------
@@ -474,17 +501,17 @@ class _SpatialTransformCodec(Codec):
             for length, count in self._clip_groups(num_frames):
                 stop = start + length * count
                 batch = frames[start:stop].reshape(count, length, 3, num_joints)
-                coefficients = _clip_forward(batch, bases, length)
+                coefficients = _clip_forward(batch, bases)
                 blocks.append(quantize_coefficients(coefficients, step, threshold).reshape(-1, num_joints))
                 start = stop
             vectors = np.concatenate(blocks)
-        is_dc = self._dc_vectors(num_frames, num_joints)
         writer = ByteWriter()
         writer.write_bytes(self._fingerprint(num_joints))
+        writer.write_u8(COUNT_CODINGS.index(self.config.count_coding))
         writer.write_f64(step)
         if self.scheme == "clip":
             writer.write_varint(self.config.clip_length)
-        writer.write_bytes(code_vectors(vectors, is_dc))
+        writer.write_bytes(code_vectors(vectors, self.config.count_coding))
         nonzero = int(np.count_nonzero(vectors))
         self.last_encode_stats = {
             "latency_frames": 0 if self.scheme == "frame" else self.config.clip_length,
@@ -507,6 +534,9 @@ class _SpatialTransformCodec(Codec):
         bases = self._bases(num_joints)
         if bases.shape[-1] != num_joints:
             raise BitstreamError(f"{self.name}: the stream has {num_joints} joints, the bases {bases.shape[-1]}.")
+        coding = reader.read_u8("count coding")
+        if coding >= len(COUNT_CODINGS):
+            raise BitstreamError(f"{self.name}: expected a count coding in 0..{len(COUNT_CODINGS) - 1}, found {coding}.")
         step = reader.read_f64("quantization step")
         if not (np.isfinite(step) and step > 0):
             raise BitstreamError(f"{self.name}: expected a positive quantization step, found {step!r}.")
@@ -516,8 +546,8 @@ class _SpatialTransformCodec(Codec):
                 raise BitstreamError(f"{self.name}: expected a clip length in [1, 2**20], found {clip_length}.")
         else:
             clip_length = 0
-        is_dc = self._dc_vectors(num_frames, num_joints, clip_length)
-        vectors = decode_vectors(reader, 3 * num_frames, num_joints, is_dc)
+        vectors = decode_vectors(reader.read_bytes(reader.remaining, "coefficient streams"), 3 * num_frames,
+                                 num_joints, COUNT_CODINGS[coding])
         if self.scheme == "frame":
             positions = _frame_reconstruct(vectors.reshape(num_frames, 3, num_joints), bases, step)
         else:
@@ -526,7 +556,7 @@ class _SpatialTransformCodec(Codec):
             for length, count in self._clip_groups(num_frames, clip_length):
                 stop = start + count * 3 * length
                 coefficients = vectors[start:stop].reshape(count, 3, length, num_joints) * step
-                parts.append(_clip_inverse(coefficients, bases, length).reshape(count * length, 3, num_joints))
+                parts.append(_clip_inverse(coefficients, bases).reshape(count * length, 3, num_joints))
                 start = stop
             positions = np.concatenate(parts).transpose(0, 2, 1)
         return positions, None
@@ -540,24 +570,11 @@ class _SpatialTransformCodec(Codec):
             groups.append((num_frames % clip_length, 1))
         return groups
 
-    def _dc_vectors(self, num_frames: int, num_joints: int, clip_length: int | None = None) -> np.ndarray:
-        """Flags of the vectors whose values use the DC Huffman table, in stream order (3F vectors)."""
-        is_dc = np.zeros(3 * num_frames, dtype=bool)
-        if self.scheme == "frame":
-            is_dc[:3] = True  # the intra-coded first frame (eq. 1)
-            return is_dc
-        start = 0
-        for length, count in self._clip_groups(num_frames, clip_length):
-            block = np.zeros((count, 3, length), dtype=bool)
-            block[:, :, 0] = True  # temporal frequency k = 0 of every clip and coordinate
-            is_dc[start : start + block.size] = block.ravel()
-            start += block.size
-        return is_dc
-
     def describe_payload(self, header: Header, payload: memoryview) -> dict[str, Any]:
         info: dict[str, Any] = {"scheme": self.scheme}
         reader = ByteReader(payload)
         reader.read_bytes(len(self._fingerprint(header.num_joints)), "bases fingerprint")
+        info["count_coding"] = COUNT_CODINGS[reader.read_u8("count coding") % len(COUNT_CODINGS)]
         info["step_cm"] = reader.read_f64("quantization step")
         if self.scheme == "clip":
             info["clip_length"] = reader.read_varint("clip length")
@@ -572,6 +589,10 @@ _THRESHOLD_DOC = (
     "hard threshold in units of Δ: coefficients with |c| <= threshold_steps·Δ are zeroed; 0.5 = the dead zone of "
     "the rounding quantizer itself"
 )
+_COUNT_DOC = (
+    "coding of the number of nonzeros per coefficient vector: 'fixed' = bit_length(J) bits each (the paper), "
+    "'huffman' = canonical Huffman (an option, not in the paper)"
+)
 _CLIP_DOC = "clip length L (the latency); the paper uses 60, 120, 240 at 120 fps"
 
 
@@ -579,6 +600,7 @@ _CLIP_DOC = "clip length L (the latency); the paper uses 60, 120, 240 at 120 fps
 class _FrameConfig(CodecConfig):
     step_cm: float = param(0.5, low=1e-4, high=1000.0, unit="cm", doc=_STEP_DOC)
     threshold_steps: float = param(0.5, low=0.5, high=100.0, unit="steps", doc=_THRESHOLD_DOC)
+    count_coding: str = param("fixed", choices=COUNT_CODINGS, doc=_COUNT_DOC)
 
 
 @dataclass(frozen=True)

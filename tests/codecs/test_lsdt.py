@@ -12,7 +12,10 @@ from mocapbench.codecs import BitstreamError, create
 from mocapbench.codecs.base import NotFittedError
 from mocapbench.codecs.lsdt import (
     COMMITTED_SPARSITIES,
+    COUNT_CODINGS,
     FrameEncoder,
+    _clip_forward,
+    _clip_inverse,
     _frame_closed_loop,
     _frame_reconstruct,
     code_vectors,
@@ -20,9 +23,9 @@ from mocapbench.codecs.lsdt import (
     decode_vectors,
     load_committed_bases,
 )
-from mocapbench.entropy.bitio import ByteReader
 from mocapbench.motion import Motion, Skeleton
 from mocapbench.synthetic import sinusoidal_motion
+from mocapbench.transforms import dct_matrix
 
 NAMES = ["lsdt-frame", "lsdt-clip", "dct-spatial-frame", "dct-spatial-clip", "dwt-spatial-frame", "dwt-spatial-clip"]
 J = 31
@@ -120,6 +123,19 @@ def test_clip_codec_codes_the_final_partial_clip(num_frames):
     assert error.max() <= _joint_error_bound(0.1)
     assert error[tail].size == 0 or error[tail].max() <= _joint_error_bound(0.1)
     assert codec.last_encode_stats["latency_frames"] == 120
+
+
+def test_clip_transform_is_equations_4_and_5():
+    rng = np.random.default_rng(1)
+    frames = rng.normal(size=(2, 16, 3, J)) * 50  # (n, L, 3, J)
+    bases = load_committed_bases(8)
+    coefficients = _clip_forward(frames, bases)
+    for n in range(2):
+        for d in range(3):
+            clip = frames[n, :, d, :].T  # M~^d, J × L
+            expected = bases[d] @ (clip @ dct_matrix(16).T)  # C = B (M~ U_t), U_t = DCT matrix transposed
+            np.testing.assert_allclose(coefficients[n, d].T, expected, atol=1e-9)
+    np.testing.assert_allclose(_clip_inverse(coefficients, bases), frames, atol=1e-9)
 
 
 @pytest.mark.parametrize("clip_length", [60, 120, 240])
@@ -230,22 +246,32 @@ def test_fit_mode_retrains_and_round_trips(synthetic_motion, training_motions):
     st.integers(min_value=1, max_value=33),
     st.floats(min_value=0.0, max_value=1.0),
     st.integers(min_value=0, max_value=2**31),
+    st.sampled_from(COUNT_CODINGS),
 )
-def test_vector_coding_round_trips(num_vectors, num_joints, density, seed):
+def test_vector_coding_round_trips(num_vectors, num_joints, density, seed, count_coding):
     rng = np.random.default_rng(seed)
     values = rng.integers(-5000, 5000, size=(num_vectors, num_joints))
     indices = np.where(rng.random((num_vectors, num_joints)) < density, values, 0)
-    is_dc = rng.random(num_vectors) < 0.2
-    data = code_vectors(indices, is_dc)
-    decoded = decode_vectors(ByteReader(data), num_vectors, num_joints, is_dc)
-    np.testing.assert_array_equal(decoded, indices)
+    data = code_vectors(indices, count_coding)
+    np.testing.assert_array_equal(decode_vectors(data, num_vectors, num_joints, count_coding), indices)
 
 
-def test_vector_coding_rejects_trailing_bytes():
+def test_vector_coding_rejects_trailing_bytes_and_unknown_coding():
     indices = np.array([[0, 3, 0], [1, 0, 0]])
-    data = code_vectors(indices, np.array([True, False])) + b"\x00"
     with pytest.raises(BitstreamError, match="more bytes"):
-        decode_vectors(ByteReader(data), 2, 3, np.array([True, False]))
+        decode_vectors(code_vectors(indices) + b"\x00", 2, 3)
+    with pytest.raises(ValueError, match="Unknown count coding 'gzip'"):
+        code_vectors(indices, "gzip")
+
+
+@pytest.mark.parametrize("name", ["lsdt-frame", "lsdt-clip"])
+def test_huffman_counts_round_trip_and_save_bytes_at_high_compression(name, synthetic_motion):
+    fixed = create(name, step_cm=4.0)
+    huffman = create(name, step_cm=4.0, count_coding="huffman")
+    data_fixed, data_huffman = fixed.encode(synthetic_motion), huffman.encode(synthetic_motion)
+    assert len(data_huffman) < len(data_fixed)
+    # The coding travels in the stream: either codec decodes either stream, to the same positions.
+    np.testing.assert_array_equal(fixed.decode(data_huffman).positions, huffman.decode(data_fixed).positions)
 
 
 # -- real data (fast) ---------------------------------------------------------------------------------------
