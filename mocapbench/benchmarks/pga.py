@@ -201,6 +201,8 @@ def run(data_dir: str | None, repeats: int, quick: bool) -> str:
         ("k = 6, D = 5 (09_06's setting)", dict(num_geodesics=6, root_levels_dropped=5, end_levels_dropped=5)),
         ("k = 12, D = 2", dict(num_geodesics=12, root_levels_dropped=2, end_levels_dropped=2)),
         ("k = 12, D = 0 (lossless trajectories)", dict(num_geodesics=12, root_levels_dropped=0, end_levels_dropped=0, trajectory_bits=24, model_bits=24)),
+        ("k = 12, D = 4, lambda = 1 cm^2", dict(num_geodesics=12, root_levels_dropped=4, end_levels_dropped=4, ik_length_unit_cm=1.0)),
+        ("k = 12, D = 0, lambda = 1 cm^2", dict(num_geodesics=12, root_levels_dropped=0, end_levels_dropped=0, trajectory_bits=24, model_bits=24, ik_length_unit_cm=1.0)),
     ]
     totals = []
     per_clip = {}

@@ -179,7 +179,7 @@ class PgaIkCodec(Codec):
             unit="cm",
             doc="length unit of the IK objective (default: the CMU ASF unit, 5.6444 cm, the paper's data)",
         )
-        lm_iterations: int = param(3, low=1, high=_MAX_LM_ITERATIONS, doc="Levenberg-Marquardt iterations per frame")
+        lm_iterations: int = param(2, low=1, high=_MAX_LM_ITERATIONS, doc="Levenberg-Marquardt iterations per frame")
 
     # -- encoder ---------------------------------------------------------------------------------------------
     def encode_payload(self, motion: Motion) -> bytes:

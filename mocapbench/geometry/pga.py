@@ -107,7 +107,8 @@ def fit_pga(rotations, num_geodesics: int) -> PrincipalGeodesics:
     tangent = (mean.inv() * rot).as_rotvec().reshape(num_frames, 3 * num_joints)  # u_i, mean ~ 0 at the Karcher mean
     # Full SVD of the (F, 3n) matrix; the right singular vectors are the principal axes. Deterministic sign:
     # the largest-magnitude component of every axis is made positive.
-    _, singular, vt = np.linalg.svd(tangent, full_matrices=True)
+    # Thin SVD when F >= 3n (it already gives all 3n axes; the full one would build an F x F matrix).
+    _, singular, vt = np.linalg.svd(tangent, full_matrices=num_frames < 3 * num_joints)
     variances = np.zeros(min(num_frames, 3 * num_joints))
     variances[: singular.size] = singular**2 / num_frames
     axes = vt[:num_geodesics]
