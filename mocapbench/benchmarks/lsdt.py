@@ -33,7 +33,7 @@ from mocapbench.codecs import create  # noqa: E402
 from mocapbench.codecs.lsdt import COMMITTED_SPARSITIES, load_committed_bases  # noqa: E402
 from mocapbench.datasets.cmu import load_clip, load_split  # noqa: E402
 from mocapbench.metrics.timing import time_call  # noqa: E402
-from mocapbench.transforms.lsdt import truncate  # noqa: E402
+from mocapbench.transforms.lsdt import train_lsdt_bases, truncate  # noqa: E402
 from mocapbench.transforms.spatial import spatial_basis  # noqa: E402
 
 STEPS_CM = (0.05, 0.1, 0.2, 0.35, 0.5, 0.75, 1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0, 12.0, 16.0)
@@ -52,13 +52,18 @@ def _plt():
     return plt
 
 
-def rd_curve(name: str, motions, steps=STEPS_CM, **params) -> list[dict]:
-    """One row per step: totals over ``motions`` of stream bytes and of eq. (12) errors."""
+def rd_curve(name: str, motions, steps=STEPS_CM, bases=None, **params) -> list[dict]:
+    """One row per step: totals over ``motions`` of stream bytes and of eq. (12) errors.
+
+    ``bases`` (3, J, J): LSDT bases to use instead of the committed ones (with ``basis="fit"`` in ``params``).
+    """
     references = [motion.positions() for motion in motions]
     frames = sum(motion.num_frames for motion in motions)
     rows = []
     for step in steps:
         codec = create(name, step_cm=step, **params)
+        if bases is not None:
+            codec.set_bases(bases)
         total_bytes, error_sum, nonzero = 0, 0.0, 0
         for motion, reference in zip(motions, references):
             data = codec.encode(motion)
@@ -201,17 +206,29 @@ def fig5(motions, out: Path) -> str:
 # -- Fig. 4 ------------------------------------------------------------------------------------------------
 
 
-def fig4(motions, out: Path) -> str:
-    """The effect of the training sparsity P on both schemes (clip scheme at L = 240, as in the paper)."""
+def fig4(motions, out: Path, extra_sparsities=(), data_dir=None, iterations: int = 3000) -> str:
+    """The effect of the training sparsity P on both schemes (clip scheme at L = 240, as in the paper).
+
+    ``extra_sparsities``: P values beyond the committed ones, trained here on ``cmu_train`` (DCT init, ``iterations``).
+    """
     text = []
     all_rows = []
+    extra = {}
+    if extra_sparsities:
+        train = np.concatenate([m.positions() for m in load_split("cmu_train", data_dir=data_dir)])
+        for p in extra_sparsities:
+            extra[p], _ = train_lsdt_bases(train, p, init="dct", max_iterations=iterations, tol=1e-10)
     for scheme, name, params, targets in (
-        ("frame", "lsdt-frame", {}, (5, 8, 12, 16, 24, 32)),
-        ("clip", "lsdt-clip", {"clip_length": 240}, (10, 20, 40, 60, 80, 120)),
+        ("frame", "lsdt-frame", {}, (8, 12, 16, 24, 32, 48, 64, 96)),
+        ("clip", "lsdt-clip", {"clip_length": 240}, (10, 20, 40, 60, 80, 100)),
     ):
         curves = {}
         for p in COMMITTED_SPARSITIES:
             rows = rd_curve(name, motions, sparsity=p, **params)
+            curves[f"P={p}"] = rows
+            all_rows += rows
+        for p, bases in extra.items():
+            rows = rd_curve(name, motions, bases=bases, sparsity=p, basis="fit", **params)
             curves[f"P={p}"] = rows
             all_rows += rows
         _plot_curves(curves, out / f"fig4_sparsity_{scheme}.png", f"{name}{' L=240' if params else ''}: training sparsity P")
@@ -337,6 +354,7 @@ def main(argv=None) -> None:
     parser.add_argument("--data-dir", default=None)
     parser.add_argument("--out", default="reports/lsdt")
     parser.add_argument("--only", default="fig5,fig4,rd,speed", help="comma-separated subset of fig5,fig4,rd,speed")
+    parser.add_argument("--extra-sparsity", default="", help="Fig. 4: P values to train here besides 2,5,8,11, e.g. 14,20")
     args = parser.parse_args(argv)
     parts = set(args.only.split(","))
     out = Path(args.out)
@@ -347,7 +365,8 @@ def main(argv=None) -> None:
     if "fig5" in parts:
         print("\n## Fig. 5: distortion vs percentage of nonzero spatial coefficients\n" + fig5(motions, out))
     if "fig4" in parts:
-        print("\n## Fig. 4: training sparsity P\n" + fig4(motions, out))
+        extra = tuple(int(p) for p in args.extra_sparsity.split(",") if p)
+        print("\n## Fig. 4: training sparsity P\n" + fig4(motions, out, extra, args.data_dir))
     if "rd" in parts:
         print("\n## Figs. 6 and 7: CR vs distortion\n" + fig67(motions, out))
     if "speed" in parts:

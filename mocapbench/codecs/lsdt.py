@@ -662,6 +662,25 @@ class _LsdtBases:
         self.training_objective = [result.objective for result in results]
         return self
 
+    def set_bases(self, bases: np.ndarray):
+        """Use given bases as the learned state (``basis='fit'`` only), e.g. bases trained once for many configs.
+
+        Parameters
+        ----------
+        bases : ndarray, shape (3, J, J), float
+            Orthogonal ``B^x, B^y, B^z`` (``||B Bᵀ − I|| < 1e-10``).
+        """
+        if self.config.basis != "fit":
+            raise ValueError(f"{self.name}: set_bases needs basis='fit'; basis={self.config.basis!r} uses the committed file.")
+        bases = np.array(bases, dtype=np.float64)
+        if bases.ndim != 3 or bases.shape[0] != 3 or bases.shape[1] != bases.shape[2]:
+            raise ValueError(f"{self.name}: expected bases of shape (3, J, J), got {bases.shape}.")
+        identity = np.eye(bases.shape[1])
+        if max(np.abs(b @ b.T - identity).max() for b in bases) >= 1e-10:
+            raise ValueError(f"{self.name}: the bases must be orthogonal (||B Bᵀ − I|| < 1e-10).")
+        self._trained = bases
+        return self
+
     def _bases(self, num_joints: int) -> np.ndarray:
         if self.config.basis == "fit":
             if self._trained is None:

@@ -291,3 +291,12 @@ def test_real_clip_09_06_round_trip():
         ratio = metrics.raw_position_bytes(J, motion.num_frames) / len(data)
         distortion = metrics.mean_joint_error(reference, decoded)
         assert 0.01 < distortion < 0.5 and ratio > 5, f"{name}: D={distortion:.3f} cm, CR={ratio:.1f}"
+
+
+def test_set_bases_validates_and_is_used(synthetic_motion):
+    with pytest.raises(ValueError, match="needs basis='fit'"):
+        create("lsdt-frame").set_bases(load_committed_bases(8))
+    with pytest.raises(ValueError, match="must be orthogonal"):
+        create("lsdt-frame", basis="fit").set_bases(2 * load_committed_bases(8))
+    data = create("lsdt-frame", basis="fit").set_bases(load_committed_bases(8)).encode(synthetic_motion)
+    assert create("lsdt-frame").decode(data).positions.shape == (240, J, 3)  # same bases, same fingerprint
