@@ -8,8 +8,10 @@ decoder on the stream it is about to return and refuses to return one that break
 Design (two layers, in the spirit of near-lossless image coding such as JPEG-LS)::
 
     positions (F, J, 3) cm
-      └─ bone vectors: root position, and child − parent for every other joint (spatial decorrelation: the
-         vectors have constant length, so they vary far less than absolute positions)
+      └─ spatial decorrelation (``representation``): by default ``"pca"``, the root position plus the other
+         joints' root-relative positions projected on an orthonormal PCA basis learned from training motions
+         (shared model state, reported as ``model_bytes``; the package ships one fit on ``cmu_train``).
+         ``"bone"`` (child − parent vectors) and ``"absolute"`` need no model.
       └─ base layer: orthonormal DCT-II along time on clips of L frames (the LSDT paper's clip scheme, eq. 4),
          uniform quantization with step Δ chosen by rate–distortion search over a grid of multiples of ε
       └─ refinement layer: r = P − P̂_base on absolute positions; joints with ||r|| <= ε are left alone, the others
@@ -27,12 +29,16 @@ a cumulative sum over the joint tree, one scatter-add), so it decodes several hu
 
 from __future__ import annotations
 
+import zlib
+from collections.abc import Sequence
 from dataclasses import dataclass
+from functools import lru_cache
+from importlib import resources
 
 import numpy as np
 import scipy.fft
 
-from mocapbench.codecs.base import Codec, CodecConfig, Header, param
+from mocapbench.codecs.base import Codec, CodecConfig, Header, NotFittedError, param
 from mocapbench.codecs.registry import register_codec
 from mocapbench.entropy.backend import zstd_compress, zstd_decompress
 from mocapbench.entropy.bitio import ByteReader, ByteWriter, zigzag_decode, zigzag_encode
@@ -40,7 +46,10 @@ from mocapbench.entropy.errors import BitstreamError
 from mocapbench.entropy.huffman import decode_symbols, encode_symbols
 from mocapbench.motion import Motion
 
-__all__ = ["McbLinfCodec", "bcc_quantize"]
+__all__ = ["McbLinfCodec", "SpatialBasis", "bcc_quantize", "fit_spatial_basis", "load_default_basis"]
+
+BASIS_FILE = "models/mcb_linf_pca_v1.npz"
+_REPRESENTATIONS = ("absolute", "bone", "pca")  # stream codes 0, 1, 2: append only
 
 # Lower edges of the frequency bands (DCT index on the scale of a full clip); the context of a coefficient.
 _BAND_EDGES = np.array([0, 1, 2, 3, 4, 6, 8, 12, 16, 24, 32, 48, 64, 96, 128, 192, 256, 384, 512, 768, 1024])
@@ -130,6 +139,92 @@ def _inverse_dct(coefficients: np.ndarray, num_frames: int, clip_frames: int, ch
     return out
 
 
+@dataclass(frozen=True, eq=False)
+class SpatialBasis:
+    """An orthonormal spatial basis for the root-relative positions of joints 1..J-1.
+
+    Attributes
+    ----------
+    basis : ndarray, shape (D, D), float64 (float32-exact), D = 3 (J - 1)
+        Rows are orthonormal PCA directions, by decreasing variance.
+    mean : ndarray, shape (D,), float64 (float32-exact), cm
+    tag : int
+        CRC32 of the stored arrays, written into every stream so that a decoder with another basis refuses it.
+    """
+
+    basis: np.ndarray
+    mean: np.ndarray
+
+    @property
+    def tag(self) -> int:
+        return zlib.crc32(self.basis.astype("<f4").tobytes() + self.mean.astype("<f4").tobytes())
+
+    @property
+    def num_joints(self) -> int:
+        return self.basis.shape[0] // 3 + 1
+
+    @property
+    def stored_bytes(self) -> int:
+        """Size as shipped: float32 basis and mean."""
+        return 4 * (self.basis.size + self.mean.size)
+
+
+def _root_relative(positions: np.ndarray) -> np.ndarray:
+    """(F, J, 3) → (F, 3 (J - 1)): joints 1..J-1 relative to the root."""
+    return (positions[:, 1:] - positions[:, :1]).reshape(len(positions), -1)
+
+
+def fit_spatial_basis(motions: Sequence[Motion]) -> SpatialBasis:
+    """PCA of the root-relative joint positions of ``motions`` (all frames pooled), stored as float32.
+
+    Raises
+    ------
+    ValueError
+        If the motions are empty or have different joint counts.
+    """
+    if not motions:
+        raise ValueError("mcb-linf: fit needs at least one training motion, got none.")
+    joints = {m.num_joints for m in motions}
+    if len(joints) != 1:
+        raise ValueError(f"mcb-linf: training motions must share one joint count, got {sorted(joints)}.")
+    data = np.concatenate([_root_relative(m.positions()) for m in motions])
+    mean = data.mean(axis=0)
+    _, _, rows = np.linalg.svd(data - mean, full_matrices=False)
+    # Round to float32 once: encoder and decoder then use bit-identical arrays, whatever saved them.
+    return SpatialBasis(rows.astype(np.float32).astype(np.float64), mean.astype(np.float32).astype(np.float64))
+
+
+@lru_cache(maxsize=1)
+def load_default_basis() -> SpatialBasis:
+    """The basis shipped with the package (fit on the ``cmu_train`` split by ``mocapbench.benchmarks.train_mcb_linf``)."""
+    with resources.files("mocapbench").joinpath(BASIS_FILE).open("rb") as file:
+        stored = np.load(file)
+        return SpatialBasis(stored["basis"].astype(np.float64), stored["mean"].astype(np.float64))
+
+
+def _to_signal(positions: np.ndarray, parents: np.ndarray, representation: str, basis: SpatialBasis | None):
+    """(F, J, 3) positions → (F, 3J) signal of the chosen representation."""
+    num_frames = len(positions)
+    if representation == "absolute":
+        return positions.reshape(num_frames, -1)
+    if representation == "bone":
+        return _to_bones(positions, parents).reshape(num_frames, -1)
+    projected = (_root_relative(positions) - basis.mean) @ basis.basis.T
+    return np.concatenate([positions[:, 0], projected], axis=1)
+
+
+def _from_signal(signal: np.ndarray, parents: np.ndarray, representation: str, basis: SpatialBasis | None):
+    """Inverse of :func:`_to_signal`: (F, J, 3)."""
+    num_frames = len(signal)
+    if representation == "absolute":
+        return signal.reshape(num_frames, -1, 3)
+    if representation == "bone":
+        return _from_bones(signal.reshape(num_frames, -1, 3), parents)
+    relative = (signal[:, 3:] @ basis.basis + basis.mean).reshape(num_frames, -1, 3)
+    root = signal[:, None, :3]
+    return np.concatenate([root, relative + root], axis=1)
+
+
 def _to_bones(positions: np.ndarray, parents: np.ndarray) -> np.ndarray:
     """(F, J, 3) absolute positions → root position and child − parent vectors."""
     bones = positions.copy()
@@ -145,14 +240,10 @@ def _from_bones(bones: np.ndarray, parents: np.ndarray) -> np.ndarray:
     return positions
 
 
-def _base_positions(
-    coefficients: np.ndarray, step: float, num_frames: int, parents: np.ndarray, clip_frames: int, bone: bool
-) -> np.ndarray:
+def _base_positions(coefficients, step, num_frames, parents, clip_frames, representation, basis) -> np.ndarray:
     """Base-layer positions (F, J, 3) cm from the quantized coefficients; shared by encoder and decoder."""
-    num_joints = len(parents)
-    signal = _inverse_dct(coefficients * step, num_frames, clip_frames, 3 * num_joints)
-    signal = signal.reshape(num_frames, num_joints, 3)
-    return _from_bones(signal, parents) if bone else signal
+    signal = _inverse_dct(coefficients * step, num_frames, clip_frames, 3 * len(parents))
+    return _from_signal(signal, parents, representation, basis)
 
 
 def _write_symbols(writer: ByteWriter, symbols: np.ndarray, zstd_level: int) -> None:
@@ -195,10 +286,13 @@ def _read_symbols(reader: ByteReader, payload: memoryview, count: int, what: str
 
 @register_codec
 class McbLinfCodec(Codec):
-    """Guaranteed-L∞ codec: DCT base layer on bone vectors + BCC-lattice refinement where the error exceeds ε.
+    """Guaranteed-L∞ codec: temporal-DCT base layer on a learned spatial basis + BCC-lattice refinement.
 
     See the module docstring for the design. The bound holds on the decoder's output for every joint of every
-    frame: ``max_joint_error(original, decoded) <= eps_cm``.
+    frame: ``max_joint_error(original, decoded) <= eps_cm``. With ``representation="pca"`` the basis is learned
+    state: :meth:`fit` learns it from training motions; without ``fit`` the package's basis (fit on
+    ``cmu_train``, 31 joints) is used. Every stream carries the basis' CRC32 tag, so a decoder holding another
+    basis refuses the stream instead of decoding garbage.
     """
 
     name = "mcb-linf"
@@ -208,43 +302,73 @@ class McbLinfCodec(Codec):
     @dataclass(frozen=True)
     class Config(CodecConfig):
         eps_cm: float = param(1.0, low=1e-3, high=100.0, unit="cm", doc="guaranteed L-inf bound on every joint")
-        clip_frames: int = param(120, low=4, high=4096, unit="frames", doc="DCT clip length L (latency)")
-        representation: str = param("bone", choices=("bone", "absolute"), doc="what the base layer transforms")
+        clip_frames: int = param(240, low=4, high=4096, unit="frames", doc="DCT clip length L (the latency)")
+        representation: str = param("pca", choices=_REPRESENTATIONS, doc="spatial decorrelation before the DCT")
         rdo: bool = param(True, doc="search the base-layer step (else use base_step_rel)")
-        base_step_rel: float = param(1.4, low=0.05, high=64.0, unit="× eps", doc="base step when rdo is off")
+        base_step_rel: float = param(2.0, low=0.05, high=64.0, unit="x eps", doc="base step when rdo is off")
         zstd_level: int = param(19, low=1, high=22, doc="zstd level of the bands coded with zstd")
+
+    def __init__(self, config=None) -> None:
+        super().__init__(config)
+        self._basis: SpatialBasis | None = None
+
+    # -- learned state ---------------------------------------------------------------------------------
+    def fit(self, motions: Sequence[Motion]) -> "McbLinfCodec":
+        """Learn the PCA basis from ``motions`` (only used with ``representation="pca"``)."""
+        if self.config.representation == "pca":
+            self._basis = fit_spatial_basis(motions)
+        return self
+
+    def _spatial_basis(self, num_joints: int) -> SpatialBasis | None:
+        if self.config.representation != "pca":
+            return None
+        if self._basis is None:
+            self._basis = load_default_basis()
+        if self._basis.num_joints != num_joints:
+            raise NotFittedError(
+                f"mcb-linf: the PCA basis is for {self._basis.num_joints} joints, the motion has {num_joints}; "
+                f"call fit() on motions of this skeleton or use representation='bone' or 'absolute'."
+            )
+        return self._basis
+
+    @property
+    def model_bytes(self) -> int:
+        if self.config.representation != "pca":
+            return 0
+        return (self._basis or load_default_basis()).stored_bytes
 
     # -- encoding --------------------------------------------------------------------------------------
     def encode_payload(self, motion: Motion) -> bytes:
         positions = motion.positions()
         config = self.config
+        basis = self._spatial_basis(motion.num_joints)
+        signal = _to_signal(positions, motion.skeleton.parents, config.representation, basis)
+        spectrum = _forward_dct(signal, config.clip_frames)
         steps = [config.eps_cm * rel for rel in (_RDO_STEPS if config.rdo else (config.base_step_rel,))]
         radius = config.eps_cm * (1.0 - _SAFETY_MARGIN)
         best = None
         for step in steps:
-            payload = self._encode_with_step(positions, motion.skeleton.parents, step, radius)
+            payload = self._encode_with_step(positions, motion.skeleton.parents, spectrum, step, radius, basis)
             if best is None or len(payload) < len(best[0]):
                 best = (payload, step)
         payload, step = best
         # The guarantee: decode what we are about to return and check it.
-        decoded = self.decode_payload(
-            Header(self.name, motion.num_frames, motion.num_joints, motion.fps), memoryview(payload)
-        )[0]
+        header = Header(self.name, motion.num_frames, motion.num_joints, motion.fps)
+        decoded = self.decode_payload(header, memoryview(payload))[0]
         worst = float(np.linalg.norm(decoded - positions, axis=-1).max())
         if worst > config.eps_cm:
             raise RuntimeError(f"mcb-linf: decoded L-inf {worst} cm exceeds eps {config.eps_cm} cm; not writing.")
         self.last_encode_stats = {"base_step_cm": step, "bound_slack_cm": config.eps_cm - worst}
         return payload
 
-    def _encode_with_step(self, positions: np.ndarray, parents: np.ndarray, step: float, radius: float) -> bytes:
+    def _encode_with_step(self, positions, parents, spectrum, step, radius, basis) -> bytes:
         num_frames, num_joints, _ = positions.shape
         config = self.config
         channels = 3 * num_joints
-        bone = config.representation == "bone"
-        signal = _to_bones(positions, parents) if bone else positions
-        coefficients = np.rint(_forward_dct(signal.reshape(num_frames, channels), config.clip_frames) / step)
-        coefficients = coefficients.astype(np.int64)
-        base = _base_positions(coefficients, step, num_frames, parents, config.clip_frames, bone)
+        coefficients = np.rint(spectrum / step).astype(np.int64)
+        base = _base_positions(
+            coefficients, step, num_frames, parents, config.clip_frames, config.representation, basis
+        )
         residual = (positions - base).reshape(-1, 3)
         corrected = np.flatnonzero(np.sum(residual**2, axis=-1) > radius**2)
         lattice, _ = bcc_quantize(residual[corrected], radius)
@@ -253,9 +377,11 @@ class McbLinfCodec(Codec):
         writer.write_f64(config.eps_cm)
         writer.write_f64(step)
         writer.write_varint(config.clip_frames)
-        writer.write_u8(int(bone))
-        if bone:
+        writer.write_u8(_REPRESENTATIONS.index(config.representation))
+        if config.representation == "bone":
             writer.write_varints(parents[1:] + 1)  # the joint tree (offsets are not needed)
+        if basis is not None:
+            writer.write_u32(basis.tag)
         order, bands = _band_order(num_frames, config.clip_frames, channels)
         sorted_coefficients = coefficients[order]
         for band in range(len(_BAND_EDGES)):
@@ -275,19 +401,28 @@ class McbLinfCodec(Codec):
         eps = reader.read_f64("eps")
         step = reader.read_f64("base step")
         clip_frames = reader.read_varint("clip length")
-        bone = reader.read_u8("representation")
-        if not (0 < eps < np.inf and 0 < step < np.inf) or not 4 <= clip_frames <= 4096 or bone > 1:
+        code = reader.read_u8("representation")
+        if not (0 < eps < np.inf and 0 < step < np.inf) or not 4 <= clip_frames <= 4096 or code >= len(_REPRESENTATIONS):
             raise BitstreamError(
-                f"mcb-linf: expected eps > 0, step > 0, 4 <= L <= 4096, representation 0|1; "
-                f"found {eps}, {step}, {clip_frames}, {bone}."
+                f"mcb-linf: expected eps > 0, step > 0, 4 <= L <= 4096, representation < {len(_REPRESENTATIONS)}; "
+                f"found {eps}, {step}, {clip_frames}, {code}."
             )
+        representation = _REPRESENTATIONS[code]
         num_frames, num_joints = header.num_frames, header.num_joints
-        if bone:
+        parents = np.full(num_joints, -1)
+        basis = None
+        if representation == "bone":
             parents = np.concatenate([[-1], reader.read_varints(num_joints - 1, "joint tree").astype(np.int64) - 1])
             if np.any(parents[1:] < 0) or np.any(parents[1:] >= np.arange(1, num_joints)):
                 raise BitstreamError("mcb-linf: the joint tree must list parents before children.")
-        else:
-            parents = np.full(num_joints, -1)
+        elif representation == "pca":
+            tag = reader.read_u32("basis tag")
+            basis = self._basis if self._basis is not None else load_default_basis()
+            if basis.tag != tag or basis.num_joints != num_joints:
+                raise BitstreamError(
+                    f"mcb-linf: the stream was coded with PCA basis {tag:#010x} for {num_joints} joints; this "
+                    f"decoder holds basis {basis.tag:#010x} for {basis.num_joints} joints (fit it on the same motions)."
+                )
         channels = 3 * num_joints
         order, bands = _band_order(num_frames, clip_frames, channels)
         counts = np.bincount(bands, minlength=len(_BAND_EDGES))
@@ -296,7 +431,8 @@ class McbLinfCodec(Codec):
         )
         coefficients = np.empty_like(sorted_coefficients)
         coefficients[order] = sorted_coefficients
-        positions = _base_positions(coefficients, step, num_frames, parents, clip_frames, bool(bone)).reshape(-1, 3)
+        positions = _base_positions(coefficients, step, num_frames, parents, clip_frames, representation, basis)
+        positions = positions.reshape(-1, 3)
         num_corrected = reader.read_varint("corrected joint count")
         if num_corrected > num_frames * num_joints:
             raise BitstreamError(
@@ -314,3 +450,12 @@ class McbLinfCodec(Codec):
         half_cell = 2.0 * eps * (1.0 - _SAFETY_MARGIN) / np.sqrt(5.0)
         positions[corrected] += (2 * halves + parity[:, None]) * half_cell
         return positions.reshape(num_frames, num_joints, 3), None
+
+    def describe_payload(self, header: Header, payload: memoryview):
+        reader = ByteReader(payload)
+        eps, step = reader.read_f64("eps"), reader.read_f64("base step")
+        clip_frames = reader.read_varint("clip length")
+        code = reader.read_u8("representation")
+        representation = _REPRESENTATIONS[code] if code < len(_REPRESENTATIONS) else f"unknown ({code})"
+        return {"eps_cm (guaranteed L-inf)": eps, "base step cm": step, "clip frames": clip_frames,
+                "representation": representation}

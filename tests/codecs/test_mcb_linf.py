@@ -8,7 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from mocapbench import metrics
-from mocapbench.codecs import create
+from mocapbench.codecs import BitstreamError, create
 from mocapbench.codecs.mcb_linf import bcc_quantize
 from mocapbench.synthetic import sinusoidal_motion
 
@@ -19,7 +19,7 @@ from mocapbench.synthetic import sinusoidal_motion
     frames=st.integers(1, 400),
     eps=st.sampled_from([0.05, 0.3, 1.0, 2.5, 7.0]),
     clip=st.sampled_from([4, 17, 120]),
-    representation=st.sampled_from(["bone", "absolute"]),
+    representation=st.sampled_from(["pca", "bone", "absolute"]),
     amplitude=st.floats(0.0, 60.0),
 )
 def test_bound_holds_on_random_synthetic_motions(seed, frames, eps, clip, representation, amplitude):
@@ -64,3 +64,32 @@ def test_bad_config_values_are_rejected():
         create("mcb-linf", eps_cm=0.0)
     with pytest.raises(ValueError, match="representation must be one of"):
         create("mcb-linf", representation="quaternion")
+
+
+def test_decoder_with_another_basis_refuses_the_stream(synthetic_motion, training_motions):
+    fitted = create("mcb-linf", eps_cm=0.5).fit(training_motions)
+    data = fitted.encode(synthetic_motion)
+    with pytest.raises(BitstreamError, match="PCA basis"):
+        create("mcb-linf").decode(data)  # holds the shipped CMU basis, not this one
+    refit = create("mcb-linf").fit(training_motions)
+    assert metrics.max_joint_error(synthetic_motion.positions(), refit.decode(data).positions) <= 0.5
+
+
+def test_shipped_basis_is_orthonormal_and_reported():
+    from mocapbench.codecs.mcb_linf import load_default_basis
+
+    basis = load_default_basis()
+    assert basis.num_joints == 31
+    np.testing.assert_allclose(basis.basis @ basis.basis.T, np.eye(90), atol=1e-5)
+    assert create("mcb-linf").model_bytes == 4 * (90 * 90 + 90)
+    assert create("mcb-linf", representation="bone").model_bytes == 0
+
+
+def test_pca_on_another_skeleton_asks_for_fit():
+    from mocapbench.codecs import NotFittedError
+    from mocapbench.motion import Motion, Skeleton
+
+    skeleton = Skeleton(names=("a", "b"), parents=np.array([-1, 0]), offsets=np.array([[0, 0, 0], [0, 10.0, 0]]))
+    motion = Motion(skeleton, 30.0, np.zeros((5, 3)), np.tile([0, 0, 0, 1.0], (5, 2, 1)))
+    with pytest.raises(NotFittedError, match="basis is for 31 joints, the motion has 2"):
+        create("mcb-linf").encode(motion)
