@@ -24,6 +24,12 @@ range as float32). The time grid ``t_i = i / (F − 1)`` is rebuilt from F in th
 numpy only (no torch); the encoder evaluates its stopping test on exactly the quantized weights it writes, so the
 L∞ that the stream delivers is the one that was checked.
 
+After ``encode``, ``last_encode_stats`` holds ``K``, ``omegas`` (Ω), ``train_s`` (training wall time, s),
+``num_parameters`` (|α|), ``paper_compression_ratio`` (F·m / |α|) and ``encoder_max_err_cm`` (the L∞ of the
+stream); ``fourier-mlp-dct`` adds ``threshold_cm``, ``threshold_met`` and per round (K = 0, 1, …)
+``round_max_err_cm``, ``round_payload_bytes`` and ``round_train_s`` (cumulative). ``last_training_log`` holds
+the loss before every Adam step and after the last one, one array per round.
+
 Where this departs from the paper, and why
 ------------------------------------------
 * **Angular-velocity convention.** Eq. (1) writes ``sin ω t``, but §4.1 says "angular velocity takes value two

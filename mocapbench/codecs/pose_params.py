@@ -13,6 +13,11 @@ here includes the skeleton's end sites below the joint (the ends of the child bo
 with an end site (toes, head, fingers) has a non-zero weight; a leaf without any end site gets weight 0
 (its rotation moves no point). The paper does not say how leaves are treated; this is our reading.
 
+It also holds the quantized storage of real-valued tensors both codecs write (:func:`write_tensor` /
+:func:`read_tensor`: IEEE float16, or uniform n-bit indices over the tensor's own float32 range, bit-packed), and
+:func:`quantize_tensor`, which returns exactly the values a decoder will read, so that an encoder can measure the
+error of what it writes.
+
 This module is numpy-only: both :mod:`mocapbench.codecs.svd` and :mod:`mocapbench.codecs.neural_fourier`
 use it, and decoders run without torch.
 """

@@ -357,3 +357,27 @@ def test_a_larger_threshold_stops_at_the_recorded_round(adaptive_run):
     assert again.last_encode_stats["K"] == 1
     assert again.last_encode_stats["encoder_max_err_cm"] == pytest.approx(errors[1], abs=1e-4)
     assert len(stream) - len(data) == stats["round_payload_bytes"][1] - stats["round_payload_bytes"][2]
+
+
+@pytest.mark.slow
+def test_decoding_needs_no_torch(tmp_path):
+    """The decoder is numpy only: a fresh process decodes a stream and never imports torch."""
+    import subprocess
+    import sys
+
+    motion = sinusoidal_motion(num_frames=40, seed=3)
+    codec = create("fourier-mlp-dct", K_max=1, iterations_per_round=20)
+    (tmp_path / "stream.bin").write_bytes(codec.encode(motion))
+    expected = codec.decode((tmp_path / "stream.bin").read_bytes()).positions
+    np.save(tmp_path / "expected.npy", expected)
+    script = (
+        "import sys\n"
+        "import numpy as np\n"
+        "from mocapbench.codecs import create\n"
+        f"data = open(r'{tmp_path / 'stream.bin'}', 'rb').read()\n"
+        "positions = create('fourier-mlp-dct').decode(data).positions\n"
+        f"assert np.array_equal(positions, np.load(r'{tmp_path / 'expected.npy'}'))\n"
+        "assert 'torch' not in sys.modules, 'decoding imported torch'\n"
+    )
+    result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
+    assert result.returncode == 0, result.stderr
