@@ -52,11 +52,18 @@ PAPER_TABLE_2 = [
 ]
 
 # Paper rows' settings as dropped levels (total - kept), applied to our most similar clips.
+def setting(k: int, root_dropped: int, end_dropped: int, **extra) -> dict:
+    """``pga-ik`` parameters: k geodesics, finest levels dropped for the root and the end joints, and extras."""
+    return dict(num_geodesics=k, root_levels_dropped=root_dropped, end_levels_dropped=end_dropped, **extra)
+
+
+LOSSLESS = dict(trajectory_bits=24, model_bits=24)
+
 PAPER_ROW_SETTINGS = [
-    ("walk (17_08)", dict(num_geodesics=12, root_levels_dropped=6, end_levels_dropped=6), ["02_01", "02_02", "05_01"]),
-    ("boxing (17_10)", dict(num_geodesics=12, root_levels_dropped=5, end_levels_dropped=4), ["13_17", "13_18"]),
-    ("breakdance (85_12)", dict(num_geodesics=15, root_levels_dropped=5, end_levels_dropped=5), ["16_01", "16_07", "118_01", "10_01"]),
-    ("dance/various (15_04)", dict(num_geodesics=17, root_levels_dropped=4, end_levels_dropped=4), ["135_06", "64_01"]),
+    ("walk (17_08)", setting(12, 6, 6), ["02_01", "02_02", "05_01"]),
+    ("boxing (17_10)", setting(12, 5, 4), ["13_17", "13_18"]),
+    ("breakdance (85_12)", setting(15, 5, 5), ["16_01", "16_07", "118_01", "10_01"]),
+    ("dance/various (15_04)", setting(17, 4, 4), ["135_06", "64_01"]),
 ]
 
 _COLUMNS = [
@@ -186,12 +193,12 @@ def run(data_dir: str | None, repeats: int, quick: bool) -> str:
     emit("Paper: 6 geodesics, 4/9 levels kept (root and end joints) → 1:18, KG 0.36 %, 7.88 ms/frame (C++).")
     emit()
     variants = [
-        ("paper setting", dict(num_geodesics=6, root_levels_dropped=5, end_levels_dropped=5)),
-        ("paper setting, 16-bit", dict(num_geodesics=6, root_levels_dropped=5, end_levels_dropped=5, trajectory_bits=16, model_bits=16)),
-        ("k = 6, 6/9 levels", dict(num_geodesics=6, root_levels_dropped=3, end_levels_dropped=3)),
-        ("k = 6, lossless trajectories", dict(num_geodesics=6, root_levels_dropped=0, end_levels_dropped=0, trajectory_bits=24, model_bits=24)),
-        ("k = 12, 4/9 levels", dict(num_geodesics=12, root_levels_dropped=5, end_levels_dropped=5)),
-        ("k = 12, lossless trajectories", dict(num_geodesics=12, root_levels_dropped=0, end_levels_dropped=0, trajectory_bits=24, model_bits=24)),
+        ("paper setting", setting(6, 5, 5)),
+        ("paper setting, 16-bit", setting(6, 5, 5, trajectory_bits=16, model_bits=16)),
+        ("k = 6, 6/9 levels", setting(6, 3, 3)),
+        ("k = 6, lossless trajectories", setting(6, 0, 0, **LOSSLESS)),
+        ("k = 12, 4/9 levels", setting(12, 5, 5)),
+        ("k = 12, lossless trajectories", setting(12, 0, 0, **LOSSLESS)),
     ]
     rows = []
     for label, params in variants:
@@ -209,14 +216,14 @@ def run(data_dir: str | None, repeats: int, quick: bool) -> str:
     emit("## 2. The same protocol over cmu_test")
     emit()
     protocols = [
-        ("k = 12, D = 4 (default)", dict(num_geodesics=12, root_levels_dropped=4, end_levels_dropped=4)),
-        ("k = 95 % rule, D = 4", dict(num_geodesics=60, variance_fraction=0.95, root_levels_dropped=4, end_levels_dropped=4)),
-        ("k = 99 % rule, D = 4", dict(num_geodesics=60, variance_fraction=0.99, root_levels_dropped=4, end_levels_dropped=4)),
-        ("k = 6, D = 5 (09_06's setting)", dict(num_geodesics=6, root_levels_dropped=5, end_levels_dropped=5)),
-        ("k = 12, D = 2", dict(num_geodesics=12, root_levels_dropped=2, end_levels_dropped=2)),
-        ("k = 12, D = 0 (lossless trajectories)", dict(num_geodesics=12, root_levels_dropped=0, end_levels_dropped=0, trajectory_bits=24, model_bits=24)),
-        ("k = 12, D = 4, lambda = 1 cm^2", dict(num_geodesics=12, root_levels_dropped=4, end_levels_dropped=4, ik_length_unit_cm=1.0)),
-        ("k = 12, D = 0, lambda = 1 cm^2", dict(num_geodesics=12, root_levels_dropped=0, end_levels_dropped=0, trajectory_bits=24, model_bits=24, ik_length_unit_cm=1.0)),
+        ("k = 12, D = 4 (default)", setting(12, 4, 4)),
+        ("k = 95 % rule, D = 4", setting(60, 4, 4, variance_fraction=0.95)),
+        ("k = 99 % rule, D = 4", setting(60, 4, 4, variance_fraction=0.99)),
+        ("k = 6, D = 5 (09_06's setting)", setting(6, 5, 5)),
+        ("k = 12, D = 2", setting(12, 2, 2)),
+        ("k = 12, D = 0 (lossless trajectories)", setting(12, 0, 0, **LOSSLESS)),
+        ("k = 12, D = 4, lambda = 1 cm^2", setting(12, 4, 4, ik_length_unit_cm=1.0)),
+        ("k = 12, D = 0, lambda = 1 cm^2", setting(12, 0, 0, ik_length_unit_cm=1.0, **LOSSLESS)),
     ]
     totals = []
     per_clip = {}
@@ -266,7 +273,8 @@ def run(data_dir: str | None, repeats: int, quick: bool) -> str:
     for name in names:
         motion = motions.get(name) or load_clip(name, data_dir=data_dir)
         model = fit_pga(motion.rotations[:, 1:], 1)
-        counts.append((name, motion.num_frames, variance_count(model.variances, 0.95), variance_count(model.variances, 0.99)))
+        k95, k99 = variance_count(model.variances, 0.95), variance_count(model.variances, 0.99)
+        counts.append((name, motion.num_frames, k95, k99))
     emit("| clip | F | k (95 %) | k (99 %) |")
     emit("|---|---|---|---|")
     for name, frames, k95, k99 in counts:
@@ -275,10 +283,12 @@ def run(data_dir: str | None, repeats: int, quick: bool) -> str:
     k99s = np.array([c[3] for c in counts])
     walks = [c for c in counts if c[0] in ("02_01", "02_02", "05_01")]
     emit()
-    emit(f"Over {len(counts)} clips: k(95 %) median {np.median(k95s):.0f} (range {k95s.min()}-{k95s.max()}), "
-         f"k(99 %) median {np.median(k99s):.0f} (range {k99s.min()}-{k99s.max()}); clips needing < 20 for 99 %: "
-         f"{int(np.sum(k99s < 20))}/{len(counts)}. Walks (02_01, 02_02, 05_01): k(95 %) = "
-         f"{[c[2] for c in walks]}, k(99 %) = {[c[3] for c in walks]}.")
+    emit(
+        f"Over {len(counts)} clips: k(95 %) median {np.median(k95s):.0f} (range {k95s.min()}-{k95s.max()}), "
+        f"k(99 %) median {np.median(k99s):.0f} (range {k99s.min()}-{k99s.max()}); clips needing < 20 for 99 %: "
+        f"{int(np.sum(k99s < 20))}/{len(counts)}. Walks (02_01, 02_02, 05_01): k(95 %) = "
+        f"{[c[2] for c in walks]}, k(99 %) = {[c[3] for c in walks]}."
+    )
     emit()
 
     # 5. speed ---------------------------------------------------------------------------------------------------
@@ -289,15 +299,15 @@ def run(data_dir: str | None, repeats: int, quick: bool) -> str:
     for name in speed_clips:
         motion = motions.get(name) or load_clip(name, data_dir=data_dir)
         for k in (6, 12, 17):
-            for iterations in (1, 3, 5):
+            for iterations in (1, 2, 5):
                 row = evaluate_setting(motion, dict(num_geodesics=k, lm_iterations=iterations), repeats)
                 row["iterations"] = iterations
                 rows.append(row)
-    emit("Default levels (D = 4). Target ≤ 1 ms/frame on one core; the paper: 7.88-30.6 ms/frame (C++, 2.6 GHz, 2008).")
+    emit("Default levels (D = 4), default 2 LM iterations. Target ≤ 1 ms/frame on one core; the paper: 7.88-30.6")
+    emit("ms/frame (C++, 2.6 GHz, 2008).")
     emit()
-    speed_cols = [
-        c for c in _COLUMNS if c[0] in ("clip", "frames", "K", "decode_cpu_ms", "decode_ms", "encode_s", "linf", "mean", "kg")
-    ]
+    keep = ("clip", "frames", "K", "decode_cpu_ms", "decode_ms", "encode_s", "linf", "mean", "kg")
+    speed_cols = [c for c in _COLUMNS if c[0] in keep]
     emit(markdown_table(rows, columns=speed_cols, extra=[("iterations", "LM iterations")]))
     emit()
     return "\n".join(out)

@@ -261,7 +261,8 @@ class PgaIkCodec(Codec):
         num_ends = reader.read_varint("number of end joints")
         if not 1 <= k <= 3 * num_inner or not 1 <= num_ends <= num_inner:
             raise BitstreamError(
-                f"pga-ik: expected 1..{3 * num_inner} geodesics and 1..{num_inner} end joints, found {k} and {num_ends}."
+                f"pga-ik: expected 1..{3 * num_inner} geodesics and 1..{num_inner} end joints, "
+                f"found {k} and {num_ends}."
             )
         values = reader.read_varints(num_ends + 5, "end joints and settings")
         ends = [int(e) for e in values[:num_ends]]
@@ -329,7 +330,9 @@ class PgaIkCodec(Codec):
         spaces = (EUCLIDEAN, ROTATIONS, EUCLIDEAN)
         tracks = []
         for space, levels in zip(spaces, parsed["coefficients"]):
-            details = lambda level, predicted, levels=levels: levels[level] if level < len(levels) else None  # noqa: E731
+            def details(level, predicted, levels=levels):
+                return levels[level] if level < len(levels) else None  # None: a dropped level
+
             tracks.append(lifting_reconstruct(num_frames, levels[0], details, space))
         root_positions, root_quats, end_positions = tracks
         root_quats = root_quats / np.linalg.norm(root_quats, axis=1, keepdims=True)

@@ -81,7 +81,9 @@ class GeodesicIK:
             raise ValueError(f"Expected `directions` of shape (k >= 1, {num_inner}, 3), got {directions.shape}.")
         ends = [int(e) for e in end_joints]
         if not ends or len(set(ends)) != len(ends) or min(ends) < 1 or max(ends) >= skeleton.num_joints:
-            raise ValueError(f"`end_joints` must be distinct joint indices in 1..{skeleton.num_joints - 1}, got {ends}.")
+            raise ValueError(
+                f"`end_joints` must be distinct joint indices in 1..{skeleton.num_joints - 1}, got {ends}."
+            )
         parents = skeleton.parents
         self.skeleton = skeleton
         self.end_joints = tuple(ends)

@@ -60,7 +60,9 @@ def karcher_mean(rotations, *, tol: float = 1e-12, max_iterations: int = 100) ->
     rot = as_rotation(rotations, "rotations")
     quats = rot.as_quat()
     if quats.ndim != 3 or quats.shape[0] == 0:
-        raise ValueError(f"Expected `rotations` of shape (F, n) (quaternions (F, n, 4)) with F >= 1, got {quats.shape}.")
+        raise ValueError(
+            f"Expected `rotations` of shape (F, n) (quaternions (F, n, 4)) with F >= 1, got {quats.shape}."
+        )
     samples = Rotation.from_quat(quats)
     mean = Rotation.from_quat(chordal_mean(quats))
     for _ in range(max_iterations):
