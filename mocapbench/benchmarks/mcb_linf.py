@@ -1,0 +1,120 @@
+"""The claims of ``mcb-linf`` on a sweep that ran it beside the other codecs (e.g. ``make bench`` on cmu_test).
+
+    python -m mocapbench.benchmarks.mcb_linf SWEEP_DIR... [--dataset cmu_test] [--speed] [--data-dir D]
+
+Prints, as markdown:
+
+1. at eps = 0.5, 1, 2, 3 cm: mcb-linf's compression ratio over every other codec's ratio at the same L-inf
+   (the other curve interpolated log-log along its Pareto front; "-" where its curve does not reach that error);
+2. the same at equal mean error;
+3. BD-rate against ``quant-delta-zstd`` on both error axes;
+4. the bound: max over clips and frames of (measured L-inf − eps), which must be <= 0;
+5. with ``--speed``: encode and decode frames/s on one core over the cmu_test clips.
+"""
+
+from __future__ import annotations
+
+import os
+
+for _variable in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_variable, "1")  # one core: set before numpy loads its BLAS
+
+import argparse  # noqa: E402
+
+import numpy as np  # noqa: E402
+import pandas as pd  # noqa: E402
+
+from mocapbench.experiments.aggregate import aggregate, curve_points  # noqa: E402
+from mocapbench.experiments.bdrate import bd_rate_percent, pareto_front  # noqa: E402
+from mocapbench.experiments.document import markdown_table  # noqa: E402
+
+CODEC = "mcb-linf"
+ANCHOR = "quant-delta-zstd"
+EPSILONS_CM = (0.5, 1.0, 2.0, 3.0)
+
+
+def ratio_at_error(points: pd.DataFrame, error: str, target: float) -> float:
+    """A codec's compression ratio at ``target`` error, interpolated log-log on its Pareto front (NaN outside)."""
+    bits, errors = pareto_front(points["bits_per_joint_frame"].to_numpy(), points[error].to_numpy())
+    if len(bits) == 0 or not errors.min() <= target <= errors.max():
+        return float("nan")
+    if len(bits) == 1:
+        return float(96.0 / bits[0])
+    order = np.argsort(errors)
+    log_bits = np.interp(np.log(target), np.log(errors[order]), np.log(bits[order]))
+    return float(96.0 / np.exp(log_bits))
+
+
+def comparison_table(points: pd.DataFrame, error: str) -> pd.DataFrame:
+    """mcb-linf's ratio over each codec's ratio at mcb-linf's own error, for each eps."""
+    ours = points[points["codec"] == CODEC]
+    rows = []
+    for eps in EPSILONS_CM:
+        point = ours[np.isclose(ours["param_eps_cm"].astype(float), eps)]
+        if point.empty:
+            continue
+        point = point.iloc[0]
+        row = {"eps_cm": eps, "mcb-linf ratio": point["compression_ratio"], error: point[error]}
+        for codec in sorted(set(points["codec"]) - {CODEC}):
+            other = ratio_at_error(points[points["codec"] == codec], error, float(point[error]))
+            row[codec] = point["compression_ratio"] / other if np.isfinite(other) else float("nan")
+        rows.append(row)
+    return pd.DataFrame(rows)
+
+
+def bound_check(rows: pd.DataFrame) -> float:
+    """Max over clips of measured L-inf − eps for mcb-linf rows (<= 0 when the bound holds)."""
+    ours = rows[rows["codec"] == CODEC]
+    return float((ours["max_err_cm"] - ours["param_eps_cm"].astype(float)).max())
+
+
+def speed_table(data_dir: str | None) -> pd.DataFrame:
+    """Encode and decode frames/s of mcb-linf at each eps over the cmu_test clips, one core."""
+    from mocapbench.codecs import create
+    from mocapbench.datasets.cmu import load_split
+    from mocapbench.metrics import time_call
+
+    clips = load_split("cmu_test", data_dir=data_dir)
+    frames = sum(m.num_frames for m in clips)
+    rows = []
+    for eps in EPSILONS_CM:
+        codec = create(CODEC, eps_cm=eps)
+        streams = [codec.encode(m) for m in clips]
+        encode_s, _ = time_call(lambda: [codec.encode(m) for m in clips], repeats=1, warmup=0)
+        decode_s, _ = time_call(lambda: [codec.decode(s) for s in streams], repeats=5)
+        rows.append({"eps_cm": eps, "frames": frames, "encode_fps": frames / encode_s, "decode_fps": frames / decode_s})
+    return pd.DataFrame(rows)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("folders", nargs="+", help="sweep folders holding mcb-linf and the other codecs")
+    parser.add_argument("--dataset", default="cmu_test")
+    parser.add_argument("--speed", action="store_true", help="also measure single-core encode/decode speed")
+    parser.add_argument("--data-dir", default=None, help="CMU data folder for --speed")
+    args = parser.parse_args(argv)
+    rows = aggregate(args.folders)
+    rows = rows[rows["dataset"] == args.dataset]
+    points = curve_points(rows)
+    if CODEC not in set(points["codec"]):
+        parser.error(f"no {CODEC} rows for dataset {args.dataset} under {args.folders}")
+    print(f"## mcb-linf on {args.dataset}: ratio over each codec at the same L-inf (x; > 1: mcb-linf smaller)\n")
+    print(markdown_table(comparison_table(points, "max_err_cm")))
+    print(f"\n## ... at the same mean error\n")
+    print(markdown_table(comparison_table(points, "mean_err_cm")))
+    print(f"\n## BD-rate of mcb-linf against {ANCHOR} (bits per joint per frame; negative: fewer bits)\n")
+    ours, anchor = points[points["codec"] == CODEC], points[points["codec"] == ANCHOR]
+    for error in ("max_err_cm", "mean_err_cm"):
+        value, note = bd_rate_percent(
+            anchor["bits_per_joint_frame"], anchor[error], ours["bits_per_joint_frame"], ours[error]
+        )
+        print(f"- {error}: {value:+.1f} % ({note})")
+    print(f"\n## The bound\n\nmax over clips and frames of (L-inf - eps) = {bound_check(rows):+.6f} cm (must be <= 0)")
+    if args.speed:
+        print("\n## Speed, one core\n")
+        print(markdown_table(speed_table(args.data_dir)))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
