@@ -87,7 +87,8 @@ def curve_points(data: pd.DataFrame) -> pd.DataFrame:
     """
     if data.empty:
         return data.copy()
-    frame = data.copy()
+    # The same config measured in two sweeps (e.g. an RD sweep and a claims sweep) counts once per clip.
+    frame = data.drop_duplicates(subset=["dataset", "codec", "config_hash", "clip"], keep="last").copy()
     frame["_joint_frames"] = frame["frames"] * frame["joints"]
     for column in ("mean_err_cm", "kg_percent"):
         frame[f"_w_{column}"] = frame[column] * frame["frames"]

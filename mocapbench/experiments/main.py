@@ -3,7 +3,7 @@
 ``python -m mocapbench.experiments.main``
     The small benchmark (``make run``): every registered codec at a few points of its RD curve
     (``sweep=small``) on the embedded synthetic clips, plus the real CMU clip 09_06 when the CMU data folder
-    exists (otherwise one line says so and the run goes on).
+    exists (otherwise one line says so and the run goes on), as one sweep over both datasets.
 ``python -m mocapbench.experiments.main --cmu``
     The CMU benchmark (``make bench``): ``sweep=all`` over ``cmu_test`` (learned state fit on ``cmu_train``).
 
@@ -71,16 +71,16 @@ def main(argv: list[str] | None = None) -> int:
         folders.append(folder)
         failures += code != 0
     else:
-        folder, code = _sweep(root, "synthetic", ["sweep=small", "dataset=synthetic", *common])
-        folders.append(folder)
-        failures += code != 0
+        # One sweep over both datasets, so the two workers stay busy until the last job.
+        datasets = "synthetic"
         ok, where = cmu_available(args.data_dir)
         if ok:
-            folder, code = _sweep(root, "cmu_09_06", ["sweep=small", "dataset=cmu_09_06", *common])
-            folders.append(folder)
-            failures += code != 0
+            datasets += ",cmu_09_06"
         else:
             print(f"CMU data not found, running on synthetic data only ({where})", flush=True)
+        folder, code = _sweep(root, "small", ["sweep=small", f"dataset={datasets}", *common])
+        folders.append(folder)
+        failures += code != 0
     sweep_s = time.perf_counter() - start
     from mocapbench.experiments.aggregate import aggregate, curve_points
     from mocapbench.experiments.document import markdown_table

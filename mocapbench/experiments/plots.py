@@ -9,6 +9,7 @@ import matplotlib
 matplotlib.use("Agg")  # files only, also on a machine without a display
 
 import matplotlib.pyplot as plt  # noqa: E402
+from matplotlib.collections import LineCollection  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
@@ -31,11 +32,28 @@ def _save(fig, path: Path) -> Path:
     return path
 
 
+def _front(x: np.ndarray, y: np.ndarray, higher_y_better: bool) -> np.ndarray:
+    """Mask of the points no other point beats on both axes (lower error ``x``, better rate ``y``)."""
+    y = y if higher_y_better else -y
+    keep = np.ones(len(x), dtype=bool)
+    for i in range(len(x)):
+        better = (x <= x[i]) & (y >= y[i]) & ((x < x[i]) | (y > y[i]))
+        keep[i] = not better.any()
+    return keep
+
+
 def _curve(ax, frame: pd.DataFrame, x: str, y: str, style: dict, label: str) -> None:
-    frame = frame[np.isfinite(frame[x]) & np.isfinite(frame[y]) & (frame[x] > 0)].sort_values(y)
+    """Every point as a marker, the line through the codec's Pareto front (its RD curve)."""
+    frame = frame[np.isfinite(frame[x]) & np.isfinite(frame[y]) & (frame[x] > 0)]
     if frame.empty:
         return
-    ax.plot(frame[x], frame[y], linestyle="-", linewidth=1, markersize=4, label=label, **style)
+    xs, ys = frame[x].to_numpy(float), frame[y].to_numpy(float)
+    front = _front(xs, ys, higher_y_better=y == "compression_ratio")
+    order = np.argsort(xs[front])
+    ax.plot(xs[front][order], ys[front][order], linestyle="-", linewidth=1, markersize=4, label=label, **style)
+    if (~front).any():
+        ax.plot(xs[~front], ys[~front], linestyle="none", markersize=3, alpha=0.4, marker=style["marker"],
+                color=style["color"])
 
 
 def rd_figure(points: pd.DataFrame, dataset: str, path: Path, rate: str = "compression_ratio") -> Path:
@@ -122,11 +140,11 @@ def skeleton_overlay_figure(examples: list[tuple[str, dict]], path: Path, num_fr
         frames = np.linspace(0, original.shape[0] - 1, num_frames).round().astype(int)
         for col, frame in enumerate(frames):
             ax = axes[row, col]
+            bones = [(parent, joint) for joint, parent in enumerate(parents) if parent >= 0]
             for positions, color, width in ((original, "0.55", 3.0), (decoded, "tab:red", 1.2)):
                 pose = positions[frame]
-                for joint, parent in enumerate(parents):
-                    if parent >= 0:
-                        ax.plot(pose[[parent, joint], 0], pose[[parent, joint], 1], color=color, linewidth=width)
+                segments = [[pose[p, :2], pose[j, :2]] for p, j in bones]
+                ax.add_collection(LineCollection(segments, colors=color, linewidths=width))
             center = original[frame].mean(axis=0)
             ax.set_xlim(center[0] - 100, center[0] + 100)
             ax.set_ylim(center[1] - 110, center[1] + 110)

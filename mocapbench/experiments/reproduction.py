@@ -29,6 +29,13 @@ def _codecs(rows: pd.DataFrame, prefix: str) -> list[str]:
     return sorted(c for c in rows["codec"].unique() if c == prefix or c.startswith(prefix + "-"))
 
 
+def _prefer(names: list[str], *preferred: str) -> str:
+    for name in preferred:
+        if name in names:
+            return name
+    return names[0] if names else preferred[0]
+
+
 def compare_at_equal_rate(test: pd.DataFrame, reference: pd.DataFrame, error: str = "mean_err_cm",
                           samples: int = 25) -> pd.DataFrame:
     """Per clip, distortion of ``test`` vs ``reference`` at equal bits per joint per frame.
@@ -167,9 +174,9 @@ def _by_parameter_claim(rows, codec, pattern, paper, claim, expect):
 def lsdt_tables(rows: pd.DataFrame) -> pd.DataFrame:
     """The claims of the LSDT paper's Figs. 4-7 against the rows (``not run`` where a codec or sweep is absent)."""
     paper = "LSDT"
-    # The spatial DCT/DWT baselines may come in variants (dct-spatial-*): the plain name first, else the first one.
-    dct = next(iter(_codecs(rows, "dct-spatial")), "dct-spatial*")
-    dwt = next(iter(_codecs(rows, "dwt-spatial")), "dwt-spatial*")
+    # Kwak & Bajic's spatial DCT/DWT is frame-based: prefer the -frame variant, then the plain name, then any.
+    dct = _prefer(_codecs(rows, "dct-spatial"), "dct-spatial-frame", "dct-spatial")
+    dwt = _prefer(_codecs(rows, "dwt-spatial"), "dwt-spatial-frame", "dwt-spatial")
     claims = [
         _by_parameter_claim(rows, "lsdt-frame", r"(p|sparsity.*|train_sparsity)", paper,
                             "Fig. 4: sparsity P = 8 gives the best compression (frame-based)",

@@ -105,6 +105,8 @@ class RdSweeper(Sweeper):
         With ``union``: codecs to leave out.
     max_points : int or None
         Keep at most this many evenly spread points of each codec's grid (``sweep=small``).
+    max_points_for : dict of str to int, optional
+        With ``union``: a smaller ``max_points`` for the named codecs (the slow ones in ``sweep=small``).
     skip_done : bool
         Do not launch jobs whose folder already holds a finished job.
     dry_run : bool
@@ -119,6 +121,7 @@ class RdSweeper(Sweeper):
         codecs: Sequence[str] | None = None,
         exclude: Sequence[str] = (),
         max_points: int | None = None,
+        max_points_for: dict[str, int] | None = None,
         skip_done: bool = True,
         dry_run: bool = False,
     ) -> None:
@@ -132,6 +135,7 @@ class RdSweeper(Sweeper):
         self.codecs = list(codecs) if codecs else None
         self.exclude = list(exclude or ())
         self.max_points = max_points
+        self.max_points_for = dict(max_points_for or {})
         self.skip_done = skip_done
         self.dry_run = dry_run
         self.skipped: list[str] = []
@@ -205,7 +209,7 @@ class RdSweeper(Sweeper):
                 selector, params = f"codec={name}", []
             else:
                 selector, params = f"sweep=rd_{name}", [f"{k}={v}" for k, v in rd.items()]
-            points = _evenly(self._grid(params), self.max_points)
+            points = _evenly(self._grid(params), self.max_points_for.get(name, self.max_points))
             for point, extra in itertools.product(points, self._grid(swept)):
                 jobs.append((job_folder(name, [*point, *extra]), [selector, *fixed, *point, *extra]))
         return jobs
