@@ -36,6 +36,11 @@ Departures from the paper (each also in the report of the issue that added this 
 * The Huffman tables are built over the whole stream and sent in it, so the *bitstream* is written at the end of the
   clip; the coefficient decisions themselves are causal (frame i reads no frame after i, see
   :class:`FrameEncoder`). A deployed streaming coder would use pre-trained tables; the rate would then differ.
+* The spatial DWT is a 3-level Haar made square and orthonormal for odd J by carrying the unpaired last sample to
+  the next level (PyWavelets' ``wavedec`` returns J + 1 coefficients for odd lengths); the paper does not say how it
+  handled J = 31.
+* Added to the stream beyond the paper: an 8-byte fingerprint of the LSDT bases (a stream decoded with other bases is
+  rejected instead of silently decoded wrong), one byte naming the count coding, the step (float64) and L (varint).
 * The LSDT bases are trained on the ``cmu_train`` split (13,063 frames of subjects 13, 124, 135) instead of the
   paper's 86_02, 56_04, 15_05 (40,332 frames), which are not available here.
 """
