@@ -5,7 +5,8 @@
     (``sweep=small``) on the embedded synthetic clips, plus the real CMU clip 09_06 when the CMU data folder
     exists (otherwise one line says so and the run goes on), as one sweep over both datasets.
 ``python -m mocapbench.experiments.main --cmu``
-    The CMU benchmark (``make bench``): ``sweep=all`` over ``cmu_test`` (learned state fit on ``cmu_train``).
+    The CMU benchmark (``make bench``): ``sweep=all`` over ``cmu_test`` (learned state fit on ``cmu_train``),
+    then the LSDT claim sweeps (``sweep=lsdt_sparsity``, ``sweep=lsdt_clip_length``) when the LSDT codecs exist.
 
 Each sweep runs as its own ``python -m mocapbench.experiments.run -m ...`` process (Hydra owns its process);
 ``--resume DIR`` re-runs into an existing sweep root, skipping the finished jobs.
@@ -70,6 +71,14 @@ def main(argv: list[str] | None = None) -> int:
         folder, code = _sweep(root, "cmu_test", ["sweep=all", "dataset=cmu_test", *common])
         folders.append(folder)
         failures += code != 0
+        # The extra grids behind the LSDT paper's Figs. 4 (sparsity P) and 7 (clip length L), when registered.
+        from mocapbench.codecs import codec_names
+
+        for sweep, needs in (("lsdt_sparsity", {"lsdt-frame", "lsdt-clip"}), ("lsdt_clip_length", {"lsdt-clip"})):
+            if needs <= set(codec_names()):
+                folder, code = _sweep(root, f"cmu_test_{sweep}", [f"sweep={sweep}", "dataset=cmu_test", *common])
+                folders.append(folder)
+                failures += code != 0
     else:
         # One sweep over both datasets, so the two workers stay busy until the last job.
         datasets = "synthetic"

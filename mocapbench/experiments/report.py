@@ -79,9 +79,20 @@ def _param_text(value) -> str:
     return str(value)
 
 
-def _config_text(row: pd.Series) -> str:
-    """``k=v`` of the row's codec parameters (``param_*`` columns that are set)."""
-    return ", ".join(f"{k[6:]}={_param_text(row[k])}" for k in row.index if k.startswith("param_") and _present(row[k]))
+def _config_text(row: pd.Series, keys: Sequence[str] | None = None) -> str:
+    """``k=v`` of the row's codec parameters: ``keys`` (the swept ones) or every ``param_*`` column that is set."""
+    keys = [k for k in row.index if k.startswith("param_")] if keys is None else list(keys)
+    return ", ".join(f"{k[6:]}={_param_text(row[k])}" for k in keys if k in row.index and _present(row[k]))
+
+
+def _swept_params(points: pd.DataFrame) -> dict[str, list[str]]:
+    """Per codec, the ``param_*`` columns that take more than one value across its configs (its RD knobs)."""
+    out = {}
+    for codec, group in points.groupby("codec"):
+        params = [c for c in group.columns if c.startswith("param_") and group[c].notna().any()]
+        swept = [c for c in params if group[c].astype(str).nunique() > 1]
+        out[codec] = swept or params
+    return out
 
 
 def _present(value) -> bool:
@@ -94,6 +105,7 @@ def _present(value) -> bool:
 def headline_table(points: pd.DataFrame) -> pd.DataFrame:
     """Per dataset and codec, the highest-ratio complete config with L∞ under each bound (1 cm, 3 cm)."""
     out = []
+    swept = _swept_params(points)
     for (dataset, codec), group in points.groupby(["dataset", "codec"], sort=True):
         group = group[group["complete"]]
         for bound in BOUNDS_CM:
@@ -104,7 +116,7 @@ def headline_table(points: pd.DataFrame) -> pd.DataFrame:
                 out.append(row)
                 continue
             best = ok.loc[ok["compression_ratio"].idxmax()]
-            row["config"] = _config_text(best)
+            row["config"] = _config_text(best, swept[codec])
             row.update({label: best[column] for column, label in _HEADLINE_COLUMNS.items()})
             row["clips"] = int(best["clips"])
             out.append(row)
@@ -258,10 +270,13 @@ def build_report(
         doc.image(path.relative_to(out).as_posix(), f"{dataset}: original vs decoded skeleton, a few frames")
 
     doc.heading("All rate-distortion points")
+    doc.paragraph("Config shows the parameters swept for each codec; every other parameter is at its default "
+                  "(configs/codec/<name>.yaml) and every row of results.jsonl holds all of them.")
     columns = ["dataset", "codec", "clips", "compression_ratio", "bits_per_joint_frame", "max_err_cm", "p99_err_cm",
                "mean_err_cm", "kg_percent", "encode_fps", "decode_fps", "model_bytes"]
     table = points.sort_values(["dataset", "codec", "bits_per_joint_frame"]).copy()
-    table.insert(2, "config", [_config_text(r) for _, r in table.iterrows()])
+    swept = _swept_params(points)
+    table.insert(2, "config", [_config_text(r, swept[r["codec"]]) for _, r in table.iterrows()])
     doc.table(table[columns[:2] + ["config"] + columns[2:]])
 
     if not errors.empty:
