@@ -1,0 +1,76 @@
+"""Datasets of a run: synthetic, CMU splits (clear error without the data), any folder of BVH files."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from mocapbench.datasets.cmu import DataNotFoundError, cmu_data_dir
+from mocapbench.experiments import datasets
+from mocapbench.experiments.main import cmu_available
+from mocapbench.io import write_bvh
+from mocapbench.synthetic import sinusoidal_motion
+
+SYNTHETIC = {"name": "synthetic", "kind": "synthetic", "clips": {"seeds": [1, 2], "num_frames": 30},
+             "train": {"clips": {"seeds": [11], "num_frames": 20}}}
+
+
+def _has_cmu() -> bool:
+    try:
+        cmu_data_dir()
+        return True
+    except DataNotFoundError:
+        return False
+
+
+def test_synthetic_clips_and_training_set_differ():
+    clips = datasets.load_clips(SYNTHETIC)
+    train = datasets.load_training(SYNTHETIC)
+    assert [m.name for m in clips] == ["synthetic-seed1", "synthetic-seed2"]
+    assert [m.name for m in train] == ["synthetic-seed11"] and train[0].num_frames == 20
+    assert datasets.load_clips(SYNTHETIC)[0] is clips[0]  # cached per process
+    assert "seeds [11]" in datasets.describe_training(SYNTHETIC)
+    assert not datasets.cmu_used(SYNTHETIC)
+
+
+def test_cmu_dataset_without_data_is_a_clear_error(tmp_path):
+    spec = {"name": "cmu_test", "kind": "cmu", "split": "cmu_test", "data_dir": str(tmp_path / "nowhere"),
+            "train": {"split": "cmu_train"}}
+    with pytest.raises(DataNotFoundError, match="CMU data folder not found.*data_dir="):
+        datasets.load_clips(spec)
+    assert datasets.cmu_used(spec)
+    ok, why = cmu_available(str(tmp_path / "nowhere"))
+    assert not ok and "not found" in why
+
+
+@pytest.mark.parametrize("spec, message", [
+    ({"name": "x"}, "missing required key `kind`"),
+    ({"name": "x", "kind": "tape"}, "`kind` must be one of"),
+    ({"name": "x", "kind": "cmu", "split": "cmu_test", "clips": ["09_06"], "data_dir": "."}, "exactly one of"),
+])
+def test_malformed_dataset_configs_are_named(spec, message, monkeypatch):
+    if spec.get("kind") == "cmu":
+        monkeypatch.setattr("mocapbench.datasets.cmu.cmu_data_dir", lambda path=None: path)
+    with pytest.raises(datasets.DatasetError, match=message):
+        datasets.load_clips(spec)
+
+
+def test_folder_of_bvh_files_is_a_dataset(tmp_path):
+    motion = sinusoidal_motion(num_frames=12, seed=5)
+    write_bvh(motion, tmp_path / "a.bvh")
+    write_bvh(sinusoidal_motion(num_frames=8, seed=6), tmp_path / "b.bvh")
+    spec = {"name": "folder", "kind": "folder", "path": str(tmp_path), "train": None}
+    clips = datasets.load_clips(spec)
+    assert [m.num_frames for m in clips] == [12, 8]
+    assert np.allclose(clips[0].positions(), motion.positions(), atol=1e-3)
+    assert datasets.describe_training(spec).startswith("in-sample")
+    assert len(datasets.load_training(spec)) == 2
+
+
+@pytest.mark.skipif(not _has_cmu(), reason="CMU data folder not available")
+def test_the_make_run_cmu_clip_loads_from_amc():
+    spec = {"name": "cmu_09_06", "kind": "cmu", "data_dir": "../shared/data/cmu", "clips": ["09_06"],
+            "train": {"clips": ["124_01"]}}
+    (clip,) = datasets.load_clips(spec)
+    assert clip.name == "09_06" and clip.num_frames == 141 and clip.num_joints == 31
+    assert [m.name for m in datasets.load_training(spec)] == ["124_01"]
