@@ -115,7 +115,7 @@ def error_heatmap_figure(examples: list[tuple[str, dict]], path: Path) -> Path:
     ----------
     examples : list of (label, npz dict with ``original``, ``decoded`` (F, J, 3) cm, ``names``, ``clip``)
     """
-    fig, axes = plt.subplots(len(examples), 1, figsize=(12, 2.6 * len(examples)), squeeze=False)
+    fig, axes = plt.subplots(len(examples), 1, figsize=(12, 2.4 * len(examples)), squeeze=False, layout="constrained")
     vmax = max(float(np.linalg.norm(e["original"] - e["decoded"], axis=-1).max()) for _, e in examples) or 1.0
     image = None
     for ax, (label, example) in zip(axes[:, 0], examples):
@@ -127,7 +127,7 @@ def error_heatmap_figure(examples: list[tuple[str, dict]], path: Path) -> Path:
         names = [str(n) for n in example["names"]]
         ax.set_yticks(range(0, len(names), 3), names[::3], fontsize=6)
     axes[-1, 0].set_xlabel("time (s)")
-    fig.colorbar(image, ax=axes[:, 0].tolist(), label="joint position error (cm)", shrink=0.8)
+    fig.colorbar(image, ax=axes[:, 0].tolist(), label="joint position error (cm)", shrink=0.6)
     return _save(fig, path)
 
 

@@ -129,7 +129,7 @@ def _quoted_table() -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
-def _examples(points: pd.DataFrame, rows: pd.DataFrame, dataset: str, limit: int = 12) -> list[tuple[str, dict]]:
+def _examples(points: pd.DataFrame, rows: pd.DataFrame, dataset: str, limit: int = 20) -> list[tuple[str, dict]]:
     """One example per codec: its headline point under 3 cm (else its lowest-error config), from example.npz."""
     examples = []
     for codec, group in points[points["dataset"] == dataset].groupby("codec", sort=True):
