@@ -5,6 +5,7 @@ Subcommands (each one a single process, one thread; each under ~10 minutes on th
     python -m mocapbench.benchmarks.neural_fourier speed       # training time to K = 10 on 900 frames, decode/frame
     python -m mocapbench.benchmarks.neural_fourier adaptive    # fourier-mlp-dct per cmu_test clip (one run each)
     python -m mocapbench.benchmarks.neural_fourier baselines   # svd (ranks, plain and weighted), fourier-mlp-int (K)
+    python -m mocapbench.benchmarks.neural_fourier ablation    # DCT-found Ω vs {1..K}, same one-run training
     python -m mocapbench.benchmarks.neural_fourier report      # markdown tables + Figure 3 plots from the two above
 
 ``adaptive`` runs Algorithm 1 once per clip with a low threshold (``--threshold``, % of the rest height) and
@@ -170,6 +171,37 @@ def run_baselines(clips, data_dir, iterations) -> list[dict]:
     return rows
 
 
+# -- ablation: is it the frequencies or the round-by-round training? -----------------------------------------------
+
+
+def run_ablation(clips, data_dir, k, iterations) -> None:
+    """Train one network the naive codec's way ((K + 1) x iterations steps, one schedule) on the first K frequencies
+    that Algorithm 1 found, and compare with Algorithm 1's round K and with Ω = {1..K} (needs adaptive.json)."""
+    from mocapbench.codecs.neural_fourier import _Trainer, _TorchThreads
+
+    adaptive = {r["clip"]: r for r in json.loads((OUT / "adaptive.json").read_text())}
+    print(f"## Frequencies or training? L-inf (% of height) at K = {k}\n")
+    print("| clip | Algorithm 1, round K (warm-started rounds) | DCT-found Ω, one run | Ω = {1..K}, one run (fourier-mlp-int) |")
+    print("|---|---:|---:|---:|")
+    for name in clips or ["05_01", "10_01"]:
+        motion = load_clip(name, data_dir=data_dir)
+        row = adaptive[name]
+        if len(row["omegas"]) < k:
+            print(f"| {name} | Algorithm 1 stopped at K = {len(row['omegas'])} | | |")
+            continue
+        height = motion.skeleton.rest_height()
+        results = []
+        for omegas in (row["omegas"][:k], [float(i) for i in range(1, k + 1)]):
+            codec = create("fourier-mlp-int", K=k, iterations_per_round=iterations)
+            prep = codec._prepare(motion)
+            with _TorchThreads():
+                trainer = _Trainer((prep["y"] - prep["mean"]) / prep["std"], prep["w"] * prep["std"], codec.config)
+                trainer.train_round(list(omegas), iterations * (k + 1))
+            _, _, error = codec._evaluate(prep, motion, trainer.weights(), list(omegas))
+            results.append(100 * error / height)
+        print(f"| {name} | {row['rounds'][k]['max_err_percent']:.2f} | {results[0]:.2f} | {results[1]:.2f} |", flush=True)
+
+
 # -- report -----------------------------------------------------------------------------------------------------------
 
 
@@ -281,12 +313,13 @@ def _plot(adaptive, baselines, methods) -> None:
 
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("command", choices=["speed", "adaptive", "baselines", "report"])
+    parser.add_argument("command", choices=["speed", "adaptive", "baselines", "ablation", "report"])
     parser.add_argument("--data-dir", default=None, help="folder of the CMU clips (default ../shared/data/cmu)")
     parser.add_argument("--clips", nargs="*", default=None, help="clip names (default: the cmu_test split)")
     parser.add_argument("--iterations", type=int, default=2000, help="Adam steps per round (codec default 2000)")
     parser.add_argument("--threshold", type=float, default=1.0, help="adaptive run's threshold, %% of height")
     parser.add_argument("--k-max", type=int, default=14, help="adaptive run's K_max")
+    parser.add_argument("--k", type=int, default=7, help="ablation's K")
     args = parser.parse_args(argv)
     OUT.mkdir(parents=True, exist_ok=True)
     if args.command == "speed":
@@ -298,6 +331,8 @@ def main(argv: list[str] | None = None) -> None:
     elif args.command == "baselines":
         rows = run_baselines(args.clips, args.data_dir, args.iterations)
         (OUT / "baselines.json").write_text(json.dumps(rows, indent=1))
+    elif args.command == "ablation":
+        run_ablation(args.clips, args.data_dir, args.k, args.iterations)
     else:
         report(TABLE_THRESHOLD_PERCENT)
 
