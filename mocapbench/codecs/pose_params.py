@@ -147,7 +147,6 @@ def motion_from_pose_matrix(y: np.ndarray, skeleton: Skeleton, fps: float, name:
 
 #: Storage formats of :func:`write_tensor`.
 TENSOR_FORMATS = ("float16", "uniform")
-_FORMAT_CODES = {"float16": 0, "uniform": 1}
 
 
 def quantize_tensor(values: np.ndarray, fmt: str, bits: int) -> np.ndarray:
