@@ -179,7 +179,9 @@ def _cmu(spec: Mapping[str, Any], where: str) -> list[Motion]:
     data_dir = cmu.cmu_data_dir(_resolve_data_dir(spec.get("data_dir")))
     split, clips = spec.get("split"), spec.get("clips")
     if (split is None) == (clips is None):
-        raise DatasetError(f"dataset {where}: give exactly one of `split` or `clips`, got split={split!r}, clips={clips!r}.")
+        raise DatasetError(
+            f"dataset {where}: give exactly one of `split` or `clips`, got split={split!r}, clips={clips!r}."
+        )
     fmt = str(spec.get("format", "amc"))
     if split is not None:
         return list(cmu.load_split(str(split), fmt=fmt, data_dir=data_dir))

@@ -60,7 +60,8 @@ def _html_table(frame: pd.DataFrame) -> str:
     body = []
     for row in frame.itertuples(index=False):
         cells = "".join(
-            f"<td class='num'>{html.escape(format_value(v))}</td>" if isinstance(v, (int, float)) and not isinstance(v, bool)
+            f"<td class='num'>{html.escape(format_value(v))}</td>"
+            if isinstance(v, (int, float)) and not isinstance(v, bool)
             else f"<td>{html.escape(format_value(v))}</td>"
             for v in row
         )

@@ -100,8 +100,9 @@ def main(argv: list[str] | None = None) -> int:
         print("no results were written; see the sweep logs above", file=sys.stderr)
         return 1
     command = "make bench" if args.cmu else "make run"
+    arguments = " ".join(argv if argv is not None else sys.argv[1:])
     report = build_report(present, name=kind, reports_root=args.reports_root,
-                          command=f"{command}  # = python -m mocapbench.experiments.main {' '.join(argv or sys.argv[1:])}")
+                          command=f"{command}  # = python -m mocapbench.experiments.main {arguments}".rstrip())
     headline = headline_table(curve_points(aggregate(present)))
     print()
     print(markdown_table(headline))

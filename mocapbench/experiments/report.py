@@ -135,7 +135,8 @@ def _examples(points: pd.DataFrame, rows: pd.DataFrame, dataset: str, limit: int
     for codec, group in points[points["dataset"] == dataset].groupby("codec", sort=True):
         ok = group[group["max_err_cm"] < BOUNDS_CM[-1]]
         best = ok.loc[ok["compression_ratio"].idxmax()] if not ok.empty else group.loc[group["max_err_cm"].idxmin()]
-        jobs = rows[(rows["dataset"] == dataset) & (rows["codec"] == codec) & (rows["config_hash"] == best["config_hash"])]
+        same = (rows["dataset"] == dataset) & (rows["codec"] == codec) & (rows["config_hash"] == best["config_hash"])
+        jobs = rows[same]
         for job_dir in jobs["job_dir"].unique():
             path = Path(job_dir) / EXAMPLE_FILE
             if path.exists():
@@ -218,7 +219,8 @@ def build_report(
 
     doc = Document(f"mocapbench report: {name}")
     doc.paragraph(f"{len(rows)} result rows, {len(points)} codec configurations, {len(codecs)} codecs "
-                  f"({', '.join(codecs)}), datasets {', '.join(datasets)}. Generated {_dt.datetime.now():%Y-%m-%d %H:%M}.")
+                  f"({', '.join(codecs)}), datasets {', '.join(datasets)}. "
+                  f"Generated {_dt.datetime.now():%Y-%m-%d %H:%M}.")
 
     doc.heading("Headline: best compression under 1 cm and 3 cm L∞")
     doc.paragraph("Per codec, the configuration with the highest compression ratio whose worst joint error over every "
@@ -299,7 +301,8 @@ def build_report(
         "Rate: len() of the bitstream as written (container header, skeleton and everything the decoder needs); "
         "learned state shared across clips is reported separately as model bytes, never hidden.",
         "L∞: largest Euclidean joint-position error over every frame and joint (cm); p99: 99th percentile of the "
-        "per-joint-frame errors; mean: mean over joint-frames (cm); KG: Karni-Gotsman 100·||A−Ã||/||A−E(A)|| (%); "
+        "per-joint-frame errors; mean: mean over joint-frames (cm); "
+        "KG: Karni-Gotsman 100·||A−Ã||/||A−E(A)|| (%); "
         "% of height: L∞ / rest-pose height of the skeleton.",
         "Dataset figures pool the clips: rate = total bytes / total joint-frames, L∞ and p99 = worst clip, mean "
         "and KG frame-weighted.",

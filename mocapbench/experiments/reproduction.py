@@ -88,7 +88,8 @@ def _comparison_claim(rows, paper, claim, test_name, ref_name, error="mean_err_c
         return _claim_row(paper, claim, f"{test_name} vs {ref_name}: no clip with overlapping curves", "undecided")
     better = int(table["test_better"].sum())
     measured = (f"{test_name} vs {ref_name} at equal rate ({error}): better on {better}/{len(table)} clips, mean "
-                f"reduction {table['mean_reduction_percent'].mean():.1f} %, max {table['max_reduction_percent'].max():.1f} %")
+                f"reduction {table['mean_reduction_percent'].mean():.1f} %, "
+                f"max {table['max_reduction_percent'].max():.1f} %")
     holds = better > len(table) / 2
     verdict = "yes" if holds else "no"
     if holds and threshold is not None and table["max_reduction_percent"].max() < threshold:
@@ -129,11 +130,12 @@ def neural_fourier_tables(rows: pd.DataFrame) -> tuple[pd.DataFrame, pd.DataFram
                            "L∞ % height": best["max_err_percent_height"], "L∞ cm": best["max_err_cm"],
                            "config": _params(best, rows)})
         ratios = np.array(counts, dtype=float)
+        median = float(np.nanmedian(ratios)) if np.isfinite(ratios).any() else float("nan")
         in_range = int(np.sum((ratios >= 2) & (ratios <= 15)))
         at_least = int(np.sum(ratios >= 2))
         which = "paper's raw (pose parameters / network parameters)" if paper_col else "ours (float32 positions)"
         measured = (f"ratio under 2 % of height, {which}: in [2, 15] on {in_range}/{len(ratios)} clips, >= 2 on "
-                    f"{at_least}/{len(ratios)}; median {np.nanmedian(ratios) if np.isfinite(ratios).any() else float('nan'):.3g}")
+                    f"{at_least}/{len(ratios)}; median {median:.3g}")
         claims.append(_claim_row("neural Fourier", f"{codec}: 2-15x smaller at L∞ < 2 % of height on most clips",
                                  measured, "yes" if at_least > len(ratios) / 2 else "no"))
     claims.append(_comparison_claim(rows, "neural Fourier",
@@ -251,9 +253,10 @@ def pga_tables(rows: pd.DataFrame) -> pd.DataFrame:
         else:
             best = ok.loc[ok[key].idxmax()]
             verdict = "yes" if best[key] >= ratio else "no"
+        paper_ratio = best.get("paper_compression_ratio")
+        paper_ratio = f"1:{paper_ratio:.3g}" if paper_ratio is not None and pd.notna(paper_ratio) else ""
         out.append({**base, "ours": verdict, "ours: ratio (float32 positions)": f"1:{best['compression_ratio']:.3g}",
-                    "ours: ratio (paper's raw)": (f"1:{best['paper_compression_ratio']:.3g}"
-                                                  if "paper_compression_ratio" in best and pd.notna(best.get("paper_compression_ratio")) else ""),
+                    "ours: ratio (paper's raw)": paper_ratio,
                     "ours: distortion %": best["kg_percent"], "ours: L∞ cm": best["max_err_cm"],
                     "ours: decode ms/frame": 1000.0 / best["decode_fps"] if best["decode_fps"] else np.nan,
                     "ours: config": _params(best, rows)})

@@ -217,7 +217,7 @@ def _ensure_sweeper_plugin() -> None:
 
 @hydra.main(version_base="1.3", config_path="../../configs", config_name="benchmark")
 def main(cfg: DictConfig) -> float:
-    """The Hydra task: run one job in ``HydraConfig.get().runtime.output_dir``; returns its row count (NaN if failed)."""
+    """The Hydra task: one job in ``HydraConfig.get().runtime.output_dir``; returns its rows (NaN if it failed)."""
     record = run_job(cfg, Path(HydraConfig.get().runtime.output_dir))
     return math.nan if record["status"] != "done" else float(record["rows"])
 

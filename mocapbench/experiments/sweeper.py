@@ -192,8 +192,15 @@ class RdSweeper(Sweeper):
 
         fixed = [a for a, o in zip(arguments, parsed) if not o.is_sweep_override() and o.get_key_element() != "sweep"]
         names = self.codecs or codec_names()
+        unknown = sorted(set(names) - set(codec_names()))
+        if unknown:
+            raise ValueError(f"hydra.sweeper.codecs names unregistered codecs {unknown}; registered: {codec_names()}")
         if codec_arg:  # `codec=a,b` on the command line restricts the union to those codecs
-            wanted = [v for o in codec_arg for v in (o.sweep_string_iterator() if o.is_sweep_override() else [o.get_value_element_as_str()])]
+            wanted = [
+                value
+                for o in codec_arg
+                for value in (o.sweep_string_iterator() if o.is_sweep_override() else [o.get_value_element_as_str()])
+            ]
             names = [n for n in names if n in wanted]
             fixed = [a for a in fixed if not a.startswith("codec=")]
             swept = [a for a in swept if not a.startswith("codec=")]
@@ -201,7 +208,7 @@ class RdSweeper(Sweeper):
             if name in self.exclude:
                 continue
             if name not in self.hydra_context.config_loader.get_group_options("codec"):
-                log.warning("codec %s is registered but has no configs/codec/%s.yaml: left out of the sweep", name, name)
+                log.warning("codec %s is registered but has no configs/codec/%s.yaml: left out", name, name)
                 continue
             rd = self._rd_params(name)
             if rd is None:
@@ -224,7 +231,7 @@ class RdSweeper(Sweeper):
         seen: OrderedDict[str, list[str]] = OrderedDict()
         for folder, overrides in jobs:
             if folder in seen:
-                raise ValueError(f"two jobs of the sweep map to the same folder {folder!r}: {seen[folder]} and {overrides}")
+                raise ValueError(f"two jobs map to the same folder {folder!r}: {seen[folder]} and {overrides}")
             seen[folder] = overrides
         todo = []
         for folder, overrides in jobs:
