@@ -21,7 +21,7 @@ import numpy as np
 from mocapbench.codecs.base import Codec, CodecConfig, Header, param
 from mocapbench.codecs.registry import register_codec
 from mocapbench.codecs.skeleton_blob import pack_skeleton, unpack_skeleton
-from mocapbench.entropy.backend import zstd_compress, zstd_decompress
+from mocapbench.entropy.backend import zstd_compress, zstd_decompress, zstd_pack_ints, zstd_unpack_ints
 from mocapbench.entropy.bitio import ByteReader, ByteWriter
 from mocapbench.entropy.errors import BitstreamError
 from mocapbench.motion import Motion
@@ -32,7 +32,7 @@ _ZSTD_LEVEL_DOC = "zstd compression level (higher: smaller and slower to encode;
 
 
 def _pack_int_tracks(values: np.ndarray, level: int) -> bytes:
-    """Delta-code int64 tracks along axis 0, zigzag them, store in the narrowest width, zstd the whole.
+    """Delta-code int64 tracks along time and zstd them channel by channel.
 
     Parameters
     ----------
@@ -40,25 +40,13 @@ def _pack_int_tracks(values: np.ndarray, level: int) -> bytes:
         C integer tracks of F samples.
     """
     deltas = np.diff(values, axis=0, prepend=np.zeros((1, values.shape[1]), dtype=np.int64))
-    zigzag = ((deltas << 1) ^ (deltas >> 63)).astype(np.uint64)
-    peak = int(zigzag.max()) if zigzag.size else 0
-    width = next(w for w in (1, 2, 4, 8) if peak < 1 << (8 * w))
-    channels_first = np.ascontiguousarray(zigzag.T).astype(f"<u{width}")
-    return bytes([width]) + zstd_compress(channels_first.tobytes(), level=level)
+    return zstd_pack_ints(deltas.T, level=level)
 
 
 def _unpack_int_tracks(blob: bytes, num_frames: int, num_channels: int) -> np.ndarray:
     """Inverse of :func:`_pack_int_tracks`: ``(F, C)`` int64."""
-    if len(blob) < 1 or blob[0] not in (1, 2, 4, 8):
-        raise BitstreamError(f"Integer tracks: expected a width byte of 1, 2, 4 or 8, found {bytes(blob[:1])!r}.")
-    width = blob[0]
-    expected = num_frames * num_channels * width
-    raw = zstd_decompress(bytes(blob[1:]), expected)
-    if len(raw) != expected:
-        raise BitstreamError(f"Integer tracks: expected {expected} bytes after zstd, found {len(raw)}.")
-    zigzag = np.frombuffer(raw, dtype=f"<u{width}").astype(np.uint64).reshape(num_channels, num_frames).T
-    deltas = (zigzag >> np.uint64(1)).astype(np.int64) ^ -(zigzag & np.uint64(1)).astype(np.int64)
-    return np.cumsum(deltas, axis=0)
+    deltas = zstd_unpack_ints(blob, num_frames * num_channels, "integer tracks")
+    return np.cumsum(deltas.reshape(num_channels, num_frames).T, axis=0)
 
 
 @register_codec

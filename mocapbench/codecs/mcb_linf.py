@@ -40,8 +40,8 @@ import scipy.fft
 
 from mocapbench.codecs.base import Codec, CodecConfig, Header, NotFittedError, param
 from mocapbench.codecs.registry import register_codec
-from mocapbench.entropy.backend import zstd_compress, zstd_decompress
-from mocapbench.entropy.bitio import ByteReader, ByteWriter, zigzag_decode, zigzag_encode
+from mocapbench.entropy.backend import zstd_pack_ints, zstd_unpack_ints
+from mocapbench.entropy.bitio import ByteReader, ByteWriter
 from mocapbench.entropy.errors import BitstreamError
 from mocapbench.entropy.huffman import decode_symbols, encode_symbols
 from mocapbench.motion import Motion
@@ -252,9 +252,7 @@ def _write_symbols(writer: ByteWriter, symbols: np.ndarray, zstd_level: int) -> 
         writer.write_u8(_CODING_EMPTY)
         return
     huffman = encode_symbols(symbols)
-    zigzag = zigzag_encode(symbols)
-    width = next(w for w in (1, 2, 4, 8) if int(zigzag.max()) < 1 << (8 * w))
-    packed = bytes([width]) + zstd_compress(zigzag.astype(f"<u{width}").tobytes(), level=zstd_level)
+    packed = zstd_pack_ints(symbols, level=zstd_level)
     if len(huffman) <= len(packed):
         writer.write_u8(_CODING_HUFFMAN)
         writer.write_bytes(huffman)
@@ -272,11 +270,7 @@ def _read_symbols(reader: ByteReader, payload: memoryview, count: int, what: str
         symbols, end = decode_symbols(payload, reader.offset, expected_count=count, max_count=max(count, 1))
         reader.read_bytes(end - reader.offset, what)
     elif coding == _CODING_ZSTD:
-        packed = reader.read_blob(what)
-        if len(packed) < 1 or packed[0] not in (1, 2, 4, 8):
-            raise BitstreamError(f"mcb-linf: {what}: expected a width byte of 1, 2, 4 or 8, found {packed[:1]!r}.")
-        raw = zstd_decompress(packed[1:], count * packed[0])
-        symbols = zigzag_decode(np.frombuffer(raw, dtype=f"<u{packed[0]}").astype(np.uint64))
+        symbols = zstd_unpack_ints(reader.read_blob(what), count, f"mcb-linf: {what}")
     else:
         raise BitstreamError(f"mcb-linf: {what}: expected coding 0, 1 or 2, found {coding}.")
     if symbols.size != count:

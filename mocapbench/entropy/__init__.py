@@ -11,7 +11,14 @@ Every decoder here raises :class:`BitstreamError` (a ``ValueError``) for truncat
 - :mod:`.backend`: :func:`zstd_compress` / :func:`zstd_decompress`, :func:`lzma_compress` / :func:`lzma_decompress`.
 """
 
-from mocapbench.entropy.backend import lzma_compress, lzma_decompress, zstd_compress, zstd_decompress
+from mocapbench.entropy.backend import (
+    lzma_compress,
+    lzma_decompress,
+    zstd_compress,
+    zstd_decompress,
+    zstd_pack_ints,
+    zstd_unpack_ints,
+)
 from mocapbench.entropy.bitio import (
     BitReader,
     BitWriter,
@@ -58,6 +65,8 @@ __all__ = [
     "zigzag_decode",
     "encode_symbols",
     "decode_symbols",
+    "zstd_pack_ints",
+    "zstd_unpack_ints",
     "huffman_code_lengths",
     "huffman_payload_bits",
     "zstd_compress",

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import lzma
 
+import numpy as np
 import zstandard
 
 from mocapbench.entropy.errors import BitstreamError
@@ -29,6 +30,8 @@ __all__ = [
     "lzma_decompress",
     "zstd_compress",
     "zstd_decompress",
+    "zstd_pack_ints",
+    "zstd_unpack_ints",
 ]
 
 #: Dictionary size of the raw LZMA2 filter, bytes. Fixed because a raw stream does not record it.
@@ -154,3 +157,37 @@ def lzma_decompress(data, max_output_size: int) -> bytes:
         raise BitstreamError(f"lzma: expected the end of data after the stream, found "
                              f"{len(decompressor.unused_data)} more bytes")
     return out
+
+
+def zstd_pack_ints(values, level: int = 19) -> bytes:
+    """Integers through zstd: zigzag, the narrowest little-endian width (1, 2, 4 or 8 bytes), one zstd frame.
+
+    Layout: one byte holding the width, then the zstd frame. The element order is kept, so callers put values
+    that resemble each other next to each other (channel-major tracks, coefficient bands) before packing.
+
+    Parameters
+    ----------
+    values : array_like of int, any shape (flattened in C order)
+    level : int
+        zstd level, 1..22.
+    """
+    from mocapbench.entropy.bitio import zigzag_encode
+
+    codes = zigzag_encode(np.asarray(values).ravel())
+    peak = int(codes.max()) if codes.size else 0
+    width = next(w for w in (1, 2, 4, 8) if peak < 1 << (8 * w))
+    return bytes([width]) + zstd_compress(codes.astype(f"<u{width}").tobytes(), level=level)
+
+
+def zstd_unpack_ints(blob, count: int, what: str = "integers") -> np.ndarray:
+    """Inverse of :func:`zstd_pack_ints`: exactly ``count`` int64 values, or :class:`BitstreamError`."""
+    from mocapbench.entropy.bitio import zigzag_decode
+
+    blob = bytes(blob)
+    if len(blob) < 1 or blob[0] not in (1, 2, 4, 8):
+        raise BitstreamError(f"{what}: expected a width byte of 1, 2, 4 or 8, found {blob[:1]!r}")
+    width = blob[0]
+    raw = zstd_decompress(blob[1:], count * width)
+    if len(raw) != count * width:
+        raise BitstreamError(f"{what}: expected {count * width} bytes after zstd, found {len(raw)}")
+    return zigzag_decode(np.frombuffer(raw, dtype=f"<u{width}").astype(np.uint64)).astype(np.int64)

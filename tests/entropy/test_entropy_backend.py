@@ -5,6 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import zstandard
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from mocapbench.entropy import BitstreamError, lzma_compress, lzma_decompress, zstd_compress, zstd_decompress
 
@@ -113,3 +115,24 @@ def test_levels_are_validated(compress, name, level):
 def test_max_output_size_is_validated(decompress):
     with pytest.raises(ValueError, match=r"`max_output_size` must be a non-negative int \(bytes\), got -1"):
         decompress(b"", max_output_size=-1)
+
+
+@settings(max_examples=100, deadline=None)
+@given(st.lists(st.integers(min_value=-(2**62), max_value=2**62), max_size=200))
+def test_zstd_pack_ints_round_trips_and_picks_narrow_width(values):
+    from mocapbench.entropy.backend import zstd_pack_ints, zstd_unpack_ints
+
+    blob = zstd_pack_ints(np.array(values, dtype=np.int64))
+    np.testing.assert_array_equal(zstd_unpack_ints(blob, len(values)), np.array(values, dtype=np.int64))
+    if values and max(abs(v) for v in values) < 64:
+        assert blob[0] == 1
+
+
+def test_zstd_unpack_ints_rejects_wrong_count_and_bad_width():
+    from mocapbench.entropy.backend import zstd_pack_ints, zstd_unpack_ints
+
+    blob = zstd_pack_ints(np.arange(10))
+    with pytest.raises(BitstreamError, match="expected 11 bytes"):
+        zstd_unpack_ints(blob, 11, "tracks")
+    with pytest.raises(BitstreamError, match="width byte"):
+        zstd_unpack_ints(b"\x03" + blob[1:], 10, "tracks")
