@@ -169,9 +169,9 @@ def _by_parameter_claim(rows, codec, pattern, paper, claim, expect):
     for value in values:
         table = compare_at_equal_rate(subset[subset[column] == value], reference)
         gains[value] = float(table["mean_reduction_percent"].mean()) if not table.empty else float("nan")
-    measured = ", ".join(f"{column[6:]}={v}: {g:+.1f} %" for v, g in gains.items())
-    return _claim_row(paper, claim, f"mean error reduction vs {column[6:]}={values[0]} at equal rate: {measured}",
-                      expect(gains))
+    measured = ", ".join(f"{column[6:]}={_text(v)}: {g:+.1f} %" for v, g in gains.items())
+    return _claim_row(paper, claim, f"mean error reduction vs {column[6:]}={_text(values[0])} at equal rate: "
+                      f"{measured}", expect(gains))
 
 
 def lsdt_tables(rows: pd.DataFrame) -> pd.DataFrame:
@@ -263,10 +263,14 @@ def pga_tables(rows: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(out)
 
 
+def _text(value) -> str:
+    """A parameter value as written in the config (integers read back as floats shown as integers)."""
+    return str(int(value)) if isinstance(value, float) and value.is_integer() else str(value)
+
+
 def _params(row: pd.Series, rows: pd.DataFrame | None = None) -> str:
     """``k=v`` of the row's parameters; with ``rows``, only those that vary across that codec's rows."""
-    def text(value):
-        return str(int(value)) if isinstance(value, float) and value.is_integer() else str(value)
+    text = _text
 
     keys = [k for k in row.index if k.startswith("param_") and pd.notna(row[k])]
     if rows is not None:
