@@ -81,3 +81,12 @@ def test_compress_real_cmu_amc(tmp_path, capsys):
     stream = tmp_path / "run.mcb"
     assert main(["compress", str(amc), str(stream), "--codec", "quant-delta-zstd", "--set", "step_cm=0.5"]) == 0
     assert "141 frames x 31 joints" in capsys.readouterr().out
+
+
+def test_inspect_shows_rotation_codec_parameters(tmp_path, bvh_file, capsys):
+    stream = tmp_path / "walk.mcb"
+    main(["compress", str(bvh_file), str(stream), "--codec", "quant-rot-zstd", "--set", "rotation_bits=9"])
+    capsys.readouterr()
+    assert main(["inspect", str(stream)]) == 0
+    out = capsys.readouterr().out
+    assert "rotation_bits" in out and " 9" in out and "skeleton joints" in out

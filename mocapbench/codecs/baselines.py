@@ -167,3 +167,13 @@ class QuantRotZstdCodec(Codec):
             rotations=np.concatenate([xyz, w], axis=-1),
         )
         return motion.positions(), motion
+
+    def describe_payload(self, header: Header, payload: memoryview):
+        reader = ByteReader(payload)
+        skeleton = unpack_skeleton(reader)
+        step = float(reader.read_array(1, np.float64, "translation step")[0])
+        return {
+            "rotation_bits": reader.read_varint("rotation bits"),
+            "translation_step_cm": step,
+            "skeleton joints": skeleton.num_joints,
+        }
