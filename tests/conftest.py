@@ -17,3 +17,15 @@ def synthetic_motion():
 def training_motions():
     """Training motions for codecs that learn shared state: other seeds than the test motion."""
     return [sinusoidal_motion(num_frames=300, seed=seed) for seed in (11, 12, 13)]
+
+
+@pytest.fixture(scope="session")
+def cmu_09_06():
+    """The real 141-frame CMU run 09_06 from ASF/AMC.
+
+    Fails (DataNotFoundError saying where it looked) rather than skips when ../shared/data/cmu is missing:
+    CI always has the data beside the clone, and a silently skipped real-data test proves nothing.
+    """
+    from mocapbench.datasets.cmu import load_clip
+
+    return load_clip("09_06")

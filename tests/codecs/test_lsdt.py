@@ -277,12 +277,8 @@ def test_huffman_counts_round_trip_and_save_bytes_at_high_compression(name, synt
 # -- real data (fast) ---------------------------------------------------------------------------------------
 
 
-def test_real_clip_09_06_round_trip():
-    cmu = pytest.importorskip("mocapbench.datasets.cmu")
-    try:
-        motion = cmu.load_clip("09_06")
-    except FileNotFoundError:
-        pytest.skip("CMU data not available")
+def test_real_clip_09_06_round_trip(cmu_09_06):
+    motion = cmu_09_06
     reference = motion.positions()
     for name, step in (("lsdt-frame", 0.5), ("lsdt-clip", 0.5)):
         codec = create(name, step_cm=step)

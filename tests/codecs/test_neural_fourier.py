@@ -59,17 +59,6 @@ FAST = {"iterations_per_round": 1500, "learning_rate": 0.01}
 
 
 @pytest.fixture(scope="module")
-def cmu_09_06():
-    """The real 141-frame CMU run (skipped when ../shared/data/cmu is not there)."""
-    from mocapbench.datasets import cmu
-
-    try:
-        return cmu.load_clip("09_06")
-    except (FileNotFoundError, OSError) as error:
-        pytest.skip(f"CMU data not available: {error}")
-
-
-@pytest.fixture(scope="module")
 def adaptive_run():
     """(codec, motion, stream) of fourier-mlp-dct on the known-frequency motion."""
     motion = known_frequency_motion()

@@ -163,12 +163,8 @@ def test_motion_with_only_a_root_is_rejected():
 
 
 # -- one real clip (fast) ------------------------------------------------------------------------------------------
-def test_cmu_09_06_lossless_trajectories_and_paper_setting():
-    cmu = pytest.importorskip("mocapbench.datasets.cmu")
-    try:
-        motion = cmu.load_clip("09_06")
-    except cmu.DataNotFoundError:
-        pytest.skip("CMU data not found")
+def test_cmu_09_06_lossless_trajectories_and_paper_setting(cmu_09_06):
+    motion = cmu_09_06
     reference = motion.positions()
     lossless = create("pga-ik", num_geodesics=12, root_levels_dropped=0, end_levels_dropped=0)
     decoded = lossless.decode(lossless.encode(motion)).positions
