@@ -27,7 +27,7 @@ import numpy as np
 
 from mocapbench.codecs import container
 from mocapbench.codecs.container import BitstreamError, Header
-from mocapbench.motion import Motion, Skeleton
+from mocapbench.motion import Motion
 
 __all__ = ["Codec", "CodecConfig", "Decoded", "param", "BitstreamError", "Header", "NotFittedError"]
 
@@ -208,11 +208,3 @@ class Codec(abc.ABC):
     def __repr__(self) -> str:
         return f"{type(self).__name__}({self.config!r})"
 
-
-def require_skeleton_match(codec: str, expected: Skeleton, motion: Motion) -> None:
-    """Raise if ``motion`` is not on the skeleton a learned codec was fit on."""
-    if motion.num_joints != expected.num_joints:
-        raise ValueError(
-            f"{codec}: the codec was fit on {expected.num_joints} joints, the motion {motion.name!r} has "
-            f"{motion.num_joints}."
-        )

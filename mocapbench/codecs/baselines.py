@@ -24,6 +24,7 @@ from mocapbench.codecs.skeleton_blob import pack_skeleton, unpack_skeleton
 from mocapbench.entropy.backend import zstd_compress, zstd_decompress, zstd_pack_ints, zstd_unpack_ints
 from mocapbench.entropy.bitio import ByteReader, ByteWriter
 from mocapbench.entropy.errors import BitstreamError
+from mocapbench.entropy.quantize import quantize
 from mocapbench.motion import Motion
 
 __all__ = ["RawZstdCodec", "QuantDeltaZstdCodec", "QuantRotZstdCodec"]
@@ -89,7 +90,7 @@ class QuantDeltaZstdCodec(Codec):
     def encode_payload(self, motion: Motion) -> bytes:
         positions = motion.positions()
         step = self.config.step_cm
-        indices = np.rint(positions.reshape(motion.num_frames, -1) / step).astype(np.int64)
+        indices = quantize(positions.reshape(motion.num_frames, -1), step)
         writer = ByteWriter()
         writer.write_array(np.array([step]), np.float64)
         writer.write_blob(_pack_int_tracks(indices, self.config.zstd_level))
@@ -133,7 +134,7 @@ class QuantRotZstdCodec(Codec):
         scale = np.where(high > low, (high - low) / levels, 1.0)
         rotation_indices = np.rint((xyz - low) / scale).astype(np.int64)
         step = self.config.translation_step_cm
-        root_indices = np.rint(motion.root_positions / step).astype(np.int64)
+        root_indices = quantize(motion.root_positions, step)
         writer = ByteWriter()
         writer.write_bytes(pack_skeleton(motion.skeleton))
         writer.write_array(np.array([step]), np.float64)

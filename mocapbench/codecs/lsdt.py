@@ -63,6 +63,7 @@ from mocapbench.codecs.registry import register_codec
 from mocapbench.entropy.bitio import BitReader, BitWriter, ByteReader, ByteWriter
 from mocapbench.entropy.errors import BitstreamError
 from mocapbench.entropy.huffman import decode_symbols, encode_symbols
+from mocapbench.entropy.quantize import quantize
 from mocapbench.motion import Motion
 from mocapbench.transforms.lsdt import train_lsdt_bases
 from mocapbench.transforms.spatial import spatial_basis
@@ -153,7 +154,7 @@ def quantize_coefficients(coefficients: np.ndarray, step: float, threshold: floa
     ndarray, same shape, int64
         ``rint(c / Δ)`` where ``|c| > threshold``, else 0.
     """
-    indices = np.rint(coefficients / step).astype(np.int64)
+    indices = quantize(coefficients, step)
     if threshold > 0.5 * step:
         indices[np.abs(coefficients) <= threshold] = 0
     return indices

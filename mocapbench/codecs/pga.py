@@ -62,6 +62,7 @@ from mocapbench.codecs.skeleton_blob import pack_skeleton, unpack_skeleton
 from mocapbench.entropy.bitio import ByteReader, ByteWriter
 from mocapbench.entropy.errors import BitstreamError
 from mocapbench.entropy.huffman import decode_symbols, encode_symbols
+from mocapbench.entropy.quantize import quantize
 from mocapbench.geometry.ik import GeodesicIK, to_root_frame
 from mocapbench.io.asf_amc import CMU_CM_PER_UNIT
 from mocapbench.geometry.lifting import (
@@ -127,7 +128,7 @@ def _symmetric_quantize(values: np.ndarray, bits: int) -> tuple[np.ndarray, floa
     if amax == 0.0:
         return np.zeros(values.shape, dtype=np.int64), 0.0
     step = float(np.float32(amax / ((1 << (bits - 1)) - 1)))
-    return np.rint(values / step).astype(np.int64), step
+    return quantize(values, step), step
 
 
 def _kept_levels(num_frames: int, dropped: int) -> int:
@@ -197,7 +198,7 @@ class PgaIkCodec(Codec):
         mean_rotvec = Rotation.from_quat(model.mean).as_rotvec()  # (n, 3), |.| <= pi
         model_values = np.concatenate([mean_rotvec.ravel() / np.pi, model.directions[:k].ravel()])
         model_step = 1.0 / ((1 << (config.model_bits - 1)) - 1)  # fixed range [-1, 1]: nothing to store
-        model_indices = np.rint(model_values / model_step).astype(np.int64)
+        model_indices = quantize(model_values, model_step)
 
         # Trajectories (§3.5-3.6): global end-joint positions, root position, root orientation.
         positions = motion.positions()
@@ -209,14 +210,14 @@ class PgaIkCodec(Codec):
         steps: list[float] = []
         indices: list[np.ndarray] = []
 
-        def quantize(level: int, vectors: np.ndarray) -> np.ndarray:
+        def quantize_details(level: int, vectors: np.ndarray) -> np.ndarray:
             q, step = _symmetric_quantize(vectors, config.trajectory_bits)
             steps.append(step)
             indices.append(q.ravel())
             return q * step
 
         for _, samples, space, dropped in tracks:
-            lifting_decompose(samples, space, dropped, quantize)
+            lifting_decompose(samples, space, dropped, quantize_details)
 
         writer = ByteWriter()
         writer.write_bytes(pack_skeleton(skeleton))

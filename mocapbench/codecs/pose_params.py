@@ -27,6 +27,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from mocapbench.entropy.quantize import RangeQuantizer
 from mocapbench.motion import Motion, Skeleton
 
 __all__ = [
@@ -175,7 +176,8 @@ def quantize_tensor(values: np.ndarray, fmt: str, bits: int) -> np.ndarray:
     if values.size == 0:
         return values.copy()
     low, high = _uniform_range(values)
-    return _uniform_values(_uniform_indices(values, low, high, bits), low, high, bits).reshape(values.shape)
+    quantizer = RangeQuantizer(bits, low, high)
+    return quantizer.dequantize(quantizer.quantize(values))
 
 
 def _uniform_range(values: np.ndarray) -> tuple[float, float]:
@@ -186,18 +188,6 @@ def _uniform_range(values: np.ndarray) -> tuple[float, float]:
     if high32 < values.max():
         high32 = np.nextafter(high32, np.float32(np.inf), dtype=np.float32)
     return float(low32), float(high32)
-
-
-def _uniform_indices(values: np.ndarray, low: float, high: float, bits: int) -> np.ndarray:
-    levels = (1 << bits) - 1
-    if high <= low:
-        return np.zeros(values.size, dtype=np.int64)
-    return np.clip(np.rint((values.ravel() - low) / (high - low) * levels), 0, levels).astype(np.int64)
-
-
-def _uniform_values(indices: np.ndarray, low: float, high: float, bits: int) -> np.ndarray:
-    levels = (1 << bits) - 1
-    return low + indices.astype(np.float64) * ((high - low) / levels)
 
 
 def write_tensor(writer, values: np.ndarray, fmt: str, bits: int) -> None:
@@ -219,7 +209,7 @@ def write_tensor(writer, values: np.ndarray, fmt: str, bits: int) -> None:
     low, high = _uniform_range(values)
     writer.write_array(np.array([low, high]), np.float32)
     bit_writer = BitWriter()
-    bit_writer.write_array(_uniform_indices(values, low, high, bits), bits)
+    bit_writer.write_array(RangeQuantizer(bits, low, high).quantize(values.ravel()), bits)
     writer.write_blob(bit_writer.getvalue())
 
 
@@ -252,7 +242,7 @@ def read_tensor(reader, shape: tuple[int, ...], fmt: str, bits: int, what: str) 
         if len(blob) != expected:
             raise BitstreamError(f"{what}: expected {expected} bytes of {bits}-bit indices, found {len(blob)}.")
         indices = BitReader(blob).read_array(count, bits, what).astype(np.int64)
-        values = _uniform_values(indices, low, high, bits)
+        values = RangeQuantizer(bits, low, high).dequantize(indices)
     if not np.all(np.isfinite(values)):
         raise BitstreamError(f"{what}: the stream holds non-finite values.")
     return values.reshape(shape)
