@@ -89,14 +89,11 @@ def _set_threads(threads: int | None) -> None:
     """Keep each job to ``threads`` BLAS/torch threads so that parallel jobs do not oversubscribe the cores."""
     if not threads:
         return
+    from threadpoolctl import threadpool_limits
+
     if "torch" in sys.modules:
         sys.modules["torch"].set_num_threads(int(threads))
-    try:
-        from threadpoolctl import threadpool_limits
-
-        threadpool_limits(int(threads))
-    except ImportError:
-        pass
+    threadpool_limits(int(threads))
 
 
 def run_job(cfg: Any, output_dir: Path) -> dict[str, Any]:
