@@ -9,20 +9,14 @@ clip) for each step, single-threaded, next to the targets: BVH parsing >= 20,000
 
 from __future__ import annotations
 
-import os
+import argparse
+import platform
+import sys
 
-# One thread for every numeric library, set before numpy is imported: the targets are per core.
-for _variable in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS", "NUMEXPR_NUM_THREADS"):
-    os.environ[_variable] = "1"
-
-import argparse  # noqa: E402
-import platform  # noqa: E402
-import sys  # noqa: E402
-
-from mocapbench.datasets.cmu import ALL_SPLIT, CMU_CM_PER_UNIT, clip_names, cmu_data_dir  # noqa: E402
-from mocapbench.io.asf_amc import read_amc, read_asf  # noqa: E402
-from mocapbench.io.bvh import read_bvh  # noqa: E402
-from mocapbench.metrics.timing import time_call  # noqa: E402
+from mocapbench.datasets.cmu import ALL_SPLIT, CMU_CM_PER_UNIT, clip_names, cmu_data_dir
+from mocapbench.io.asf_amc import read_amc, read_asf
+from mocapbench.io.bvh import read_bvh
+from mocapbench.metrics.timing import time_call
 
 TARGETS_FRAMES_PER_S = {"BVH parse": 20_000, "AMC parse": 10_000, "FK (positions)": 200_000}
 

@@ -17,24 +17,19 @@ and CSVs go to ``--out``; tables are printed as markdown.
 
 from __future__ import annotations
 
-import os
+import argparse
+import platform
+from pathlib import Path
 
-for _variable in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS", "NUMEXPR_NUM_THREADS"):
-    os.environ[_variable] = "1"
+import numpy as np
 
-import argparse  # noqa: E402
-import platform  # noqa: E402
-from pathlib import Path  # noqa: E402
-
-import numpy as np  # noqa: E402
-
-from mocapbench import metrics  # noqa: E402
-from mocapbench.codecs import create  # noqa: E402
-from mocapbench.codecs.lsdt import COMMITTED_SPARSITIES, load_committed_bases  # noqa: E402
-from mocapbench.datasets.cmu import load_clip, load_split  # noqa: E402
-from mocapbench.metrics.timing import time_call  # noqa: E402
-from mocapbench.transforms.lsdt import train_lsdt_bases, truncate  # noqa: E402
-from mocapbench.transforms.spatial import spatial_basis  # noqa: E402
+from mocapbench import metrics
+from mocapbench.codecs import create
+from mocapbench.codecs.lsdt import COMMITTED_SPARSITIES, load_committed_bases
+from mocapbench.datasets.cmu import load_clip, load_split
+from mocapbench.metrics.timing import time_call
+from mocapbench.transforms.lsdt import train_lsdt_bases, truncate
+from mocapbench.transforms.spatial import spatial_basis
 
 STEPS_CM = (0.05, 0.1, 0.2, 0.35, 0.5, 0.75, 1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0, 12.0, 16.0)
 J = 31

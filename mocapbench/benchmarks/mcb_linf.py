@@ -14,19 +14,14 @@ Prints, as markdown:
 
 from __future__ import annotations
 
-import os
+import argparse
 
-for _variable in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
-    os.environ.setdefault(_variable, "1")  # one core: set before numpy loads its BLAS
+import numpy as np
+import pandas as pd
 
-import argparse  # noqa: E402
-
-import numpy as np  # noqa: E402
-import pandas as pd  # noqa: E402
-
-from mocapbench.experiments.aggregate import aggregate, curve_points  # noqa: E402
-from mocapbench.experiments.bdrate import bd_rate_percent, pareto_front  # noqa: E402
-from mocapbench.experiments.document import markdown_table  # noqa: E402
+from mocapbench.experiments.aggregate import aggregate, curve_points
+from mocapbench.experiments.bdrate import bd_rate_percent, pareto_front
+from mocapbench.experiments.document import markdown_table
 
 CODEC = "mcb-linf"
 ANCHOR = "quant-delta-zstd"

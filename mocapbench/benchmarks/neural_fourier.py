@@ -21,26 +21,21 @@ Errors: L∞ joint-position error in cm and in % of ``Skeleton.rest_height()`` (
 
 from __future__ import annotations
 
+import argparse
+import json
 import os
+import platform
+import time
+from pathlib import Path
+from typing import Any
 
-# One thread for every numeric library, set before numpy is imported: the targets are per core.
-for _variable in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS", "NUMEXPR_NUM_THREADS"):
-    os.environ[_variable] = "1"
+import numpy as np
 
-import argparse  # noqa: E402
-import json  # noqa: E402
-import platform  # noqa: E402
-import time  # noqa: E402
-from pathlib import Path  # noqa: E402
-from typing import Any  # noqa: E402
-
-import numpy as np  # noqa: E402
-
-from mocapbench import metrics  # noqa: E402
-from mocapbench.codecs import create  # noqa: E402
-from mocapbench.codecs.neural_fourier import num_network_parameters  # noqa: E402
-from mocapbench.codecs.pose_params import num_pose_parameters  # noqa: E402
-from mocapbench.datasets.cmu import load_clip, load_split  # noqa: E402
+from mocapbench import metrics
+from mocapbench.codecs import create
+from mocapbench.codecs.neural_fourier import num_network_parameters
+from mocapbench.codecs.pose_params import num_pose_parameters
+from mocapbench.datasets.cmu import load_clip, load_split
 
 OUT = Path("reports") / "neural_fourier"
 SVD_RANKS = (1, 2, 3, 4, 6, 8, 12, 16, 24)

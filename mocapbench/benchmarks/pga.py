@@ -22,33 +22,29 @@ one unshared core, robust to other jobs on a shared machine) and as wall time.
 
 from __future__ import annotations
 
+import argparse
 import os
+import platform
+import sys
+import time
+from pathlib import Path
 
-for _variable in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS", "NUMEXPR_NUM_THREADS"):
-    os.environ[_variable] = "1"
+import numpy as np
 
-import argparse  # noqa: E402
-import platform  # noqa: E402
-import sys  # noqa: E402
-import time  # noqa: E402
-from pathlib import Path  # noqa: E402
-
-import numpy as np  # noqa: E402
-
-from mocapbench import metrics  # noqa: E402
-from mocapbench.codecs import create  # noqa: E402
-from mocapbench.codecs.pga import select_end_joints  # noqa: E402
-from mocapbench.datasets.cmu import ALL_SPLIT, clip_names, load_clip  # noqa: E402
-from mocapbench.geometry.lifting import (  # noqa: E402
+from mocapbench import metrics
+from mocapbench.codecs import create
+from mocapbench.codecs.pga import select_end_joints
+from mocapbench.datasets.cmu import ALL_SPLIT, clip_names, load_clip
+from mocapbench.geometry.lifting import (
     EUCLIDEAN,
     ROTATIONS,
     level_sizes,
     lifting_decompose,
     num_lifting_levels,
 )
-from mocapbench.geometry.pga import fit_pga, variance_count  # noqa: E402
-from mocapbench.motion import Motion  # noqa: E402
-from mocapbench.metrics.timing import time_call  # noqa: E402
+from mocapbench.geometry.pga import fit_pga, variance_count
+from mocapbench.motion import Motion
+from mocapbench.metrics.timing import time_call
 
 # The paper's Table 2: clip, description, frames, k, #LOD root, #LOD end joints, ratio, KG %, ms/frame.
 PAPER_TABLE_2 = [

@@ -14,23 +14,18 @@ Single-threaded numerics (set before numpy is imported).
 
 from __future__ import annotations
 
-import os
+import argparse
+import json
+import subprocess
+import time
+from pathlib import Path
 
-for _variable in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS", "NUMEXPR_NUM_THREADS"):
-    os.environ[_variable] = "1"
+import numpy as np
 
-import argparse  # noqa: E402
-import json  # noqa: E402
-import subprocess  # noqa: E402
-import time  # noqa: E402
-from pathlib import Path  # noqa: E402
-
-import numpy as np  # noqa: E402
-
-from mocapbench.codecs.lsdt import COMMITTED_SPARSITIES, basis_fingerprint  # noqa: E402
-from mocapbench.datasets.cmu import load_split  # noqa: E402
-from mocapbench.transforms.lsdt import train_lsdt_bases  # noqa: E402
-from mocapbench.transforms.spatial import is_orthogonal  # noqa: E402
+from mocapbench.codecs.lsdt import COMMITTED_SPARSITIES, basis_fingerprint
+from mocapbench.datasets.cmu import load_split
+from mocapbench.transforms.lsdt import train_lsdt_bases
+from mocapbench.transforms.spatial import is_orthogonal
 
 MODEL_PATH = Path(__file__).resolve().parent.parent / "models" / "lsdt_bases_v1.npz"
 COORDINATES = "xyz"
