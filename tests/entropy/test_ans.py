@@ -1,0 +1,104 @@
+"""Class-conditional ANS coding: exact round trips, code lengths near the model's entropy, corrupt-stream errors."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from hypothesis.extra import numpy as hnp
+
+from mocapbench.entropy import BitstreamError, ByteReader, ByteWriter, decode_varint, encode_varint
+from mocapbench.entropy.ans import (
+    MAX_MAGNITUDE_BITS,
+    TOKEN_COUNT,
+    ClassTables,
+    decode_classed,
+    encode_classed,
+    laplace_token_probabilities,
+    tokenize,
+)
+
+
+def _tables(scales=(0.05, 0.5, 4.0, 200.0)) -> ClassTables:
+    return ClassTables(np.maximum(1, np.rint([laplace_token_probabilities(s, 0.4) * 1e6 for s in scales])).astype(int))
+
+
+def _round_trip(values, classes, tables):
+    writer = ByteWriter()
+    encode_classed(writer, values, classes, tables)
+    data = writer.getvalue()
+    reader = ByteReader(data)
+    decoded = decode_classed(reader, classes, tables, "test")
+    reader.expect_end()
+    return decoded, data
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    values=hnp.arrays(np.int64, st.integers(0, 300), elements=st.integers(-(2**39) + 1, 2**39 - 1)),
+    seed=st.integers(0, 1000),
+)
+def test_round_trip_is_exact_for_any_values_and_classes(values, seed):
+    tables = _tables()
+    classes = np.random.default_rng(seed).integers(0, tables.num_classes, values.size)
+    decoded, _ = _round_trip(values, classes, tables)
+    np.testing.assert_array_equal(decoded, values)
+
+
+def test_tokens_cover_the_magnitude_categories():
+    tokens, raw, widths = tokenize(np.array([0, 1, -15, 16, -31, 32, 2**39]))
+    np.testing.assert_array_equal(tokens, [0, 1, 15, 16, 16, 17, TOKEN_COUNT - 1])
+    np.testing.assert_array_equal(widths, [0, 0, 0, 4, 4, 5, 39])
+    np.testing.assert_array_equal(raw, [0, 0, 0, 0, 15, 0, 0])
+    with pytest.raises(ValueError, match=f"magnitudes must be < 2\\^{MAX_MAGNITUDE_BITS}"):
+        tokenize(np.array([2**MAX_MAGNITUDE_BITS]))
+
+
+def test_code_length_is_close_to_the_model_entropy():
+    """Values drawn from a class's own distribution cost its entropy plus sign and raw bits, within 1 %."""
+    tables = _tables()
+    rng = np.random.default_rng(0)
+    values = np.round(rng.laplace(0, 0.5 * 4, 50_000)).astype(np.int64)  # mostly |v| < 16
+    classes = np.full(values.size, 1)
+    tokens, _, widths = tokenize(values)
+    ideal = tables.code_length_bits(tokens, classes) + np.count_nonzero(values) + widths.sum()
+    _, data = _round_trip(values, classes, tables)
+    assert len(data) * 8 < 1.01 * ideal + 64
+
+
+def test_near_certain_zeros_cost_almost_nothing():
+    tables = _tables()
+    zeros = np.zeros(100_000, dtype=np.int64)
+    _, data = _round_trip(zeros, np.zeros(zeros.size, dtype=int), tables)  # class of scale 0.05: p(0) ~ 1
+    assert len(data) < 100  # a Huffman code would need 12,500 bytes
+
+
+def test_counts_must_be_positive_and_shaped():
+    with pytest.raises(ValueError, match=r"counts must be \(K, 52\) positive integers"):
+        ClassTables(np.zeros((3, TOKEN_COUNT), dtype=int))
+    with pytest.raises(ValueError, match="expected 2 classes"):
+        encode_classed(ByteWriter(), np.array([1, 2]), np.array([0]), _tables())
+    with pytest.raises(ValueError, match=r"classes must lie in \[0, 4\)"):
+        encode_classed(ByteWriter(), np.array([1]), np.array([4]), _tables())
+
+
+def test_truncated_and_corrupt_streams_raise_bitstream_errors():
+    tables = _tables()
+    values = np.random.default_rng(1).integers(-40, 40, 2000)
+    classes = np.full(values.size, 2)
+    _, data = _round_trip(values, classes, tables)
+    for cut in range(0, len(data), 7):
+        with pytest.raises(BitstreamError):
+            reader = ByteReader(data[:cut])
+            decode_classed(reader, classes, tables, "test")
+            reader.expect_end()
+    num_words, offset = decode_varint(data)
+    too_many = encode_varint(10**6) + data[offset:]  # an ANS word count far past the end
+    with pytest.raises(BitstreamError, match="expected 1000000 ANS words"):
+        decode_classed(ByteReader(too_many), classes, tables, "test")
+    too_few = encode_varint(num_words - 1) + data[offset:]  # words left over as sign bits: decodes wrongly
+    with pytest.raises(BitstreamError):
+        reader = ByteReader(too_few)
+        decode_classed(reader, classes, tables, "test")
+        reader.expect_end()
