@@ -24,7 +24,8 @@ from mocapbench.synthetic import sinusoidal_motion
 )
 def test_bound_holds_on_random_synthetic_motions(seed, frames, eps, clip, representation, amplitude):
     motion = sinusoidal_motion(num_frames=frames, seed=seed, amplitude_deg=amplitude, max_frequency_hz=6.0)
-    codec = create("mcb-linf", eps_cm=eps, clip_frames=clip, representation=representation)
+    entropy = "trained" if representation == "pca" else "bands"  # trained + bone/absolute needs fit(): below
+    codec = create("mcb-linf", eps_cm=eps, clip_frames=clip, representation=representation, entropy=entropy)
     decoded = create("mcb-linf").decode(codec.encode(motion))  # a fresh codec: nothing beside the bytes
     assert metrics.max_joint_error(motion.positions(), decoded.positions) <= eps
 
@@ -66,23 +67,24 @@ def test_bad_config_values_are_rejected():
         create("mcb-linf", representation="quaternion")
 
 
-def test_decoder_with_another_basis_refuses_the_stream(synthetic_motion, training_motions):
+def test_decoder_with_another_model_refuses_the_stream(synthetic_motion, training_motions):
     fitted = create("mcb-linf", eps_cm=0.5).fit(training_motions)
     data = fitted.encode(synthetic_motion)
-    with pytest.raises(BitstreamError, match="PCA basis"):
+    with pytest.raises(BitstreamError, match=r"coded with model 0x[0-9a-f]{8} \(pca, 31 joints\); this decoder holds"):
         create("mcb-linf").decode(data)  # holds the shipped CMU basis, not this one
     refit = create("mcb-linf").fit(training_motions)
     assert metrics.max_joint_error(synthetic_motion.positions(), refit.decode(data).positions) <= 0.5
 
 
-def test_shipped_basis_is_orthonormal_and_reported():
-    from mocapbench.codecs.mcb_linf import load_default_basis
+def test_shipped_model_is_orthonormal_and_reported():
+    from mocapbench.codecs.mcb_linf import load_default_model
 
-    basis = load_default_basis()
-    assert basis.num_joints == 31
-    np.testing.assert_allclose(basis.basis @ basis.basis.T, np.eye(90), atol=1e-5)
-    assert create("mcb-linf").model_bytes == 4 * (90 * 90 + 90)
-    assert create("mcb-linf", representation="bone").model_bytes == 0
+    model = load_default_model()
+    assert model.num_joints == 31 and model.representation == "pca"
+    np.testing.assert_allclose(model.basis @ model.basis.T, np.eye(90), atol=1e-5)
+    arrays = 4 * (90 * 90 + 90) + 4 * model.band_scale.size + 8 * model.class_edges.size + 4 * model.tables.counts.size
+    assert create("mcb-linf").model_bytes == arrays + 1 + 4 + 4  # + representation, joints, clip length
+    assert create("mcb-linf", representation="bone", entropy="bands").model_bytes == 0
 
 
 def test_pca_on_another_skeleton_asks_for_fit():
@@ -91,8 +93,10 @@ def test_pca_on_another_skeleton_asks_for_fit():
 
     skeleton = Skeleton(names=("a", "b"), parents=np.array([-1, 0]), offsets=np.array([[0, 0, 0], [0, 10.0, 0]]))
     motion = Motion(skeleton, 30.0, np.zeros((5, 3)), np.tile([0, 0, 0, 1.0], (5, 2, 1)))
-    with pytest.raises(NotFittedError, match="basis is for 31 joints, the motion has 2"):
+    with pytest.raises(NotFittedError, match="model is for 31 joints, the motion has 2"):
         create("mcb-linf").encode(motion)
+    with pytest.raises(NotFittedError, match="entropy='trained' with representation='bone' needs a model"):
+        create("mcb-linf", representation="bone").encode(motion)
 
 
 def test_bound_holds_on_a_real_clip():
@@ -113,3 +117,33 @@ def test_bound_holds_on_every_frame_of_cmu_test(eps):
         decoded = create("mcb-linf").decode(create("mcb-linf", eps_cm=eps).encode(motion))
         error = metrics.joint_errors(motion.positions(), decoded.positions)
         assert error.max() <= eps, f"{motion.name}: {error.max()} cm > {eps} cm"
+
+
+@pytest.mark.parametrize("representation", ["bone", "absolute"])
+def test_trained_entropy_on_a_fitted_skeleton(synthetic_motion, training_motions, representation):
+    codec = create("mcb-linf", eps_cm=0.5, representation=representation).fit(training_motions)
+    data = codec.encode(synthetic_motion)
+    assert metrics.max_joint_error(synthetic_motion.positions(), codec.decode(data).positions) <= 0.5
+    with pytest.raises(BitstreamError, match=f"model fit for representation '{representation}'.*holds none"):
+        create("mcb-linf", representation=representation).decode(data)
+
+
+def test_trained_entropy_beats_per_band_tables_on_a_real_clip(cmu_09_06):
+    trained = len(create("mcb-linf", eps_cm=1.0).encode(cmu_09_06))
+    bands = len(create("mcb-linf", eps_cm=1.0, entropy="bands").encode(cmu_09_06))
+    assert trained < 0.85 * bands
+
+
+@pytest.mark.parametrize("target", [0.05, 0.2])
+def test_mean_target_is_met_and_the_bound_still_holds(synthetic_motion, target):
+    codec = create("mcb-linf", eps_cm=2.0, mean_cm=target)
+    decoded = codec.decode(codec.encode(synthetic_motion)).positions
+    error = metrics.joint_errors(synthetic_motion.positions(), decoded)
+    assert error.max() <= 2.0
+    assert target / 3 < error.mean() <= target  # met, and not by coding far finer than asked
+    assert codec.last_encode_stats["mean_error_cm"] == pytest.approx(error.mean(), rel=1e-6)
+
+
+def test_a_tighter_mean_target_costs_more(synthetic_motion):
+    sizes = [len(create("mcb-linf", eps_cm=3.0, mean_cm=mean).encode(synthetic_motion)) for mean in (0.02, 0.1, 0.5)]
+    assert sizes == sorted(sizes, reverse=True)
