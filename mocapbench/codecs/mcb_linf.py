@@ -12,7 +12,8 @@ Design (two layers, in the spirit of near-lossless image coding such as JPEG-LS)
       └─ spatial decorrelation (``representation``): by default ``"pca"``, the root position plus the other
          joints' root-relative positions projected on an orthonormal PCA basis learned from training motions.
          ``"bone"`` (child − parent vectors) and ``"absolute"`` need no basis.
-      └─ base layer: orthonormal DCT-II along time on clips of L frames (the LSDT paper's clip scheme, eq. 4),
+      └─ base layer: orthonormal DCT-II along time on clips of L frames (the LSDT paper's clip scheme, eq. 4; L =
+         480 frames by default, 4 s at 120 fps: 3-5 % smaller than 240 on cmu_test, 960 gains 1-2 % more),
          dead-zone quantization (rounding offset 0.4) with a step that grows with frequency,
          Δ_k = Δ (1 + 4 k / L) (a quantization matrix, as in JPEG), and a finer step on the root's channels
          (``root_step_rel``, 0.2): a root error moves all J joints, so in mean squared error it weighs J times a
@@ -27,13 +28,15 @@ Design (two layers, in the spirit of near-lossless image coding such as JPEG-LS)
          ``"trained"`` (default): each coefficient's distribution is known from training: the learned model holds
          the mean magnitude of every (frequency band, channel) on the training motions; a coefficient's class is
          the quarter-octave of (that magnitude / its quantization step), and each class has a token distribution
-         counted on the training motions. Per stream, the encoder may shift the classes of six channel groups
-         (one byte each) to fit the clip. Tokens are coded with an ANS coder
+         counted on the training motions. The encoder may shift the classes of six channel groups in each clip
+         window (one byte each) to fit the motion. Tokens are coded with an ANS coder
          (:mod:`mocapbench.entropy.ans`), so the near-certain zeros of high frequencies cost a fraction of a bit.
          ``"bands"``: no training; each frequency band is coded with its own canonical Huffman table or with zstd,
          whichever is smaller (tables travel in the stream).
-         The refinement positions are coded as Huffman-coded gaps between corrected joints, the lattice
-         coordinates as Huffman-coded symbols.
+         The refinement positions are coded as Huffman-coded gaps between corrected joints; each lattice point
+         as its index among the BCC points ordered by distance, by ANS with a trained index distribution
+         (``"trained"``, about 4.3 bits a point on cmu_test) or as a parity bit and Huffman-coded coordinates
+         (``"bands"``, about 6 bits).
 
 Learned state (``fit`` or the package's model, fit on ``cmu_train`` for 31-joint CMU skeletons with the default
 ``clip_frames``) is reported as ``model_bytes``; every stream carries the model's CRC32, and a decoder holding
@@ -104,6 +107,14 @@ _CHANNEL_GROUP_STARTS = np.array([0, 3, 6, 12, 24, 48])
 # pseudo-observations) of the Laplace prior each class's counts start from.
 _TRAINING_STEPS_CM = tuple(2.0 ** (i / 2) for i in range(-8, 13))
 _PRIOR_WEIGHT = 256.0
+# Bounds at which the training motions are refined to count the lattice points' tokens, with the base step the
+# rate search usually picks (2 eps), and the scale (in index units) of the Laplace prior of those counts.
+_TRAINING_EPS_CM = (0.25, 0.5, 1.0, 2.0, 4.0)
+_TRAINING_STEP_PER_EPS = 2.0
+_LATTICE_PRIOR_SCALE = 16.0
+# Refinement lattice points with every |coordinate| <= this (in half cells) have an index of their own; the
+# others are coded as an escape index followed by their coordinates.
+_LATTICE_REACH = 15
 def bcc_quantize(residual: np.ndarray, radius: float) -> tuple[np.ndarray, float]:
     """Nearest point of the body-centred cubic lattice whose covering radius is ``radius``.
 
@@ -128,6 +139,36 @@ def bcc_quantize(residual: np.ndarray, radius: float) -> tuple[np.ndarray, float
     use_even = np.sum((residual - cell * even) ** 2, axis=-1) <= np.sum((residual - cell * odd) ** 2, axis=-1)
     coords = np.where(use_even[:, None], 2 * even, 2 * odd).astype(np.int64)
     return coords, cell / 2.0
+
+
+@lru_cache(maxsize=1)
+def _lattice_points() -> tuple[np.ndarray, np.ndarray]:
+    """The BCC points within reach, by distance from the origin, and a lookup from coordinates to index.
+
+    Returns
+    -------
+    points : ndarray, shape (P, 3), int64, half-cell units (all coordinates even, or all odd), sorted by norm
+        then coordinates: index 0-7 are the (±1, ±1, ±1), 8-13 the (±2, 0, 0), ...
+    lookup : ndarray, shape (2R + 1,) * 3, int64: index of point ``c`` at ``lookup[c + R]`` (-1 off the lattice)
+    """
+    reach = _LATTICE_REACH
+    axis = np.arange(-reach, reach + 1)
+    grid = np.stack(np.meshgrid(axis, axis, axis, indexing="ij"), axis=-1).reshape(-1, 3)
+    parity = grid & 1
+    points = grid[(parity[:, 0] == parity[:, 1]) & (parity[:, 1] == parity[:, 2]) & np.any(grid != 0, axis=1)]
+    points = points[np.lexsort((points[:, 2], points[:, 1], points[:, 0], np.sum(points**2, axis=1)))]
+    lookup = np.full((2 * reach + 1,) * 3, -1, dtype=np.int64)
+    lookup[tuple((points + reach).T)] = np.arange(len(points))
+    return points, lookup
+
+
+def _lattice_symbols(lattice: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Index of each lattice point (escape index ``P`` when out of reach) and the out-of-reach points (M, 3)."""
+    points, lookup = _lattice_points()
+    inside = np.all(np.abs(lattice) <= _LATTICE_REACH, axis=1)
+    symbols = np.full(len(lattice), len(points), dtype=np.int64)
+    symbols[inside] = lookup[tuple((lattice[inside] + _LATTICE_REACH).T)]
+    return symbols, lattice[~inside]
 
 
 def _band_of(frequencies: np.ndarray) -> np.ndarray:
@@ -167,6 +208,16 @@ def _channels(num_frames: int, clip_frames: int, channels: int) -> np.ndarray:
     if partial:
         parts.append(np.tile(np.arange(channels), partial))
     return np.concatenate(parts)
+
+
+def _windows(num_frames: int, clip_frames: int, channels: int) -> np.ndarray:
+    """Clip window (0, 1, ...) of every flattened coefficient (same layout as :func:`_frequencies`)."""
+    full, partial = _clip_layout(num_frames, clip_frames)
+    parts = [np.tile(np.arange(full), clip_frames * channels)]
+    if partial:
+        parts.append(np.full(partial * channels, full))
+    return np.concatenate(parts)
+
 
 
 def _steps(frequencies, channels, step: float, slope: float, root_step_rel: float, clip_frames: int) -> np.ndarray:
@@ -224,6 +275,8 @@ class TrainedModel:
         Upper edges of the coefficient classes on the scale of ``band_scale / step``.
     tables : ClassTables
         Token counts of each of the K classes.
+    lattice_tables : ClassTables
+        Token counts (one class) of the refinement's lattice points, indexed by :func:`_lattice_points`.
     """
 
     representation: str
@@ -234,6 +287,7 @@ class TrainedModel:
     band_scale: np.ndarray
     class_edges: np.ndarray
     tables: ClassTables
+    lattice_tables: ClassTables
 
     def arrays(self) -> dict[str, np.ndarray]:
         """The model as stored (float32 arrays, uint32 counts)."""
@@ -246,6 +300,7 @@ class TrainedModel:
             "band_scale": self.band_scale.astype(np.float32),
             "class_edges": self.class_edges.astype(np.float64),
             "token_counts": self.tables.counts.astype(np.uint32),
+            "lattice_counts": self.lattice_tables.counts.astype(np.uint32),
         }
 
     @classmethod
@@ -259,6 +314,7 @@ class TrainedModel:
             band_scale=stored["band_scale"].astype(np.float64),
             class_edges=stored["class_edges"].astype(np.float64),
             tables=ClassTables(stored["token_counts"].astype(np.int64)),
+            lattice_tables=ClassTables(stored["lattice_counts"].astype(np.int64)),
         )
 
     @property
@@ -304,15 +360,15 @@ def _base_classes(model: TrainedModel, frequencies, channels, steps) -> np.ndarr
     return np.searchsorted(model.class_edges, ratio, side="right")
 
 
-def _shifted_classes(base_classes: np.ndarray, channels: np.ndarray, shifts: np.ndarray) -> np.ndarray:
-    """Classes after each channel group's shift (quarter octaves), clipped to the table; uint8."""
-    return np.clip(base_classes + shifts[_channel_group(channels)], 0, _NUM_CLASSES - 1).astype(np.uint8)
+def _shifted_classes(base_classes: np.ndarray, groups: np.ndarray, shifts: np.ndarray) -> np.ndarray:
+    """Classes after each shift group's shift (quarter octaves), clipped to the table; uint8."""
+    return np.clip(base_classes + shifts[groups], 0, _NUM_CLASSES - 1).astype(np.uint8)
 
 
 def fit_model(
     motions: Sequence[Motion],
     representation: str = "pca",
-    clip_frames: int = 240,
+    clip_frames: int = 480,
     frequency_slope: float = 4.0,
     root_step_rel: float = 0.2,
     rounding: float = 0.4,
@@ -355,9 +411,9 @@ def fit_model(
     band_scale = (band_sum / np.maximum(band_count, 1)).reshape(len(_BAND_EDGES), channels_count)
     band_scale = band_scale.astype(np.float32).astype(np.float64)
     band_scale = np.maximum(band_scale, np.float32(1e-6))  # never 0: the class ratio divides it
+    uniform = ClassTables(np.ones((_NUM_CLASSES, TOKEN_COUNT), dtype=np.int64))
     partial = TrainedModel(
-        representation, num_joints, clip_frames, basis, mean, band_scale, _class_edges(),
-        ClassTables(np.ones((_NUM_CLASSES, TOKEN_COUNT), dtype=np.int64)),
+        representation, num_joints, clip_frames, basis, mean, band_scale, _class_edges(), uniform, uniform
     )
     counts = np.zeros(_NUM_CLASSES * TOKEN_COUNT, dtype=np.int64)
     for spectrum, frequencies, channels in spectra:
@@ -370,7 +426,25 @@ def fit_model(
     class_scales = 2.0 ** ((np.arange(_NUM_CLASSES) - _CLASS_ONE) / 4)
     prior = np.array([laplace_token_probabilities(scale, rounding) for scale in class_scales]) * _PRIOR_WEIGHT
     tables = ClassTables(counts + np.maximum(1, np.rint(prior)).astype(np.int64))
-    return TrainedModel(representation, num_joints, clip_frames, basis, mean, band_scale, _class_edges(), tables)
+    lattice_counts = np.zeros(TOKEN_COUNT, dtype=np.int64)
+    for motion, (spectrum, frequencies, channels) in zip(motions, spectra):
+        positions = motion.positions().reshape(-1, 3)
+        for eps in _TRAINING_EPS_CM:
+            step = _TRAINING_STEP_PER_EPS * eps
+            steps = _steps(frequencies, channels, step, frequency_slope, root_step_rel, clip_frames)
+            base = _base_positions(
+                _dead_zone_quantize(spectrum, steps, rounding), steps, motion.num_frames, motion.skeleton.parents,
+                clip_frames, representation, partial,
+            ).reshape(-1, 3)
+            residual = positions - base
+            lattice, _ = bcc_quantize(residual[np.sum(residual**2, axis=-1) > eps**2], eps)
+            tokens, _, _ = tokenize(_lattice_symbols(lattice)[0])
+            lattice_counts += np.bincount(tokens, minlength=TOKEN_COUNT)
+    lattice_prior = laplace_token_probabilities(_LATTICE_PRIOR_SCALE, 0.5) * _PRIOR_WEIGHT
+    lattice_tables = ClassTables((lattice_counts + np.maximum(1, np.rint(lattice_prior)).astype(np.int64))[None])
+    return TrainedModel(
+        representation, num_joints, clip_frames, basis, mean, band_scale, _class_edges(), tables, lattice_tables
+    )
 
 
 @lru_cache(maxsize=1)
@@ -490,11 +564,10 @@ def _read_bands(reader: ByteReader, payload: memoryview, layout: "_Layout") -> n
     return coefficients
 
 
-def _best_shifts(base_classes: np.ndarray, channels: np.ndarray, tokens: np.ndarray, tables: ClassTables) -> np.ndarray:
-    """The class shift of each channel group that minimizes the ideal code length of its tokens, (G,) int64."""
+def _best_shifts(base_classes, groups: np.ndarray, num_groups: int, tokens, tables: ClassTables) -> np.ndarray:
+    """The class shift of each shift group that minimizes the ideal code length of its tokens, (G,) int64."""
     log_probabilities = np.log2(tables.counts) - np.log2(tables.counts.sum(axis=1, keepdims=True))
-    groups = _channel_group(channels)
-    shifts = np.zeros(len(_CHANNEL_GROUP_STARTS), dtype=np.int64)
+    shifts = np.zeros(num_groups, dtype=np.int64)
     classes = np.arange(_NUM_CLASSES)
     for group in np.unique(groups):
         member = groups == group
@@ -513,19 +586,57 @@ def _write_trained(writer: ByteWriter, coefficients, layout: "_Layout", steps, m
     """Entropy ``"trained"``: per-group class shifts (one byte each), then the ANS-coded coefficients."""
     base = _base_classes(model, layout.frequencies, layout.channels, steps)
     tokens, _, _ = tokenize(coefficients)
-    shifts = _best_shifts(base, layout.channels, tokens, model.tables)
+    shifts = _best_shifts(base, layout.shift_groups, layout.num_shift_groups, tokens, model.tables)
     writer.write_bytes((shifts + _MAX_SHIFT).astype(np.uint8).tobytes())
-    encode_classed(writer, coefficients, _shifted_classes(base, layout.channels, shifts), model.tables)
+    encode_classed(writer, coefficients, _shifted_classes(base, layout.shift_groups, shifts), model.tables)
 
 
 def _read_trained(reader: ByteReader, layout: "_Layout", steps, model: TrainedModel) -> np.ndarray:
     """Inverse of :func:`_write_trained`."""
-    shifts = np.frombuffer(reader.read_bytes(len(_CHANNEL_GROUP_STARTS), "class shifts"), dtype=np.uint8)
+    shifts = np.frombuffer(reader.read_bytes(layout.num_shift_groups, "class shifts"), dtype=np.uint8)
     if shifts.max() >= 2 * _MAX_SHIFT:
         raise BitstreamError(f"mcb-linf: class shifts must be < {2 * _MAX_SHIFT}, found {shifts.max()}.")
     base = _base_classes(model, layout.frequencies, layout.channels, steps)
-    classes = _shifted_classes(base, layout.channels, shifts.astype(np.int64) - _MAX_SHIFT)
+    classes = _shifted_classes(base, layout.shift_groups, shifts.astype(np.int64) - _MAX_SHIFT)
     return decode_classed(reader, classes, model.tables, "mcb-linf: coefficients")
+
+
+def _write_lattice(writer: ByteWriter, lattice: np.ndarray, model: TrainedModel | None, zstd_level: int) -> None:
+    """The refinement's lattice points (N, 3), half-cell units.
+
+    With a trained model: each point's index (:func:`_lattice_symbols`) coded by ANS with the trained index
+    distribution, then the coordinates of out-of-reach points. Without: one packed parity bit per point and the
+    halved coordinates, Huffman or zstd.
+    """
+    if model is not None:
+        symbols, outside = _lattice_symbols(lattice)
+        encode_classed(writer, symbols, np.zeros(len(symbols), dtype=np.uint8), model.lattice_tables)
+        _write_symbols(writer, outside.ravel(), zstd_level)
+        return
+    parity = lattice[:, 0] & 1
+    writer.write_bytes(np.packbits(parity.astype(np.uint8)).tobytes())
+    _write_symbols(writer, ((lattice - parity[:, None]) // 2).ravel(), zstd_level)
+
+
+def _read_lattice(reader: ByteReader, payload: memoryview, count: int, model: TrainedModel | None) -> np.ndarray:
+    """Inverse of :func:`_write_lattice`: (count, 3) int64."""
+    if model is not None:
+        points, _ = _lattice_points()
+        symbols = decode_classed(reader, np.zeros(count, dtype=np.uint8), model.lattice_tables, "mcb-linf: lattice")
+        if count and symbols.max() > len(points):
+            raise BitstreamError(f"mcb-linf: lattice point indices must be <= {len(points)}, found {symbols.max()}.")
+        escaped = symbols == len(points)
+        lattice = np.empty((count, 3), dtype=np.int64)
+        lattice[~escaped] = points[symbols[~escaped]]
+        lattice[escaped] = _read_symbols(
+            reader, payload, 3 * int(escaped.sum()), "out-of-reach lattice points"
+        ).reshape(-1, 3)
+        return lattice
+    parity = np.unpackbits(
+        np.frombuffer(reader.read_bytes((count + 7) // 8, "lattice parities"), dtype=np.uint8)
+    )[:count].astype(np.int64)
+    halves = _read_symbols(reader, payload, 3 * count, "lattice coordinates").reshape(-1, 3)
+    return 2 * halves + parity[:, None]
 
 
 @dataclass(frozen=True, eq=False)
@@ -534,10 +645,25 @@ class _Layout:
 
     frequencies: np.ndarray
     channels: np.ndarray
+    windows: np.ndarray
 
     @classmethod
     def of(cls, num_frames: int, clip_frames: int, channels: int) -> "_Layout":
-        return cls(_frequencies(num_frames, clip_frames, channels), _channels(num_frames, clip_frames, channels))
+        return cls(
+            _frequencies(num_frames, clip_frames, channels),
+            _channels(num_frames, clip_frames, channels),
+            _windows(num_frames, clip_frames, channels),
+        )
+
+    @property
+    def num_shift_groups(self) -> int:
+        windows = int(self.windows.max()) + 1 if self.windows.size else 0
+        return windows * len(_CHANNEL_GROUP_STARTS)
+
+    @cached_property
+    def shift_groups(self) -> np.ndarray:
+        """Shift group of every coefficient: its clip window and channel group."""
+        return self.windows * len(_CHANNEL_GROUP_STARTS) + _channel_group(self.channels)
 
     @cached_property
     def _bands(self) -> tuple[np.ndarray, np.ndarray]:
@@ -585,7 +711,7 @@ class McbLinfCodec(Codec):
             0.0, low=0.0, high=100.0, unit="cm",
             doc="mean-error target of the base layer (0: off, the step minimizing the rate under the bound)",
         )
-        clip_frames: int = param(240, low=4, high=4096, unit="frames", doc="DCT clip length L (the latency)")
+        clip_frames: int = param(480, low=4, high=4096, unit="frames", doc="DCT clip length L (the latency)")
         representation: str = param("pca", choices=_REPRESENTATIONS, doc="spatial decorrelation before the DCT")
         entropy: str = param("trained", choices=_ENTROPY_CODERS, doc="coefficient coder: trained classes + ANS, or per-band Huffman/zstd")
         rdo: bool = param(True, doc="search the base-layer step (else use base_step_rel)")
@@ -712,9 +838,7 @@ class McbLinfCodec(Codec):
             _write_bands(writer, coefficients, layout, config.zstd_level)
         writer.write_varint(len(corrected))
         _write_symbols(writer, np.diff(corrected, prepend=-1) - 1, config.zstd_level)
-        parity = lattice[:, 0] & 1
-        writer.write_bytes(np.packbits(parity.astype(np.uint8)).tobytes())
-        _write_symbols(writer, ((lattice - parity[:, None]) // 2).ravel(), config.zstd_level)
+        _write_lattice(writer, lattice, model if config.entropy == "trained" else None, config.zstd_level)
         return _Candidate(writer.getvalue(), step, mean_error, len(corrected))
 
     # -- decoding --------------------------------------------------------------------------------------
@@ -762,13 +886,10 @@ class McbLinfCodec(Codec):
         corrected = np.cumsum(gaps + 1) - 1
         if num_corrected and (gaps.min() < 0 or corrected[-1] >= num_frames * num_joints):
             raise BitstreamError("mcb-linf: refinement positions run past the end of the motion.")
-        parity = np.unpackbits(
-            np.frombuffer(reader.read_bytes((num_corrected + 7) // 8, "lattice parities"), dtype=np.uint8)
-        )[:num_corrected].astype(np.int64)
-        halves = _read_symbols(reader, payload, 3 * num_corrected, "lattice coordinates").reshape(-1, 3)
+        lattice = _read_lattice(reader, payload, num_corrected, model if entropy == "trained" else None)
         reader.expect_end()
         half_cell = 2.0 * eps * (1.0 - _SAFETY_MARGIN) / np.sqrt(5.0)
-        positions[corrected] += (2 * halves + parity[:, None]) * half_cell
+        positions[corrected] += lattice * half_cell
         return positions.reshape(num_frames, num_joints, 3), None
 
     def describe_payload(self, header: Header, payload: memoryview):

@@ -82,7 +82,8 @@ def test_shipped_model_is_orthonormal_and_reported():
     model = load_default_model()
     assert model.num_joints == 31 and model.representation == "pca"
     np.testing.assert_allclose(model.basis @ model.basis.T, np.eye(90), atol=1e-5)
-    arrays = 4 * (90 * 90 + 90) + 4 * model.band_scale.size + 8 * model.class_edges.size + 4 * model.tables.counts.size
+    arrays = 4 * (90 * 90 + 90) + 4 * model.band_scale.size + 8 * model.class_edges.size
+    arrays += 4 * (model.tables.counts.size + model.lattice_tables.counts.size)
     assert create("mcb-linf").model_bytes == arrays + 1 + 4 + 4  # + representation, joints, clip length
     assert create("mcb-linf", representation="bone", entropy="bands").model_bytes == 0
 
