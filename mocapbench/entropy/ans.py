@@ -146,14 +146,15 @@ def _check_classes(classes: np.ndarray, count: int, tables: ClassTables) -> np.n
         raise ValueError(f"ans: expected {count} classes, got shape {classes.shape}.")
     if count and (classes.min() < 0 or classes.max() >= tables.num_classes):
         raise ValueError(f"ans: classes must lie in [0, {tables.num_classes}), got [{classes.min()}, {classes.max()}].")
-    return classes.astype(np.int64)
+    return classes.astype(np.uint8 if tables.num_classes <= 256 else np.int64)  # uint8 sorts by radix: O(N)
 
 
 def _class_groups(classes: np.ndarray) -> list[tuple[int, np.ndarray]]:
     """(class, indices of its values in order) for each class present, by class."""
     order = np.argsort(classes, kind="stable")
-    present, starts = np.unique(classes[order], return_index=True)
-    return list(zip(present.tolist(), np.split(order, starts[1:])))
+    counts = np.bincount(classes)
+    present = np.flatnonzero(counts)
+    return list(zip(present.tolist(), np.split(order, np.cumsum(counts[present])[:-1])))
 
 
 def _pack_raw_bits(raw: np.ndarray, widths: np.ndarray) -> bytes:
