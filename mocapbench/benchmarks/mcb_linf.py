@@ -1,6 +1,7 @@
 """The claims of ``mcb-linf`` on a sweep that ran it beside the other codecs (e.g. ``make bench`` on cmu_test).
 
-    python -m mocapbench.benchmarks.mcb_linf SWEEP_DIR... [--dataset cmu_test] [--speed] [--data-dir D]
+    python -m mocapbench.benchmarks.mcb_linf SWEEP_DIR... [--dataset cmu_test] [--speed] [--ablation]
+        [--mean-targets] [--data-dir D]
 
 Prints, as markdown:
 
@@ -9,7 +10,11 @@ Prints, as markdown:
 2. the same at equal mean error;
 3. BD-rate against ``quant-delta-zstd`` on both error axes;
 4. the bound: max over clips and frames of (measured L-inf − eps), which must be <= 0;
-5. with ``--speed``: encode and decode frames/s on one core over the cmu_test clips.
+5. with ``--speed``: encode and decode frames/s on one core over the cmu_test clips;
+6. with ``--ablation``: what each design choice buys, every variant fit on cmu_train and run on cmu_test side by
+   side (compression ratio at each eps);
+7. with ``--mean-targets``: the ``mean_cm`` knob at a loose bound (eps = 3 cm): ratio, mean error, L-inf, and the
+   ratio over quant-delta-zstd at the same mean error.
 """
 
 from __future__ import annotations
@@ -81,12 +86,78 @@ def speed_table(data_dir: str | None) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
+# (label, config overrides) of the ablation: each row changes one choice of the default.
+ABLATION = (
+    ("default", {}),
+    ("per-band Huffman/zstd instead of the trained ANS model", {"entropy": "bands"}),
+    ("root step = base step (root_step_rel 1)", {"root_step_rel": 1.0}),
+    ("240-frame clips", {"clip_frames": 240}),
+    ("no dead zone (rounding 0.5)", {"rounding": 0.5}),
+    ("flat quantization matrix (frequency_slope 0)", {"frequency_slope": 0.0}),
+)
+MEAN_TARGETS_CM = (0.1, 0.2, 0.3, 0.5)
+LOOSE_EPS_CM = 3.0
+
+
+def _pooled(codec, clips) -> dict[str, float]:
+    """Encode and decode every clip: pooled compression ratio, L-inf and mean error (cm)."""
+    from mocapbench.metrics import joint_errors, raw_position_bytes
+
+    raw = coded = 0
+    errors = []
+    for motion in clips:
+        data = codec.encode(motion)
+        raw += raw_position_bytes(motion.num_joints, motion.num_frames)
+        coded += len(data)
+        errors.append(joint_errors(motion.positions(), codec.decode(data).positions).ravel())
+    errors = np.concatenate(errors)
+    return {"compression_ratio": raw / coded, "max_err_cm": float(errors.max()), "mean_err_cm": float(errors.mean())}
+
+
+def ablation_table(data_dir: str | None) -> pd.DataFrame:
+    """Compression ratio on cmu_test of each ablation variant at each eps (each variant fit on cmu_train)."""
+    from mocapbench.codecs import create
+    from mocapbench.datasets.cmu import load_split
+
+    train, test = load_split("cmu_train", data_dir=data_dir), load_split("cmu_test", data_dir=data_dir)
+    rows = []
+    for label, overrides in ABLATION:
+        fitted = create(CODEC, **overrides).fit(train)
+        row = {"variant": label}
+        for eps in EPSILONS_CM:
+            codec = create(CODEC, eps_cm=eps, **overrides)
+            codec._model = fitted._model  # the same learned state, fit once
+            row[f"CR at eps {eps:g}"] = _pooled(codec, test)["compression_ratio"]
+        rows.append(row)
+    return pd.DataFrame(rows)
+
+
+def mean_target_table(points: pd.DataFrame, data_dir: str | None) -> pd.DataFrame:
+    """The ``mean_cm`` knob at eps = LOOSE_EPS_CM on cmu_test, against quant-delta-zstd at the same mean error."""
+    from mocapbench.codecs import create
+    from mocapbench.datasets.cmu import load_split
+
+    clips = load_split("cmu_test", data_dir=data_dir)
+    anchor = points[points["codec"] == ANCHOR]
+    rows = []
+    for target in (0.0, *MEAN_TARGETS_CM):
+        row = {"eps_cm": LOOSE_EPS_CM, "mean_cm target": target or "off"}
+        row.update(_pooled(create(CODEC, eps_cm=LOOSE_EPS_CM, mean_cm=target), clips))
+        row[f"x {ANCHOR} at same mean error"] = row["compression_ratio"] / ratio_at_error(
+            anchor, "mean_err_cm", row["mean_err_cm"]
+        )
+        rows.append(row)
+    return pd.DataFrame(rows)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("folders", nargs="+", help="sweep folders holding mcb-linf and the other codecs")
     parser.add_argument("--dataset", default="cmu_test")
     parser.add_argument("--speed", action="store_true", help="also measure single-core encode/decode speed")
-    parser.add_argument("--data-dir", default=None, help="CMU data folder for --speed")
+    parser.add_argument("--ablation", action="store_true", help="also run the design ablation on cmu_test")
+    parser.add_argument("--mean-targets", action="store_true", help="also run the mean_cm knob on cmu_test")
+    parser.add_argument("--data-dir", default=None, help="CMU data folder for --speed, --ablation, --mean-targets")
     args = parser.parse_args(argv)
     rows = aggregate(args.folders)
     rows = rows[rows["dataset"] == args.dataset]
@@ -108,6 +179,12 @@ def main(argv: list[str] | None = None) -> int:
     if args.speed:
         print("\n## Speed, one core\n")
         print(markdown_table(speed_table(args.data_dir)))
+    if args.ablation:
+        print("\n## Ablation: compression ratio on cmu_test, one choice changed per row (each fit on cmu_train)\n")
+        print(markdown_table(ablation_table(args.data_dir)))
+    if args.mean_targets:
+        print(f"\n## The mean_cm knob at eps = {LOOSE_EPS_CM:g} cm on cmu_test\n")
+        print(markdown_table(mean_target_table(points, args.data_dir)))
     return 0
 
 

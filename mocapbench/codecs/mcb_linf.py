@@ -14,8 +14,8 @@ Design (two layers, in the spirit of near-lossless image coding such as JPEG-LS)
          ``"bone"`` (child − parent vectors) and ``"absolute"`` need no basis.
       └─ base layer: orthonormal DCT-II along time on clips of L frames (the LSDT paper's clip scheme, eq. 4; L =
          480 frames by default, 4 s at 120 fps: 3-5 % smaller than 240 on cmu_test, 960 gains 1-2 % more),
-         dead-zone quantization (rounding offset 0.4) with a step that grows with frequency,
-         Δ_k = Δ (1 + 4 k / L) (a quantization matrix, as in JPEG), and a finer step on the root's channels
+         dead-zone quantization (rounding offset 0.45) with a step that grows with frequency,
+         Δ_k = Δ (1 + 2 k / L) (a quantization matrix, as in JPEG), and a finer step on the root's channels
          (``root_step_rel``, 0.2): a root error moves all J joints, so in mean squared error it weighs J times a
          single joint's (the MSE-optimal root step is Δ / sqrt(J), 0.18 Δ for 31 joints).
          Δ is chosen per stream: with ``mean_cm`` = 0, by a rate search over multiples of ε (the smallest stream
@@ -369,9 +369,9 @@ def fit_model(
     motions: Sequence[Motion],
     representation: str = "pca",
     clip_frames: int = 480,
-    frequency_slope: float = 4.0,
+    frequency_slope: float = 2.0,
     root_step_rel: float = 0.2,
-    rounding: float = 0.4,
+    rounding: float = 0.45,
 ) -> TrainedModel:
     """Learn the basis (PCA) and the entropy model from ``motions``.
 
@@ -717,11 +717,11 @@ class McbLinfCodec(Codec):
         rdo: bool = param(True, doc="search the base-layer step (else use base_step_rel)")
         base_step_rel: float = param(2.0, low=0.05, high=64.0, unit="x eps", doc="base step when rdo is off")
         frequency_slope: float = param(
-            4.0, low=0.0, high=64.0, doc="step of DCT frequency k is step * (1 + slope k / L): coarser high frequencies"
+            2.0, low=0.0, high=64.0, doc="step of DCT frequency k is step * (1 + slope k / L): coarser high frequencies"
         )
         root_step_rel: float = param(0.2, low=0.01, high=1.0, unit="x step", doc="step of the root's channels")
         rounding: float = param(
-            0.4, low=0.0, high=0.5, doc="rounding offset of the base quantizer (0.5: nearest; less: a dead zone)"
+            0.45, low=0.0, high=0.5, doc="rounding offset of the base quantizer (0.5: nearest; less: a dead zone)"
         )
         zstd_level: int = param(19, low=1, high=22, doc="zstd level of the bands coded with zstd")
 
