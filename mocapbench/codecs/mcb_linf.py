@@ -86,6 +86,7 @@ _ENTROPY_CODERS = ("bands", "trained")  # stream codes 0, 1: append only
 
 # Lower edges of the frequency bands (DCT index on the scale of a full clip); the context of a coefficient.
 _BAND_EDGES = np.array([0, 1, 2, 3, 4, 6, 8, 12, 16, 24, 32, 48, 64, 96, 128, 192, 256, 384, 512, 768, 1024])
+_BAND_OF_FREQUENCY = np.searchsorted(_BAND_EDGES, np.arange(4096), side="right") - 1  # a lookup: frequency → band
 # Base-layer steps tried by the rate search, as multiples of eps: 0.5 to 4 in quarter octaves (on cmu_test the
 # chosen step is 1-3 eps; the quarter-octave grid gains about 1 % over a half-octave one).
 _RDO_STEPS = tuple(2.0 ** (i / 4) for i in range(-4, 9))
@@ -172,8 +173,8 @@ def _lattice_symbols(lattice: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _band_of(frequencies: np.ndarray) -> np.ndarray:
-    """Band index of (full-clip-scale) DCT frequencies."""
-    return np.searchsorted(_BAND_EDGES, frequencies, side="right") - 1
+    """Band index of (full-clip-scale) DCT frequencies (below 4096)."""
+    return _BAND_OF_FREQUENCY[frequencies]
 
 
 def _clip_layout(num_frames: int, clip_frames: int) -> tuple[int, int]:
@@ -351,7 +352,10 @@ def _class_edges() -> np.ndarray:
 
 
 def _channel_group(channels: np.ndarray) -> np.ndarray:
-    return np.searchsorted(_CHANNEL_GROUP_STARTS, channels, side="right") - 1
+    """Channel group of each channel: root, then PCA components in groups (see ``_CHANNEL_GROUP_STARTS``)."""
+    return np.searchsorted(_CHANNEL_GROUP_STARTS, np.arange(channels.max() + 1 if channels.size else 0), side="right")[
+        channels
+    ] - 1
 
 
 def _base_classes(model: TrainedModel, frequencies, channels, steps) -> np.ndarray:

@@ -149,12 +149,12 @@ def _check_classes(classes: np.ndarray, count: int, tables: ClassTables) -> np.n
     return classes.astype(np.uint8 if tables.num_classes <= 256 else np.int64)  # uint8 sorts by radix: O(N)
 
 
-def _class_groups(classes: np.ndarray) -> list[tuple[int, np.ndarray]]:
-    """(class, indices of its values in order) for each class present, by class."""
+def _class_groups(classes: np.ndarray) -> tuple[np.ndarray, list[tuple[int, int]]]:
+    """A stable permutation sorting the values by class, and (class, count) of each class present, in order."""
     order = np.argsort(classes, kind="stable")
     counts = np.bincount(classes)
     present = np.flatnonzero(counts)
-    return list(zip(present.tolist(), np.split(order, np.cumsum(counts[present])[:-1])))
+    return order, list(zip(present.tolist(), counts[present].tolist()))
 
 
 def _pack_raw_bits(raw: np.ndarray, widths: np.ndarray) -> bytes:
@@ -193,8 +193,12 @@ def encode_classed(writer: ByteWriter, values: np.ndarray, classes: np.ndarray, 
     classes = _check_classes(classes, values.size, tables)
     tokens, raw, widths = tokenize(values)
     coder = constriction.stream.stack.AnsCoder()
-    for klass, indices in reversed(_class_groups(classes)):  # a stack: encode last what is decoded first
-        coder.encode_reverse(tokens[indices], tables.model(klass))
+    order, groups = _class_groups(classes)
+    sorted_tokens = tokens[order]
+    end = len(sorted_tokens)
+    for klass, count in reversed(groups):  # a stack: encode last what is decoded first
+        coder.encode_reverse(sorted_tokens[end - count : end], tables.model(klass))
+        end -= count
     words = coder.get_compressed()
     writer.write_varint(words.size)
     writer.write_array(words, "<u4")
@@ -209,25 +213,27 @@ def decode_classed(reader: ByteReader, classes: np.ndarray, tables: ClassTables,
     if num_words > reader.remaining // 4:
         raise BitstreamError(f"{what}: expected {num_words} ANS words, only {reader.remaining} bytes left.")
     words = reader.read_array(num_words, "<u4", f"{what}: ANS words").astype(np.uint32)
-    tokens = np.zeros(len(classes), dtype=np.int64)
+    order, groups = _class_groups(classes)
     try:
         coder = constriction.stream.stack.AnsCoder(words)
-        for klass, indices in _class_groups(classes):
-            tokens[indices] = coder.decode(tables.model(klass), indices.size)
+        parts = [coder.decode(tables.model(klass), count) for klass, count in groups]
         finished = coder.is_empty()
     except (ValueError, RuntimeError, AssertionError) as error:
         raise BitstreamError(f"{what}: the ANS stream does not decode ({error}).") from None
     if not finished:
         raise BitstreamError(f"{what}: the ANS stream holds more data than its {len(classes)} values.")
-    magnitudes = np.where(tokens < _DIRECT, tokens, 0)
-    nonzero = tokens > 0
+    tokens = np.zeros(len(classes), dtype=np.int32)
+    if parts:
+        tokens[order] = np.concatenate(parts)
+    # Most values are 0: the rest of the work touches only the nonzero ones.
+    nonzero = np.flatnonzero(tokens)
+    tokens = tokens[nonzero].astype(np.int64)
     signs = np.unpackbits(
-        np.frombuffer(reader.read_bytes((int(nonzero.sum()) + 7) // 8, f"{what}: signs"), dtype=np.uint8)
-    )[: int(nonzero.sum())]
+        np.frombuffer(reader.read_bytes((len(nonzero) + 7) // 8, f"{what}: signs"), dtype=np.uint8)
+    )[: len(nonzero)]
     widths = _token_widths(tokens)
     raw = _unpack_raw_bits(reader.read_bytes((int(widths.sum()) + 7) // 8, f"{what}: raw bits"), widths)
-    escaped = tokens >= _DIRECT
-    magnitudes = np.where(escaped, (np.int64(1) << np.maximum(widths, 0)) + raw, magnitudes)
-    values = magnitudes.copy()
-    values[nonzero] = np.where(signs.astype(bool), -magnitudes[nonzero], magnitudes[nonzero])
+    magnitudes = np.where(tokens >= _DIRECT, (np.int64(1) << widths) + raw, tokens)
+    values = np.zeros(len(classes), dtype=np.int64)
+    values[nonzero] = np.where(signs.astype(bool), -magnitudes, magnitudes)
     return values
