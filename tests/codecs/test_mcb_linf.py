@@ -148,3 +148,26 @@ def test_mean_target_is_met_and_the_bound_still_holds(synthetic_motion, target):
 def test_a_tighter_mean_target_costs_more(synthetic_motion):
     sizes = [len(create("mcb-linf", eps_cm=3.0, mean_cm=mean).encode(synthetic_motion)) for mean in (0.02, 0.1, 0.5)]
     assert sizes == sorted(sizes, reverse=True)
+
+
+def test_corrupt_payloads_past_the_crc_fail_cleanly(synthetic_motion):
+    """Bytes changed *inside* a valid container (as a buggy writer would): a BitstreamError or a well-formed result."""
+    from mocapbench.codecs.container import Header
+
+    codec = create("mcb-linf", eps_cm=0.5)
+    payload = codec.encode_payload(synthetic_motion)
+    header = Header("mcb-linf", synthetic_motion.num_frames, synthetic_motion.num_joints, synthetic_motion.fps)
+    rng = np.random.default_rng(0)
+    outcomes = {"error": 0, "decoded": 0}
+    for _ in range(300):
+        corrupt = bytearray(payload)
+        position = int(rng.integers(len(corrupt)))
+        corrupt[position] ^= int(rng.integers(1, 256))
+        try:
+            positions, _ = codec.decode_payload(header, memoryview(bytes(corrupt)))
+        except BitstreamError:
+            outcomes["error"] += 1
+            continue
+        assert positions.shape == synthetic_motion.positions().shape
+        outcomes["decoded"] += 1
+    assert outcomes["error"] > 0
