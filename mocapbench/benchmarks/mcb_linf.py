@@ -175,7 +175,7 @@ def main(argv: list[str] | None = None) -> int:
             anchor["bits_per_joint_frame"], anchor[error], ours["bits_per_joint_frame"], ours[error]
         )
         print(f"- {error}: {value:+.1f} % ({note})")
-    print(f"\n## The bound\n\nmax over clips and frames of (L-inf - eps) = {bound_check(rows):+.6f} cm (must be <= 0)")
+    print(f"\n## The bound\n\nmax over clips and frames of (L-inf - eps) = {bound_check(rows):+.2e} cm (must be <= 0)")
     if args.speed:
         print("\n## Speed, one core\n")
         print(markdown_table(speed_table(args.data_dir)))
