@@ -571,7 +571,7 @@ def _read_bands(reader: ByteReader, payload: memoryview, layout: "_Layout") -> n
 
 def _best_shifts(base_classes, groups: np.ndarray, num_groups: int, tokens, tables: ClassTables) -> np.ndarray:
     """The class shift of each shift group that minimizes the ideal code length of its tokens, (G,) int64."""
-    log_probabilities = np.log2(tables.counts) - np.log2(tables.counts.sum(axis=1, keepdims=True))
+    log_probabilities = tables.log2_probabilities
     shifts = np.zeros(num_groups, dtype=np.int64)
     classes = np.arange(_NUM_CLASSES)
     for group in np.unique(groups):
@@ -744,17 +744,17 @@ class McbLinfCodec(Codec):
         )
         return self
 
-    def _held_model(self) -> TrainedModel | None:
+    def _held_model(self, representation: str) -> TrainedModel | None:
         """The fitted model, else the package's (only for ``"pca"``), else None."""
         if self._model is not None:
             return self._model
-        return load_default_model() if self.config.representation == "pca" else None
+        return load_default_model() if representation == "pca" else None
 
     def _encoding_model(self, num_joints: int) -> TrainedModel | None:
         config = self.config
-        if config.representation != "pca" and config.entropy != "trained":
+        if not _needs_model(config.representation, config.entropy):
             return None
-        model = self._held_model()
+        model = self._held_model(config.representation)
         if model is None:
             raise NotFittedError(
                 f"mcb-linf: entropy='trained' with representation='{config.representation}' needs a model: call "
@@ -770,9 +770,9 @@ class McbLinfCodec(Codec):
     @property
     def model_bytes(self) -> int:
         config = self.config
-        if config.representation != "pca" and config.entropy != "trained":
+        if not _needs_model(config.representation, config.entropy):
             return 0
-        model = self._held_model()
+        model = self._held_model(config.representation)
         return model.stored_bytes if model is not None else 0
 
     # -- encoding --------------------------------------------------------------------------------------
@@ -847,8 +847,9 @@ class McbLinfCodec(Codec):
         return _Candidate(writer.getvalue(), step, mean_error, len(corrected))
 
     # -- decoding --------------------------------------------------------------------------------------
-    def _decoding_model(self, representation: str, entropy: str, tag: int, num_joints: int) -> TrainedModel:
-        model = self._model if self._model is not None else (load_default_model() if representation == "pca" else None)
+    def _decoding_model(self, representation: str, tag: int, num_joints: int) -> TrainedModel:
+        """The model a stream was coded with (its tag), or a BitstreamError saying which model it needs."""
+        model = self._held_model(representation)
         if model is None:
             raise BitstreamError(
                 f"mcb-linf: the stream was coded with a model fit for representation '{representation}' (tag "
@@ -872,8 +873,8 @@ class McbLinfCodec(Codec):
             if np.any(parents[1:] < 0) or np.any(parents[1:] >= np.arange(1, num_joints)):
                 raise BitstreamError("mcb-linf: the joint tree must list parents before children.")
         model = None
-        if representation == "pca" or entropy == "trained":
-            model = self._decoding_model(representation, entropy, reader.read_u32("model tag"), num_joints)
+        if _needs_model(representation, entropy):
+            model = self._decoding_model(representation, reader.read_u32("model tag"), num_joints)
         layout = _Layout.of(num_frames, clip_frames, 3 * num_joints)
         steps = _steps(layout.frequencies, layout.channels, step, slope, root_step_rel, clip_frames)
         if entropy == "trained":
@@ -902,6 +903,11 @@ class McbLinfCodec(Codec):
         return {"eps_cm (guaranteed L-inf)": eps, "base step cm": step, "frequency slope": slope,
                 "root step (x base step)": root_step_rel, "clip frames": clip_frames,
                 "representation": representation, "entropy coder": entropy}
+
+
+def _needs_model(representation: str, entropy: str) -> bool:
+    """Whether a stream of these settings needs learned state (the PCA basis, the trained entropy model)."""
+    return representation == "pca" or entropy == "trained"
 
 
 def _read_settings(reader: ByteReader) -> tuple[float, float, float, float, int, str, str]:

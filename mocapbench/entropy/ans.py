@@ -25,6 +25,7 @@ Every count is checked before allocation; a corrupt stream raises :class:`Bitstr
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import constriction
 import numpy as np
@@ -134,10 +135,14 @@ class ClassTables:
             self._models[klass] = constriction.stream.model.Categorical(self.probabilities(klass), perfect=False)
         return self._models[klass]
 
+    @cached_property
+    def log2_probabilities(self) -> np.ndarray:
+        """(K, TOKEN_COUNT) log2 of every class's token probabilities (for the encoder's cost estimates)."""
+        return np.log2(self.counts) - np.log2(self.counts.sum(axis=1, keepdims=True))
+
     def code_length_bits(self, tokens: np.ndarray, classes: np.ndarray) -> float:
         """Ideal code length of ``tokens`` under the classes' distributions (bits, excluding raw bits)."""
-        log_probabilities = np.log2(self.counts) - np.log2(self.counts.sum(axis=1, keepdims=True))
-        return float(-log_probabilities[classes, tokens].sum())
+        return float(-self.log2_probabilities[classes, tokens].sum())
 
 
 def _check_classes(classes: np.ndarray, count: int, tables: ClassTables) -> np.ndarray:
