@@ -15,7 +15,8 @@ from pathlib import Path
 import numpy as np
 
 from mocapbench.codecs import create
-from mocapbench.codecs.mcb_linf import MODEL_FILE, _root_relative
+from mocapbench.codecs.mcb_linf_layers import root_relative
+from mocapbench.codecs.mcb_linf_model import MODEL_FILE
 from mocapbench.datasets.cmu import load_split
 
 
@@ -29,7 +30,7 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(f"{target} exists; pass --force to overwrite it")
     motions = load_split("cmu_train", data_dir=args.data_dir)
     model = create("mcb-linf").fit(motions)._model
-    data = np.concatenate([_root_relative(m.positions()) for m in motions]) - model.mean
+    data = np.concatenate([root_relative(m.positions()) for m in motions]) - model.mean
     variance = np.sum((data @ model.basis.T) ** 2, axis=0)
     explained = np.cumsum(variance) / variance.sum()
     np.savez(target, **model.arrays())

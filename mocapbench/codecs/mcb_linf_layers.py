@@ -1,0 +1,300 @@
+"""The signal layers of ``mcb-linf``: representations, the clip DCT and its coefficient layout, steps, lattice.
+
+Pure functions shared by the encoder, the decoder and the model fit (:mod:`.mcb_linf_model`); the design is in
+:mod:`.mcb_linf`. Shapes: positions ``(F, J, 3)`` cm; a signal ``(F, C)`` with ``C = 3 J`` channels; its temporal
+DCT on clips of L frames is flattened as ``[full clips (k, c, clip) ..., partial clip (k, c) ...]`` (one int per
+coefficient in :class:`CoefficientLayout`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property, lru_cache
+
+import numpy as np
+import scipy.fft
+
+__all__ = [
+    "BAND_EDGES",
+    "CHANNEL_GROUP_STARTS",
+    "CoefficientLayout",
+    "REPRESENTATIONS",
+    "band_of",
+    "band_order",
+    "base_positions",
+    "bcc_quantize",
+    "channel_group",
+    "coefficient_channels",
+    "coefficient_frequencies",
+    "coefficient_windows",
+    "dead_zone_quantize",
+    "forward_dct",
+    "from_signal",
+    "inverse_dct",
+    "lattice_points",
+    "lattice_symbols",
+    "quantization_steps",
+    "root_relative",
+    "to_signal",
+]
+
+REPRESENTATIONS = ("absolute", "bone", "pca")  # stream codes 0, 1, 2: append only
+
+
+# Lower edges of the frequency bands (DCT index on the scale of a full clip); the context of a coefficient.
+BAND_EDGES = np.array([0, 1, 2, 3, 4, 6, 8, 12, 16, 24, 32, 48, 64, 96, 128, 192, 256, 384, 512, 768, 1024])
+
+
+_BAND_OF_FREQUENCY = np.searchsorted(BAND_EDGES, np.arange(4096), side="right") - 1  # a lookup: frequency → band
+
+
+# First channel of each channel group (root xyz, then PCA components 0-2, 3-8, 9-20, 21-44, 45-...).
+CHANNEL_GROUP_STARTS = np.array([0, 3, 6, 12, 24, 48])
+
+
+# Refinement lattice points with every |coordinate| <= this (in half cells) have an index of their own; the
+# others are coded as an escape index followed by their coordinates.
+_LATTICE_REACH = 15
+
+
+
+def bcc_quantize(residual: np.ndarray, radius: float) -> tuple[np.ndarray, float]:
+    """Nearest point of the body-centred cubic lattice whose covering radius is ``radius``.
+
+    The lattice is ``a Z^3 ∪ a (Z^3 + 1/2)`` with ``a = 4 radius / sqrt(5)`` (covering radius ``a sqrt(5) / 4``),
+    so every point lies within ``radius`` of its nearest lattice point.
+
+    Parameters
+    ----------
+    residual : ndarray, shape (N, 3), float, cm
+    radius : float, cm, > 0
+
+    Returns
+    -------
+    coords : ndarray, shape (N, 3), int64
+        Lattice point in half-cell units: ``point = coords * a / 2``; all-even (Z^3) or all-odd (Z^3 + 1/2).
+    half_cell : float
+        ``a / 2`` in cm.
+    """
+    cell = 4.0 * radius / np.sqrt(5.0)
+    even = np.rint(residual / cell)
+    odd = np.floor(residual / cell) + 0.5
+    use_even = np.sum((residual - cell * even) ** 2, axis=-1) <= np.sum((residual - cell * odd) ** 2, axis=-1)
+    coords = np.where(use_even[:, None], 2 * even, 2 * odd).astype(np.int64)
+    return coords, cell / 2.0
+
+
+@lru_cache(maxsize=1)
+def lattice_points() -> tuple[np.ndarray, np.ndarray]:
+    """The BCC points within reach, by distance from the origin, and a lookup from coordinates to index.
+
+    Returns
+    -------
+    points : ndarray, shape (P, 3), int64, half-cell units (all coordinates even, or all odd), sorted by norm
+        then coordinates: index 0-7 are the (±1, ±1, ±1), 8-13 the (±2, 0, 0), ...
+    lookup : ndarray, shape (2R + 1,) * 3, int64: index of point ``c`` at ``lookup[c + R]`` (-1 off the lattice)
+    """
+    reach = _LATTICE_REACH
+    axis = np.arange(-reach, reach + 1)
+    grid = np.stack(np.meshgrid(axis, axis, axis, indexing="ij"), axis=-1).reshape(-1, 3)
+    parity = grid & 1
+    points = grid[(parity[:, 0] == parity[:, 1]) & (parity[:, 1] == parity[:, 2]) & np.any(grid != 0, axis=1)]
+    points = points[np.lexsort((points[:, 2], points[:, 1], points[:, 0], np.sum(points**2, axis=1)))]
+    lookup = np.full((2 * reach + 1,) * 3, -1, dtype=np.int64)
+    lookup[tuple((points + reach).T)] = np.arange(len(points))
+    return points, lookup
+
+
+def lattice_symbols(lattice: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Index of each lattice point (escape index ``P`` when out of reach) and the out-of-reach points (M, 3)."""
+    points, lookup = lattice_points()
+    inside = np.all(np.abs(lattice) <= _LATTICE_REACH, axis=1)
+    symbols = np.full(len(lattice), len(points), dtype=np.int64)
+    symbols[inside] = lookup[tuple((lattice[inside] + _LATTICE_REACH).T)]
+    return symbols, lattice[~inside]
+
+
+def band_of(frequencies: np.ndarray) -> np.ndarray:
+    """Band index of (full-clip-scale) DCT frequencies (below 4096)."""
+    return _BAND_OF_FREQUENCY[frequencies]
+
+
+def _clip_layout(num_frames: int, clip_frames: int) -> tuple[int, int]:
+    """Number of full clips and the length of the final partial clip (0 if none)."""
+    return num_frames // clip_frames, num_frames % clip_frames
+
+
+def coefficient_frequencies(num_frames: int, clip_frames: int, channels: int) -> np.ndarray:
+    """DCT frequency of every flattened coefficient, on the scale of a full clip of L frames.
+
+    The coefficients are flattened as ``[full clips (k, c, clip) ..., partial clip (k, c) ...]``; the partial clip's
+    frequency k of ``p`` frames is reported as ``k L / p`` (rounded down). Depends only on (F, L, C).
+    """
+    full, partial = _clip_layout(num_frames, clip_frames)
+    parts = [np.repeat(np.arange(clip_frames), channels * full)]
+    if partial:
+        parts.append(np.repeat((np.arange(partial) * clip_frames) // partial, channels))
+    return np.concatenate(parts)
+
+
+def band_order(frequencies: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """A permutation sorting the flattened coefficients by band (stable), and the sorted bands."""
+    bands = band_of(frequencies)
+    order = np.argsort(bands, kind="stable")
+    return order, bands[order]
+
+
+def coefficient_channels(num_frames: int, clip_frames: int, channels: int) -> np.ndarray:
+    """Channel of every flattened coefficient (same layout as :func:`coefficient_frequencies`)."""
+    full, partial = _clip_layout(num_frames, clip_frames)
+    parts = [np.tile(np.repeat(np.arange(channels), full), clip_frames)]
+    if partial:
+        parts.append(np.tile(np.arange(channels), partial))
+    return np.concatenate(parts)
+
+
+def coefficient_windows(num_frames: int, clip_frames: int, channels: int) -> np.ndarray:
+    """Clip window (0, 1, ...) of every flattened coefficient (same layout as :func:`coefficient_frequencies`)."""
+    full, partial = _clip_layout(num_frames, clip_frames)
+    parts = [np.tile(np.arange(full), clip_frames * channels)]
+    if partial:
+        parts.append(np.full(partial * channels, full))
+    return np.concatenate(parts)
+
+
+def channel_group(channels: np.ndarray) -> np.ndarray:
+    """Channel group of each channel: root, then PCA components in groups (see ``CHANNEL_GROUP_STARTS``)."""
+    return np.searchsorted(CHANNEL_GROUP_STARTS, np.arange(channels.max() + 1 if channels.size else 0), side="right")[
+        channels
+    ] - 1
+
+
+def quantization_steps(frequencies, channels, step: float, slope: float, root_step_rel: float, clip_frames: int):
+    """Quantization step of every coefficient, cm: ``step (1 + slope k / L)``, times ``root_step_rel`` on the root.
+
+    Only correctly rounded IEEE operations: encoder and decoder compute bit-identical steps on any machine.
+    """
+    steps = step * (1.0 + slope * frequencies / clip_frames)
+    return np.where(channels < 3, steps * root_step_rel, steps)
+
+
+def forward_dct(signal: np.ndarray, clip_frames: int) -> np.ndarray:
+    """Temporal DCT-II (orthonormal) of (F, C) on clips of L frames, flattened in the band layout's order."""
+    num_frames, channels = signal.shape
+    full, partial = _clip_layout(num_frames, clip_frames)
+    parts = []
+    if full:
+        clips = signal[: full * clip_frames].reshape(full, clip_frames, channels)
+        parts.append(scipy.fft.dct(clips, axis=1, norm="ortho").transpose(1, 2, 0).ravel())  # (k, c, clip)
+    if partial:
+        parts.append(scipy.fft.dct(signal[full * clip_frames :], axis=0, norm="ortho").ravel())  # (k, c)
+    return np.concatenate(parts)
+
+
+def inverse_dct(coefficients: np.ndarray, num_frames: int, clip_frames: int, channels: int) -> np.ndarray:
+    """Inverse of :func:`forward_dct`: (F, C)."""
+    full, partial = _clip_layout(num_frames, clip_frames)
+    out = np.empty((num_frames, channels))
+    split = full * clip_frames * channels
+    if full:
+        clips = coefficients[:split].reshape(clip_frames, channels, full).transpose(2, 0, 1)
+        out[: full * clip_frames] = scipy.fft.idct(clips, axis=1, norm="ortho").reshape(-1, channels)
+    if partial:
+        tail = coefficients[split:].reshape(partial, channels)
+        out[full * clip_frames :] = scipy.fft.idct(tail, axis=0, norm="ortho")
+    return out
+
+
+def dead_zone_quantize(values: np.ndarray, steps: np.ndarray, rounding: float) -> np.ndarray:
+    """``sign(v) floor(|v| / step + rounding)``: rounding 0.5 is nearest, less widens the zero bin (int64)."""
+    scaled = values / steps
+    return (np.sign(scaled) * np.floor(np.abs(scaled) + rounding)).astype(np.int64)
+
+
+def root_relative(positions: np.ndarray) -> np.ndarray:
+    """(F, J, 3) → (F, 3 (J - 1)): joints 1..J-1 relative to the root."""
+    return (positions[:, 1:] - positions[:, :1]).reshape(len(positions), -1)
+
+
+def to_signal(positions: np.ndarray, parents: np.ndarray, representation: str, spatial):
+    """(F, J, 3) positions → (F, 3J) signal of the chosen representation."""
+    num_frames = len(positions)
+    if representation == "absolute":
+        return positions.reshape(num_frames, -1)
+    if representation == "bone":
+        return _to_bones(positions, parents).reshape(num_frames, -1)
+    projected = (root_relative(positions) - spatial.mean) @ spatial.basis.T
+    return np.concatenate([positions[:, 0], projected], axis=1)
+
+
+def from_signal(signal: np.ndarray, parents: np.ndarray, representation: str, spatial):
+    """Inverse of :func:`to_signal`: (F, J, 3)."""
+    num_frames = len(signal)
+    if representation == "absolute":
+        return signal.reshape(num_frames, -1, 3)
+    if representation == "bone":
+        return _from_bones(signal.reshape(num_frames, -1, 3), parents)
+    relative = (signal[:, 3:] @ spatial.basis + spatial.mean).reshape(num_frames, -1, 3)
+    root = signal[:, None, :3]
+    return np.concatenate([root, relative + root], axis=1)
+
+
+def _to_bones(positions: np.ndarray, parents: np.ndarray) -> np.ndarray:
+    """(F, J, 3) absolute positions → root position and child − parent vectors."""
+    bones = positions.copy()
+    bones[:, 1:] -= positions[:, parents[1:]]
+    return bones
+
+
+def _from_bones(bones: np.ndarray, parents: np.ndarray) -> np.ndarray:
+    """Inverse of :func:`_to_bones` (parents come before children)."""
+    positions = bones.copy()
+    for joint in range(1, len(parents)):
+        positions[:, joint] += positions[:, parents[joint]]
+    return positions
+
+
+def base_positions(coefficients, steps, num_frames, parents, clip_frames, representation, spatial) -> np.ndarray:
+    """Base-layer positions (F, J, 3) cm from the quantized coefficients; shared by encoder and decoder."""
+    signal = inverse_dct(coefficients * steps, num_frames, clip_frames, 3 * len(parents))
+    return from_signal(signal, parents, representation, spatial)
+
+
+@dataclass(frozen=True, eq=False)
+class CoefficientLayout:
+    """Frequency and channel of every flattened coefficient of an (F frames, C channels) signal."""
+
+    frequencies: np.ndarray
+    channels: np.ndarray
+    windows: np.ndarray
+
+    @classmethod
+    def of(cls, num_frames: int, clip_frames: int, channels: int) -> "CoefficientLayout":
+        return cls(
+            coefficient_frequencies(num_frames, clip_frames, channels),
+            coefficient_channels(num_frames, clip_frames, channels),
+            coefficient_windows(num_frames, clip_frames, channels),
+        )
+
+    @property
+    def num_shift_groups(self) -> int:
+        windows = int(self.windows.max()) + 1 if self.windows.size else 0
+        return windows * len(CHANNEL_GROUP_STARTS)
+
+    @cached_property
+    def shift_groups(self) -> np.ndarray:
+        """Shift group of every coefficient: its clip window and channel group."""
+        return self.windows * len(CHANNEL_GROUP_STARTS) + channel_group(self.channels)
+
+    @cached_property
+    def _bands(self) -> tuple[np.ndarray, np.ndarray]:
+        return band_order(self.frequencies)
+
+    @property
+    def band_order(self) -> np.ndarray:
+        """A permutation sorting the coefficients by band (only the ``"bands"`` coder needs it)."""
+        return self._bands[0]
+
+    @property
+    def sorted_bands(self) -> np.ndarray:
+        return self._bands[1]
