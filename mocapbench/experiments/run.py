@@ -212,7 +212,7 @@ def _ensure_sweeper_plugin() -> None:
         sys.path.append(str(Path(__file__).resolve().parents[2]))
 
 
-@hydra.main(version_base="1.3", config_path="../../configs", config_name="benchmark")
+@hydra.main(version_base="1.3", config_path="pkg://mocapbench.configs", config_name="benchmark")
 def main(cfg: DictConfig) -> float:
     """The Hydra task: one job in ``HydraConfig.get().runtime.output_dir``; returns its rows (NaN if it failed)."""
     record = run_job(cfg, Path(HydraConfig.get().runtime.output_dir))

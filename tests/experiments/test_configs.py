@@ -12,7 +12,7 @@ from hydra.utils import instantiate
 from mocapbench.codecs import CODECS, Codec, codec_names
 from mocapbench.experiments.sweeper import _evenly, job_folder
 
-CONFIGS = Path(__file__).resolve().parents[2] / "configs"
+CONFIGS = Path(__file__).resolve().parents[2] / "mocapbench" / "configs"
 
 CODEC_YAMLS = sorted(p.stem for p in (CONFIGS / "codec").glob("*.yaml"))
 
@@ -48,7 +48,7 @@ def test_rd_sweep_selects_its_codec_and_sweeps_its_fields(compose_benchmark, nam
 
 @pytest.mark.parametrize("sweep", ["all", "small"])
 def test_union_sweeps_select_the_mocapbench_sweeper(compose_benchmark, monkeypatch, sweep):
-    monkeypatch.syspath_prepend(str(CONFIGS.parent))  # the checkout's hydra_plugins/, as run.py ensures
+    monkeypatch.syspath_prepend(str(CONFIGS.parents[1]))  # the checkout's hydra_plugins/, as run.py ensures
     cfg = compose_benchmark([f"sweep={sweep}", "dataset=cmu_test"], hydra=True)
     assert cfg.hydra.sweeper._target_ == "hydra_plugins.mocapbench_sweeper.MocapbenchSweeper"
     assert cfg.hydra.sweeper.union is True

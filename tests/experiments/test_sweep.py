@@ -24,7 +24,7 @@ def _run(*overrides: str, timeout: int = 300) -> subprocess.CompletedProcess:
 
 
 def _grid_size(name: str) -> int:
-    params = OmegaConf.load(REPO / "configs" / "sweep" / f"rd_{name}.yaml").hydra.sweeper.params
+    params = OmegaConf.load(REPO / "mocapbench" / "configs" / "sweep" / f"rd_{name}.yaml").hydra.sweeper.params
     size = 1
     for value in params.values():
         size *= len(str(value).split(","))
@@ -40,8 +40,8 @@ def test_sweep_all_expands_every_registered_codec_curve(tmp_path):
         codec = job["folder"].split("/")[0]
         by_codec[codec] = by_codec.get(codec, 0) + 1
         assert "dataset=cmu_test" in job["overrides"] and not any(o == "sweep=all" for o in job["overrides"])
-    ready = [n for n in codec_names() if (REPO / "configs/codec" / f"{n}.yaml").exists()
-             and (REPO / "configs/sweep" / f"rd_{n}.yaml").exists()]
+    ready = [n for n in codec_names() if (REPO / "mocapbench/configs/codec" / f"{n}.yaml").exists()
+             and (REPO / "mocapbench/configs/sweep" / f"rd_{n}.yaml").exists()]
     assert sorted(by_codec) == sorted(ready)
     for name in ready:
         assert by_codec[name] == _grid_size(name), name
