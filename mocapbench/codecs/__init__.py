@@ -9,7 +9,15 @@ import importlib
 import pkgutil
 
 from mocapbench.codecs.base import BitstreamError, Codec, CodecConfig, Decoded, NotFittedError, param
-from mocapbench.codecs.registry import CODECS, codec_names, create, register_codec
+from mocapbench.codecs.registry import (
+    CODECS,
+    UNAVAILABLE,
+    CodecUnavailableError,
+    codec_names,
+    create,
+    register_codec,
+    register_unavailable,
+)
 
 _INFRASTRUCTURE = {"base", "registry", "container", "skeleton_blob"}
 for _module in pkgutil.iter_modules(__path__):
@@ -24,7 +32,10 @@ __all__ = [
     "NotFittedError",
     "param",
     "CODECS",
+    "UNAVAILABLE",
+    "CodecUnavailableError",
     "codec_names",
     "create",
     "register_codec",
+    "register_unavailable",
 ]

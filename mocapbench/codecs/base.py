@@ -136,6 +136,14 @@ class Codec(abc.ABC):
     name: ClassVar[str]
     Config: ClassVar[type[CodecConfig]]
     codes_rotations: ClassVar[bool] = False
+    # What a user choosing a codec needs to know beside rate and error (the report's headline columns):
+    # - family: "paper" (a published method), "generic" (what a user would do with off-the-shelf tools),
+    #   "production" (a shipped engine codec such as ACL) or "mocapbench" (this project's own);
+    # - needs_model: decoding needs learned state fit for the skeleton (see ``model_bytes``);
+    # - random_access: a frame range can be decoded without decoding the whole stream.
+    family: ClassVar[str] = "paper"
+    needs_model: ClassVar[bool] = False
+    random_access: ClassVar[bool] = False
     # A fast configuration and the L-inf bound (cm) it must meet on the synthetic fixture
     # (tests/codecs/test_registry.py runs every registered codec with them).
     smoke_params: ClassVar[dict[str, Any]] = {}
@@ -159,6 +167,14 @@ class Codec(abc.ABC):
     def model_bytes(self) -> int:
         """Bytes of learned state shared across clips that a decoder needs beside the stream (0 if none)."""
         return 0
+
+    @property
+    def latency_frames(self) -> int:
+        """Frames of look-ahead the encoder needs before it can emit a frame (0: frame by frame).
+
+        Default: the whole clip (-1 stands for "the whole clip"); clip and frame codecs override it.
+        """
+        return -1
 
     # -- coding ----------------------------------------------------------------------------------------
     def encode(self, motion: Motion) -> bytes:

@@ -7,9 +7,32 @@ from typing import Any
 
 from mocapbench.codecs.base import Codec
 
-__all__ = ["CODECS", "register_codec", "create", "codec_names"]
+__all__ = [
+    "CODECS",
+    "UNAVAILABLE",
+    "CodecUnavailableError",
+    "register_codec",
+    "register_unavailable",
+    "create",
+    "codec_names",
+]
 
 CODECS: dict[str, type[Codec]] = {}
+# Codecs that exist but cannot run here (a missing optional package, compiler or library folder):
+# name -> one line saying what is missing and how to get it.
+UNAVAILABLE: dict[str, str] = {}
+
+
+class CodecUnavailableError(RuntimeError):
+    """A known codec that cannot run on this machine; the message says what is missing and how to get it."""
+
+
+def register_unavailable(name: str, reason: str) -> None:
+    """Record that codec ``name`` exists but cannot run here, with a one-line ``reason``."""
+    if "\n" in reason:
+        raise ValueError(f"the reason for {name!r} must be one line, got {reason!r}")
+    if name not in CODECS:
+        UNAVAILABLE[name] = reason
 
 
 def register_codec(cls: type[Codec]) -> type[Codec]:
@@ -22,6 +45,7 @@ def register_codec(cls: type[Codec]) -> type[Codec]:
     if not dataclasses.is_dataclass(getattr(cls, "Config", None)):
         raise TypeError(f"{cls.__qualname__} needs a dataclass `Config`.")
     CODECS[name] = cls
+    UNAVAILABLE.pop(name, None)
     return cls
 
 
@@ -42,6 +66,8 @@ def create(name: str, **params: Any) -> Codec:
     ValueError
         For a parameter out of its range (raised by the config, naming the field).
     """
+    if name in UNAVAILABLE and name not in CODECS:
+        raise CodecUnavailableError(f"codec {name!r} is unavailable here: {UNAVAILABLE[name]}")
     if name not in CODECS:
         raise KeyError(f"Unknown codec {name!r}; registered codecs are {codec_names()}.")
     cls = CODECS[name]
