@@ -7,19 +7,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mocapbench.datasets.cmu import cmu_data_dir
 from mocapbench.io.asf_amc import CMU_CM_PER_UNIT, AsfSkeleton, read_amc, read_asf
 from mocapbench.motion import MotionFormatError
 
 FIXTURES = Path(__file__).parent / "fixtures"
 ASF = FIXTURES / "chain.asf"  # root > upper (+Y, 10 units, axis Z 90, dof rx ry) > lower (+X, 4 units, dof rz)
 AMC = FIXTURES / "chain.amc"  # 3 frames; see the file for line numbers
-
-
-@pytest.fixture(scope="module")
-def cmu_dir() -> Path:
-    """The CMU data folder; raises DataNotFoundError (saying where it looked) when it is missing."""
-    return cmu_data_dir()
 
 
 def variant(tmp_path: Path, source: Path, old: str, new: str) -> Path:
@@ -99,8 +92,8 @@ def test_bones_in_any_order_and_comments_take_the_general_path(tmp_path):
 # --- the CMU skeleton ------------------------------------------------------------------------------------
 
 
-def test_cmu_skeleton(cmu_dir):
-    asf = read_asf(cmu_dir / "asf_amc" / "09" / "09.asf")
+def test_cmu_skeleton(cmu_fixture_dir):
+    asf = read_asf(cmu_fixture_dir / "asf_amc" / "09" / "09.asf")
     assert isinstance(asf, AsfSkeleton)
     skeleton = asf.skeleton
     assert skeleton.num_joints == 31 and len(skeleton.end_site_parents) == 7
@@ -115,8 +108,9 @@ def test_cmu_skeleton(cmu_dir):
     assert 150.0 < height < 200.0, f"subject 09 rest height {height:.1f} cm is not a human height"
 
 
-def test_cmu_clip(cmu_dir):
-    motion = read_amc(cmu_dir / "asf_amc" / "09" / "09_06.amc", cmu_dir / "asf_amc" / "09" / "09.asf")
+def test_cmu_clip(cmu_fixture_dir):
+    folder = cmu_fixture_dir / "asf_amc" / "09"
+    motion = read_amc(folder / "09_06.amc", folder / "09.asf")
     assert motion.num_frames == 141 and motion.num_joints == 31 and motion.name == "09_06"
     # data README: the mean Hips height over 09_06 is 18.0 units (1.016 m)
     assert motion.root_positions[:, 1].mean() == pytest.approx(101.6, abs=1.0)
@@ -125,8 +119,8 @@ def test_cmu_clip(cmu_dir):
 
 
 @pytest.mark.cmu
-def test_every_cmu_subject_has_a_human_height(cmu_dir):
-    for asf_path in sorted((cmu_dir / "asf_amc").glob("*/*.asf")):
+def test_every_cmu_subject_has_a_human_height(cmu_full_dir):
+    for asf_path in sorted((cmu_full_dir / "asf_amc").glob("*/*.asf")):
         height = read_asf(asf_path).skeleton.rest_height()
         assert 140.0 < height < 210.0, f"{asf_path.name}: rest height {height:.1f} cm"
 

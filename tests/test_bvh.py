@@ -8,7 +8,6 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from mocapbench.datasets.cmu import cmu_data_dir
 from mocapbench.io import MotionFileNotFoundError
 from mocapbench.io.asf_amc import CMU_CM_PER_UNIT
 from mocapbench.io.bvh import read_bvh, write_bvh
@@ -17,12 +16,6 @@ from mocapbench.synthetic import sinusoidal_motion
 
 FIXTURES = Path(__file__).parent / "fixtures"
 CHAIN = FIXTURES / "chain3.bvh"  # 3 joints A > B > C, an end site, 2 frames; see the file for line numbers
-
-
-@pytest.fixture(scope="module")
-def cmu_dir() -> Path:
-    """The CMU data folder; raises DataNotFoundError (saying where it looked) when it is missing."""
-    return cmu_data_dir()
 
 
 def variant(tmp_path: Path, old: str, new: str, *, source: Path = CHAIN) -> Path:
@@ -158,8 +151,8 @@ def test_writer_refuses_to_overwrite(tmp_path):
     assert read_bvh(path).num_frames == 5
 
 
-def test_real_clip_round_trip(cmu_dir, tmp_path):
-    motion = read_bvh(cmu_dir / "bvh" / "09_06.bvh", length_unit_cm=CMU_CM_PER_UNIT)
+def test_real_clip_round_trip(cmu_fixture_dir, tmp_path):
+    motion = read_bvh(cmu_fixture_dir / "bvh" / "09_06.bvh", length_unit_cm=CMU_CM_PER_UNIT)
     back = read_bvh(
         write_bvh(motion, tmp_path / "09_06.bvh", length_unit_cm=CMU_CM_PER_UNIT), length_unit_cm=CMU_CM_PER_UNIT
     )
@@ -168,10 +161,10 @@ def test_real_clip_round_trip(cmu_dir, tmp_path):
     assert np.abs(back.end_site_positions() - motion.end_site_positions()).max() < 1e-3
 
 
-def test_real_clip_layout(cmu_dir):
+def test_real_clip_layout(cmu_fixture_dir):
     """The CMU file: trailing space after the root CHANNELS, 31 joints, 7 end sites, 120 fps, frame 0 a T pose."""
-    full = read_bvh(cmu_dir / "bvh" / "09_06.bvh")
-    dropped = read_bvh(cmu_dir / "bvh" / "09_06.bvh", drop_first_frame=True)
+    full = read_bvh(cmu_fixture_dir / "bvh" / "09_06.bvh")
+    dropped = read_bvh(cmu_fixture_dir / "bvh" / "09_06.bvh", drop_first_frame=True)
     assert full.num_joints == 31 and len(full.skeleton.end_site_parents) == 7
     assert full.fps == 120.0 and full.num_frames == 142 and dropped.num_frames == 141
     assert set(full.skeleton.channel_orders) == {"ZYX"}

@@ -7,7 +7,6 @@ import pytest
 
 from mocapbench import metrics
 from mocapbench.cli import main
-from mocapbench.datasets.cmu import cmu_data_dir
 from mocapbench.io import read_bvh, write_bvh
 
 
@@ -76,8 +75,8 @@ def test_errors_are_one_line_on_stderr(tmp_path, bvh_file, capsys, argv, message
     assert message in err and err.count("\n") == 1 and "Traceback" not in err
 
 
-def test_compress_real_cmu_amc(tmp_path, capsys):
-    amc = cmu_data_dir() / "asf_amc" / "09" / "09_06.amc"
+def test_compress_real_cmu_amc(tmp_path, capsys, cmu_fixture_dir):
+    amc = cmu_fixture_dir / "asf_amc" / "09" / "09_06.amc"
     stream = tmp_path / "run.mcb"
     assert main(["compress", str(amc), str(stream), "--codec", "quant-delta-zstd", "--set", "step_cm=0.5"]) == 0
     assert "141 frames x 31 joints" in capsys.readouterr().out

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import csv
+import hashlib
 from pathlib import Path
 
 import numpy as np
@@ -43,12 +45,6 @@ SAME_POSITION = ("root", "lhipjoint", "lfemur", "ltibia", "lfoot", "ltoes", "rhi
 TOLERANCE_CM = 0.5
 
 
-@pytest.fixture(scope="module")
-def cmu_dir() -> Path:
-    """The CMU data folder; raises DataNotFoundError (saying where it looked) when it is missing."""
-    return cmu_data_dir()
-
-
 # --- the data folder -------------------------------------------------------------------------------------
 
 
@@ -60,12 +56,12 @@ def test_missing_data_dir_says_where_it_looked(tmp_path):
         cmu_data_dir(missing)
 
 
-def test_env_var_is_used(tmp_path, monkeypatch, cmu_dir):
+def test_env_var_is_used(tmp_path, monkeypatch, cmu_fixture_dir):
     monkeypatch.setenv(ENV_VAR, str(tmp_path / "elsewhere"))
     with pytest.raises(DataNotFoundError, match=rf"elsewhere \(from \${ENV_VAR}\)"):
         cmu_data_dir()
-    monkeypatch.setenv(ENV_VAR, str(cmu_dir))
-    assert cmu_data_dir() == cmu_dir
+    monkeypatch.setenv(ENV_VAR, str(cmu_fixture_dir))
+    assert cmu_data_dir() == cmu_fixture_dir.resolve()
 
 
 def test_folder_without_data_is_refused(tmp_path):
@@ -73,52 +69,95 @@ def test_folder_without_data_is_refused(tmp_path):
         cmu_data_dir(tmp_path)
 
 
-def test_default_is_found_from_the_repository_root(tmp_path, monkeypatch, cmu_dir):
+def test_default_is_found_from_the_repository_root(tmp_path, monkeypatch, cmu_fixture_dir):
+    """``../shared/data/cmu`` beside the repository holding ``mocapbench/`` is found from any working directory."""
+    import mocapbench.datasets.cmu as cmu
+
+    (tmp_path / "shared" / "data").mkdir(parents=True)
+    (tmp_path / "shared" / "data" / "cmu").symlink_to(cmu_fixture_dir.resolve(), target_is_directory=True)
+    monkeypatch.setattr(cmu, "__file__", str(tmp_path / "repo" / "mocapbench" / "datasets" / "cmu.py"))
     monkeypatch.delenv(ENV_VAR, raising=False)
-    monkeypatch.chdir(tmp_path)  # ../shared/data/cmu from here does not exist
-    assert cmu_data_dir() == cmu_dir
+    (tmp_path / "elsewhere").mkdir()
+    monkeypatch.chdir(tmp_path / "elsewhere")  # ../shared/data/cmu from here does not exist
+    assert cmu_data_dir() == cmu_fixture_dir.resolve()
+
+
+# --- the clip shipped with the tests and the full folder -------------------------------------------------
+
+
+def test_shipped_clip_matches_its_manifest(cmu_fixture_dir):
+    """tests/fixtures/cmu holds 09_06 byte for byte as the data folder lists it (a rewritten CRLF would fail)."""
+    with open(cmu_fixture_dir / "manifest.csv", newline="", encoding="utf-8") as handle:
+        rows = list(csv.DictReader(handle))
+    assert sorted(row["file"] for row in rows) == ["asf_amc/09/09.asf", "asf_amc/09/09_06.amc", "bvh/09_06.bvh"]
+    for row in rows:
+        data = (cmu_fixture_dir / row["file"]).read_bytes()
+        assert len(data) == int(row["bytes"]) and hashlib.sha256(data).hexdigest() == row["sha256"], row["file"]
+    assert clip_names("cmu_all", data_dir=cmu_fixture_dir) == ("09_06",)
+    assert "NSF EIA-0196217" in (cmu_fixture_dir / "README.md").read_text()  # CMU's acknowledgement travels along
+
+
+FULL_FOLDER_TEST = """
+def test_needs_it(cmu_full_dir):
+    assert (cmu_full_dir / "manifest.csv").is_file()
+"""
+
+
+@pytest.mark.parametrize("ci", ["", "true"])
+def test_full_folder_missing_skips_with_reason_except_under_ci(pytester, monkeypatch, tmp_path, ci):
+    pytester.makeconftest((Path(__file__).parent / "conftest.py").read_text())
+    pytester.makepyfile(FULL_FOLDER_TEST)
+    monkeypatch.setenv(ENV_VAR, str(tmp_path / "no-cmu-here"))
+    monkeypatch.setenv("CI", ci)
+    result = pytester.runpytest("-rs")
+    if ci:
+        result.assert_outcomes(errors=1)
+        result.stdout.fnmatch_lines(["*DataNotFoundError: CMU data folder not found*no-cmu-here*"])
+    else:
+        result.assert_outcomes(skipped=1)
+        result.stdout.fnmatch_lines(["SKIPPED*needs the full CMU data folder*no-cmu-here*"])
 
 
 # --- splits -----------------------------------------------------------------------------------------------
 
 
-def test_splits(cmu_dir):
+def test_splits(cmu_full_dir):
     assert SPLITS["cmu_train"] == ("13_17", "13_18", "124_01", "124_02", "135_06")
     assert len(SPLITS["cmu_test"]) == 12 and "09_06" in SPLITS["cmu_test"]
     assert not set(SPLITS["cmu_train"]) & set(SPLITS["cmu_test"])
-    everything = clip_names("cmu_all", data_dir=cmu_dir)
+    everything = clip_names("cmu_all", data_dir=cmu_full_dir)
     assert len(everything) == 63 and len(set(everything)) == 63
     assert set(SPLITS["cmu_train"]) | set(SPLITS["cmu_test"]) <= set(everything)
     with pytest.raises(ValueError, match="Unknown split 'cmu_val'; expected one of"):
         clip_names("cmu_val")
 
 
-def test_load_split_frame_counts(cmu_dir):
+def test_load_split_frame_counts(cmu_full_dir):
     """Frame totals from the data README: cmu_test 5,587, cmu_train 13,063 AMC frames."""
-    test = load_split("cmu_test", data_dir=cmu_dir)
+    test = load_split("cmu_test", data_dir=cmu_full_dir)
     assert [m.name for m in test] == list(SPLITS["cmu_test"])
     assert sum(m.num_frames for m in test) == 5587
-    assert sum(m.num_frames for m in load_split("cmu_train", data_dir=cmu_dir)) == 13063
+    assert sum(m.num_frames for m in load_split("cmu_train", data_dir=cmu_full_dir)) == 13063
     # one ASF per subject: both 02 clips share one Skeleton object
     assert test[0].skeleton is test[1].skeleton
 
 
-def test_load_clip(cmu_dir):
-    amc, bvh = load_clip("09_06", data_dir=cmu_dir), load_clip("09_06", fmt="bvh", data_dir=cmu_dir)
+def test_load_clip(cmu_fixture_dir):
+    amc, bvh = load_clip("09_06", data_dir=cmu_fixture_dir), load_clip("09_06", fmt="bvh", data_dir=cmu_fixture_dir)
     assert amc.name == bvh.name == "09_06"
     assert amc.num_frames == bvh.num_frames == 141
     assert amc.fps == bvh.fps == 120.0
     with pytest.raises(DataNotFoundError, match=r"Clip '09_99' \(amc\): .*09_99\.amc does not exist"):
-        load_clip("09_99", data_dir=cmu_dir)
+        load_clip("09_99", data_dir=cmu_fixture_dir)
     with pytest.raises(ValueError, match="Unknown clip format 'c3d'"):
-        load_clip("09_06", fmt="c3d", data_dir=cmu_dir)
+        load_clip("09_06", fmt="c3d", data_dir=cmu_fixture_dir)
 
 
 # --- load_folder ------------------------------------------------------------------------------------------
 
 
-def test_load_folder_of_one_subject(cmu_dir):
-    motions = load_folder(cmu_dir / "asf_amc" / "09")
+def test_load_folder_of_one_subject(cmu_fixture_dir):
+    motions = load_folder(cmu_fixture_dir / "asf_amc" / "09")
     assert [m.name for m in motions] == ["09_06"] and motions[0].num_joints == 31
 
 
@@ -194,16 +233,16 @@ def compare_formats(name: str, data_dir: Path) -> dict[str, float]:
     }
 
 
-def test_bvh_matches_amc_09_06(cmu_dir):
-    differences = compare_formats("09_06", cmu_dir)
+def test_bvh_matches_amc_09_06(cmu_fixture_dir):
+    differences = compare_formats("09_06", cmu_fixture_dir)
     # the upper body really is shifted by the thorax vector (2.0 units = 11.3 cm for subject 09), as documented
     assert 10.0 < differences["upper_body_as_is_cm"] < 25.0
 
 
 @pytest.mark.cmu
-def test_bvh_matches_amc_every_clip(cmu_dir):
+def test_bvh_matches_amc_every_clip(cmu_full_dir):
     worst: dict[str, float] = {}
-    for name in clip_names("cmu_all", data_dir=cmu_dir):
-        for key, value in compare_formats(name, cmu_dir).items():
+    for name in clip_names("cmu_all", data_dir=cmu_full_dir):
+        for key, value in compare_formats(name, cmu_full_dir).items():
             worst[key] = max(worst.get(key, 0.0), value)
     print("largest BVH vs ASF/AMC differences over cmu_all:", worst)

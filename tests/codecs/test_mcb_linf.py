@@ -100,10 +100,8 @@ def test_pca_on_another_skeleton_asks_for_fit():
         create("mcb-linf", representation="bone").encode(motion)
 
 
-def test_bound_holds_on_a_real_clip():
-    from mocapbench.datasets.cmu import load_clip
-
-    motion = load_clip("09_06")
+def test_bound_holds_on_a_real_clip(cmu_09_06):
+    motion = cmu_09_06
     for eps in (0.5, 2.0):
         decoded = create("mcb-linf").decode(create("mcb-linf", eps_cm=eps).encode(motion))
         assert metrics.max_joint_error(motion.positions(), decoded.positions) <= eps
@@ -111,10 +109,10 @@ def test_bound_holds_on_a_real_clip():
 
 @pytest.mark.cmu
 @pytest.mark.parametrize("eps", [0.1, 0.5, 1.0, 2.0, 3.0, 10.0])
-def test_bound_holds_on_every_frame_of_cmu_test(eps):
+def test_bound_holds_on_every_frame_of_cmu_test(eps, cmu_full_dir):
     from mocapbench.datasets.cmu import load_split
 
-    for motion in load_split("cmu_test"):
+    for motion in load_split("cmu_test", data_dir=cmu_full_dir):
         decoded = create("mcb-linf").decode(create("mcb-linf", eps_cm=eps).encode(motion))
         error = metrics.joint_errors(motion.positions(), decoded.positions)
         assert error.max() <= eps, f"{motion.name}: {error.max()} cm > {eps} cm"

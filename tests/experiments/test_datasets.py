@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from mocapbench.datasets.cmu import DataNotFoundError, cmu_data_dir
+from mocapbench.datasets.cmu import DataNotFoundError
 from mocapbench.experiments import datasets
 from mocapbench.experiments.main import cmu_available
 from mocapbench.io import write_bvh
@@ -13,14 +13,6 @@ from mocapbench.synthetic import sinusoidal_motion
 
 SYNTHETIC = {"name": "synthetic", "kind": "synthetic", "clips": {"seeds": [1, 2], "num_frames": 30},
              "train": {"clips": {"seeds": [11], "num_frames": 20}}}
-
-
-def _has_cmu() -> bool:
-    try:
-        cmu_data_dir()
-        return True
-    except DataNotFoundError:
-        return False
 
 
 def test_synthetic_clips_and_training_set_differ():
@@ -67,9 +59,8 @@ def test_folder_of_bvh_files_is_a_dataset(tmp_path):
     assert len(datasets.load_training(spec)) == 2
 
 
-@pytest.mark.skipif(not _has_cmu(), reason="CMU data folder not available")
-def test_the_make_run_cmu_clip_loads_from_amc():
-    spec = {"name": "cmu_09_06", "kind": "cmu", "data_dir": "../shared/data/cmu", "clips": ["09_06"],
+def test_the_make_run_cmu_clip_loads_from_amc(cmu_full_dir):
+    spec = {"name": "cmu_09_06", "kind": "cmu", "data_dir": str(cmu_full_dir), "clips": ["09_06"],
             "train": {"clips": ["124_01"]}}
     (clip,) = datasets.load_clips(spec)
     assert clip.name == "09_06" and clip.num_frames == 141 and clip.num_joints == 31
