@@ -7,12 +7,8 @@ from __future__ import annotations
 
 import argparse
 import ast
-import os
 import sys
-import tempfile
 from pathlib import Path
-
-import numpy as np
 
 __all__ = ["main"]
 
@@ -42,25 +38,6 @@ def _parse_settings(pairs: list[str]) -> dict:
     return settings
 
 
-def _check_output(path: Path, force: bool) -> None:
-    if path.exists() and not force:
-        raise CliError(f"{path} exists; pass --force to overwrite it")
-    if not path.parent.exists():
-        raise CliError(f"the folder of {path} does not exist")
-
-
-def _write_atomically(path: Path, data: bytes) -> None:
-    """Write to a temporary file beside ``path`` and rename, so a failure never leaves half a file."""
-    handle, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(handle, "wb") as file:
-            file.write(data)
-        os.replace(temporary, path)
-    except BaseException:
-        Path(temporary).unlink(missing_ok=True)
-        raise
-
-
 def _load_motion(args) -> "Motion":  # noqa: F821
     from mocapbench.io import find_asf, read_amc, read_bvh
 
@@ -86,14 +63,14 @@ def _codec_for_stream(data: bytes):
 
 def _compress(args) -> None:
     from mocapbench.codecs import create
+    from mocapbench.io.safe_output import check_output, write_bytes
     from mocapbench.metrics import compression_ratio, raw_position_bytes
 
-    output = Path(args.output)
-    _check_output(output, args.force)
+    output = check_output(args.output, force=args.force)
     motion = _load_motion(args)
     codec = create(args.codec, **_parse_settings(args.set))
     data = codec.encode(motion)
-    _write_atomically(output, data)
+    write_bytes(output, data, force=args.force)
     raw = raw_position_bytes(motion.num_joints, motion.num_frames)
     print(
         f"{output}: {len(data)} bytes, {motion.num_frames} frames x {motion.num_joints} joints, "
@@ -103,23 +80,21 @@ def _compress(args) -> None:
 
 def _decompress(args) -> None:
     from mocapbench.io import write_bvh
+    from mocapbench.io.safe_output import check_output, save_npy
 
-    output = Path(args.output)
-    _check_output(output, args.force)
+    output = check_output(args.output, force=args.force)
+    suffix = output.suffix.lower()
+    if suffix not in (".npy", ".bvh"):
+        raise CliError(f"{output}: expected a .bvh or .npy output, got {suffix or 'no extension'}")
     data = Path(args.input).read_bytes()
     codec, _ = _codec_for_stream(data)
     decoded = codec.decode(data)
-    suffix = output.suffix.lower()
     if suffix == ".npy":
-        with tempfile.NamedTemporaryFile(dir=output.parent, suffix=".npy", delete=False) as file:
-            np.save(file, decoded.positions)
-        os.replace(file.name, output)
-    elif suffix == ".bvh":
+        save_npy(output, decoded.positions, force=args.force)
+    else:
         if decoded.motion is None:
             raise CliError(f"codec {codec.name!r} codes joint positions only; write positions with a .npy output")
-        write_bvh(decoded.motion, output, length_unit_cm=args.length_unit_cm, overwrite=True)
-    else:
-        raise CliError(f"{output}: expected a .bvh or .npy output, got {suffix or 'no extension'}")
+        write_bvh(decoded.motion, output, length_unit_cm=args.length_unit_cm, overwrite=args.force)
     print(f"{output}: {decoded.positions.shape[0]} frames x {decoded.positions.shape[1]} joints")
 
 
@@ -201,7 +176,9 @@ def main(argv: list[str] | None = None) -> int:
     except CliError as error:
         print(f"mocapbench: error: {error}", file=sys.stderr)
         return 2
-    except (BitstreamError, MotionFormatError, FileNotFoundError, IsADirectoryError, PermissionError) as error:
+    except (BitstreamError, MotionFormatError, OSError) as error:
+        # OSError: the safe-output refusals (an existing path or link, a missing folder) and the system's own
+        # (a full disk, no permission), whose str() is one line naming the file.
         print(f"mocapbench: error: {error}", file=sys.stderr)
         return 2
     except (KeyError, TypeError, ValueError) as error:

@@ -15,6 +15,7 @@ import pandas as pd
 
 from mocapbench.experiments.document import markdown_table
 from mocapbench.experiments.run import ERRORS_FILE, RESULTS_FILE, read_rows
+from mocapbench.io.safe_output import check_output, write_text
 
 __all__ = ["aggregate", "read_errors", "curve_points", "AggregateError"]
 
@@ -124,11 +125,17 @@ def curve_points(data: pd.DataFrame) -> pd.DataFrame:
 def _main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("folders", nargs="+", help="sweep folders (or results.jsonl files)")
-    parser.add_argument("--csv", help="write every row to this CSV file")
+    parser.add_argument("--csv", help="write every row to this CSV file (refused if it exists, unless --force)")
+    parser.add_argument("--force", action="store_true", help="replace an existing CSV file (or the link, not its target)")
     args = parser.parse_args(argv)
+    if args.csv:
+        try:
+            check_output(args.csv, force=args.force)
+        except OSError as error:
+            parser.error(str(error))
     data = aggregate(args.folders)
     if args.csv:
-        data.to_csv(args.csv, index=False)
+        write_text(args.csv, data.to_csv(index=False), force=args.force)
     points = curve_points(data)
     columns = ["dataset", "codec", "clips", "compression_ratio", "bits_per_joint_frame", "max_err_cm", "mean_err_cm"]
     print(markdown_table(points[columns]))

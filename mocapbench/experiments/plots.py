@@ -13,6 +13,8 @@ from matplotlib.collections import LineCollection  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
+from mocapbench.io.safe_output import open_output  # noqa: E402
+
 __all__ = ["rd_figure", "rd_per_clip_figure", "error_heatmap_figure", "skeleton_overlay_figure"]
 
 _DISTORTIONS = (("max_err_cm", "L∞ joint error (cm)"), ("mean_err_cm", "mean joint error (cm)"),
@@ -27,8 +29,11 @@ def _styles(codecs: list[str]) -> dict[str, dict]:
 
 def _save(fig, path: Path) -> Path:
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110, bbox_inches="tight")
-    plt.close(fig)
+    try:
+        with open_output(path, "wb") as file:  # atomic, never through a link, never over an existing file
+            fig.savefig(file, format=path.suffix.lstrip(".") or "png", dpi=110, bbox_inches="tight")
+    finally:
+        plt.close(fig)
     return path
 
 

@@ -28,6 +28,7 @@ from mocapbench.experiments.bdrate import DEFAULT_ANCHOR, bd_rate_table
 from mocapbench.experiments.document import Document, markdown_table
 from mocapbench.experiments.reproduction import reproduction_sections
 from mocapbench.experiments.run import EXAMPLE_FILE
+from mocapbench.io.safe_output import check_name, write_text
 
 __all__ = ["build_report", "headline_table", "QUOTED_REFERENCES", "CMU_ACKNOWLEDGEMENT", "unique_report_folder"]
 
@@ -59,7 +60,11 @@ _HEADLINE_COLUMNS = {
 
 
 def unique_report_folder(root: Path, name: str, now: _dt.datetime | None = None) -> Path:
-    """``root/<date>-<time>-<name>``, created; never an existing folder (``-2``, ``-3``... appended)."""
+    """``root/<date>-<time>-<name>``, created; never an existing folder (``-2``, ``-3``... appended).
+
+    ``name`` must be one plain path component (:func:`mocapbench.io.safe_output.check_name`).
+    """
+    check_name(name, "report name")
     now = now or _dt.datetime.now()
     base = f"{now:%Y-%m-%d-%H%M%S}-{name}"
     root.mkdir(parents=True, exist_ok=True)
@@ -207,10 +212,10 @@ def build_report(
         The command that produced everything (e.g. ``make run``), quoted in "Data and method".
     """
     folders = [Path(f) for f in folders]
+    name = check_name(name or folders[0].resolve().name, "report name")
     rows = aggregate(folders)
     points = curve_points(rows)
     errors = read_errors(folders)
-    name = name or folders[0].name
     out = unique_report_folder(Path(reports_root), name)
     figures = out / "figures"
     figures.mkdir()
@@ -328,15 +333,23 @@ def build_report(
         doc.heading("Acknowledgement")
         doc.paragraph(CMU_ACKNOWLEDGEMENT)
 
-    (out / "report.md").write_text(doc.markdown())
-    (out / "index.html").write_text(doc.html())
+    write_text(out / "report.md", doc.markdown())
+    write_text(out / "index.html", doc.html())
     return out
+
+
+def _report_name(text: str) -> str:
+    """argparse type of ``--name``: one plain path component (``a/b`` or ``..`` is a one-line usage error)."""
+    try:
+        return check_name(text, "report name")
+    except ValueError as error:
+        raise argparse.ArgumentTypeError(str(error)) from None
 
 
 def _main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description="Write a report of one or more sweep folders.")
     parser.add_argument("folders", nargs="+", help="sweep folders (multirun/...)")
-    parser.add_argument("--name", help="report folder suffix (default: first sweep folder name)")
+    parser.add_argument("--name", type=_report_name, help="report folder suffix (default: first sweep folder name)")
     parser.add_argument("--reports-root", default="reports")
     parser.add_argument("--anchor", default=DEFAULT_ANCHOR, help="anchor codec of the BD-rate table")
     parser.add_argument("--command", help="the command that produced the sweeps, quoted in the report")

@@ -34,6 +34,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from mocapbench.io import read_text
+from mocapbench.io.safe_output import check_output, open_output
 from mocapbench.motion import Motion, MotionFormatError, Skeleton
 
 __all__ = ["read_bvh", "write_bvh"]
@@ -44,6 +45,7 @@ _CHANNEL_LIST = "Xposition Yposition Zposition Xrotation Yrotation Zrotation"
 # What np.loadtxt reads as a float64 (decimal notation, nan, inf); Python's float() also takes "1_0" and "١".
 _NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*(?:[eE][+-]?\d+)?|\.\d+(?:[eE][+-]?\d+)?|nan|inf|infinity)\Z", re.IGNORECASE)
 _MOTION_LINE = re.compile(r"^[ \t]*MOTION[ \t]*\r?$", re.MULTILINE)
+_WRITE_CHUNK_FRAMES = 4096  # frames formatted per write: bounded memory for long motions
 _IS_WHITESPACE_BYTE = np.zeros(256, dtype=bool)
 _IS_WHITESPACE_BYTE[[ord(c) for c in " \t\n\r\v\f"]] = True
 
@@ -460,7 +462,9 @@ def write_bvh(
     length_unit_cm : float, keyword-only
         Length of one file unit in cm (> 0): offsets and root positions are divided by it. Default 1.
     overwrite : bool, keyword-only
-        Replace an existing file; default False: raise ``FileExistsError``.
+        Replace an existing file or link (the link itself, never its target); default False: raise
+        :class:`~mocapbench.io.safe_output.OutputExistsError` (a ``FileExistsError``). The file is written
+        atomically by :mod:`mocapbench.io.safe_output`.
     decimals : int, keyword-only
         Decimals of every number, 1..15. Default 6: 1e-6 file units and 1e-6 degrees, so a read-back motion
         has the same joint positions within about 1e-4 cm for a 2 m tall skeleton in cm.
@@ -473,15 +477,15 @@ def write_bvh(
     Raises
     ------
     FileExistsError
-        ``path`` exists and ``overwrite`` is False.
+        ``path`` exists (or is a link, dangling or not) and ``overwrite`` is False.
+    OSError
+        The folder of ``path`` does not exist, or ``path`` is a folder.
     """
     if not (math.isfinite(length_unit_cm) and length_unit_cm > 0):
         raise ValueError(f"`length_unit_cm` must be a finite number > 0, got {length_unit_cm}.")
     if not 1 <= decimals <= 15:
         raise ValueError(f"`decimals` must be in [1, 15], got {decimals}.")
-    path = Path(path)
-    if path.exists() and not overwrite:
-        raise FileExistsError(f"{path} exists; pass overwrite=True to replace it.")
+    path = check_output(path, force=overwrite)
     skeleton = motion.skeleton
     order = _depth_first_order(skeleton.parents)
     number = f"{{:.{decimals}f}}"
@@ -516,13 +520,11 @@ def write_bvh(
     columns.append(euler[:, order].reshape(motion.num_frames, -1))
     values = np.concatenate(columns, axis=1)
     row = " ".join([number] * values.shape[1])
-    body = "\n".join(row.format(*frame) for frame in values.tolist())
-    text = "\n".join(lines) + "\n" + body + "\n"
-    try:
-        with open(path, "w" if overwrite else "x", encoding="utf-8", newline="\n") as handle:
-            handle.write(text)
-    except FileExistsError:
-        raise FileExistsError(f"{path} exists; pass overwrite=True to replace it.") from None
+    with open_output(path, "w", force=overwrite) as handle:
+        handle.write("\n".join(lines) + "\n")
+        for start in range(0, motion.num_frames, _WRITE_CHUNK_FRAMES):
+            chunk = values[start : start + _WRITE_CHUNK_FRAMES].tolist()
+            handle.write("".join(row.format(*frame) + "\n" for frame in chunk))
     return path
 
 
