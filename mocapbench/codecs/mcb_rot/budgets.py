@@ -1,0 +1,102 @@
+"""How much rotation error each joint may carry so that every joint stays within ε: lever arms down the hierarchy.
+
+A rotation error of angle θ at joint ``a`` turns the whole subtree of ``a`` about ``a``'s position, so it moves a
+descendant ``k`` by at most ``2 |p_k - p_a| sin(θ/2) <= θ C(a, k)``, where ``C(a, k)`` is the sum of the bone lengths on
+the chain from ``a`` down to ``k`` (rotations keep bone lengths, so ``|p_k - p_a| <= C(a, k)`` in every pose). A root
+translation error ``e`` moves every joint by ``e``. Applying the errors one joint at a time from the root down, the
+position error of joint ``k`` is therefore at most::
+
+    e_root + sum over proper ancestors a of k of  θ_a C(a, k)
+
+:func:`joint_budgets` picks angle budgets ``β_a = w / S_a`` (``S_a = max_k C(a, k)``, the joint's *lever arm*: an
+error at the hips moves the hands 80 cm away, one at the wrist only the fingers) and the largest ``w`` for which the
+sum stays within the bound for every joint. Whenever every joint of a frame is within its budget the frame is within
+ε, whatever the pose: the closed-loop refinement of the encoder relies on it. Joints whose rotation moves no joint
+(leaves, zero-length subtrees) have no lever; they get the fixed budget ``free_angle_rad``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from mocapbench.motion import Skeleton
+
+__all__ = ["Budgets", "joint_budgets", "offset_discrepancy_cm"]
+
+
+@dataclass(frozen=True, eq=False)
+class Budgets:
+    """Error budgets of one skeleton at one bound.
+
+    Attributes
+    ----------
+    rotation_rad : ndarray, shape (J,), float, radians
+        Angle budget β of each joint's local rotation.
+    root_cm : float
+        Budget of the root translation, cm.
+    ancestors : ndarray, shape (J, J), bool
+        ``ancestors[k, a]``: the rotation of joint ``a`` moves joint ``k`` (``a`` is a proper ancestor of ``k``).
+    has_lever : ndarray, shape (J,), bool
+        The joint's rotation moves at least one joint.
+    """
+
+    rotation_rad: np.ndarray
+    root_cm: float
+    ancestors: np.ndarray
+    has_lever: np.ndarray
+
+
+def _chains(skeleton: Skeleton) -> tuple[np.ndarray, np.ndarray]:
+    """Chain lengths ``C[a, k]`` (cm, 0 unless ``a`` is a proper ancestor of ``k``) and the ancestor matrix ``[k, a]``."""
+    num_joints = skeleton.num_joints
+    bones = np.sqrt(np.sum(skeleton.offsets**2, axis=1))
+    chain = np.zeros((num_joints, num_joints))
+    ancestors = np.zeros((num_joints, num_joints), dtype=bool)
+    for k in range(1, num_joints):
+        parent = skeleton.parents[k]
+        ancestors[k] = ancestors[parent]
+        ancestors[k, parent] = True
+        chain[:, k] = np.where(ancestors[k], chain[:, parent] + bones[k], 0.0)
+    return chain, ancestors
+
+
+def joint_budgets(skeleton: Skeleton, bound_cm: float, root_share: float, free_angle_rad: float) -> Budgets:
+    """Angle budgets of every joint and the root translation budget for an L-inf bound of ``bound_cm``.
+
+    Parameters
+    ----------
+    skeleton : Skeleton
+    bound_cm : float, > 0
+        The position bound the budgets must respect, cm.
+    root_share : float, in (0, 1)
+        Share of the bound given to the root translation.
+    free_angle_rad : float, > 0
+        Budget of the joints without a lever arm.
+    """
+    chain, ancestors = _chains(skeleton)
+    lever = chain.max(axis=1)  # S_a
+    has_lever = lever > 0
+    relative = np.divide(chain, lever[:, None], out=np.zeros_like(chain), where=has_lever[:, None])
+    worst = float(relative.sum(axis=0).max())  # max over k of sum over a of C(a, k) / S_a
+    rotation_share = bound_cm * (1.0 - root_share)
+    weight = rotation_share / worst if worst > 0 else 0.0
+    rotation = np.where(has_lever, weight / np.where(has_lever, lever, 1.0), free_angle_rad)
+    return Budgets(
+        rotation_rad=rotation, root_cm=bound_cm * root_share, ancestors=ancestors, has_lever=has_lever
+    )
+
+
+def offset_discrepancy_cm(original: Skeleton, stored: Skeleton) -> float:
+    """Largest position change of any joint, in any pose, from replacing ``original``'s offsets by ``stored``'s, cm.
+
+    The stream keeps offsets as float32; this bound (the sum of offset changes along the worst chain) is taken off
+    the error budget so that the guarantee holds against the caller's float64 skeleton.
+    """
+    change = np.sqrt(np.sum((original.offsets - stored.offsets) ** 2, axis=1))
+    change[0] = 0.0
+    total = np.zeros(original.num_joints)
+    for k in range(1, original.num_joints):
+        total[k] = total[original.parents[k]] + change[k]
+    return float(total.max())

@@ -1,0 +1,76 @@
+"""Unit-quaternion arithmetic for ``mcb-rot`` (scalar-last ``(x, y, z, w)``, as scipy), vectorized over any leading axes.
+
+Encoder and decoder call these same functions, so both compute bit-identical rotations on one machine. Only
+elementwise numpy operations are used (no BLAS reductions whose summation order could change with the thread
+count).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["multiply", "conjugate", "exp_map", "log_map", "angle", "sign_continuous"]
+
+
+def multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Hamilton product ``a b`` of quaternions, shapes (..., 4) broadcast; the rotation ``b`` then ``a``."""
+    ax, ay, az, aw = a[..., 0], a[..., 1], a[..., 2], a[..., 3]
+    bx, by, bz, bw = b[..., 0], b[..., 1], b[..., 2], b[..., 3]
+    return np.stack(
+        [
+            aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw,
+            aw * bw - ax * bx - ay * by - az * bz,
+        ],
+        axis=-1,
+    )
+
+
+def conjugate(q: np.ndarray) -> np.ndarray:
+    """Inverse of unit quaternions (..., 4)."""
+    return q * np.array([-1.0, -1.0, -1.0, 1.0])
+
+
+def exp_map(rotvec: np.ndarray) -> np.ndarray:
+    """Unit quaternions (..., 4) of rotation vectors (..., 3) in radians (any length: the map is 4 pi periodic)."""
+    angle_ = np.sqrt(np.sum(rotvec * rotvec, axis=-1))
+    half = 0.5 * angle_
+    small = angle_ < 1e-6
+    # sin(theta/2)/theta, with its Taylor series near 0 (exact to float precision below 1e-6 rad).
+    scale = np.where(small, 0.5 - angle_ * angle_ / 48.0, np.sin(half) / np.where(small, 1.0, angle_))
+    return np.concatenate([rotvec * scale[..., None], np.cos(half)[..., None]], axis=-1)
+
+
+def log_map(q: np.ndarray) -> np.ndarray:
+    """Rotation vectors (..., 3) of quaternions (..., 4), *without* choosing the short way.
+
+    A quaternion with ``w < 0`` maps to an angle in (pi, 2 pi): along a sign-continuous quaternion track
+    (:func:`sign_continuous`) the rotation vectors are then continuous through half turns, which is what a
+    transform along time needs. Call it on ``q * sign(w)`` for the usual angle in [0, pi].
+    """
+    vector = q[..., :3]
+    norm = np.sqrt(np.sum(vector * vector, axis=-1))
+    angle_ = 2.0 * np.arctan2(norm, q[..., 3])
+    small = norm < 1e-9
+    scale = np.where(small, 2.0 / np.where(small, q[..., 3], 1.0), angle_ / np.where(small, 1.0, norm))
+    return vector * scale[..., None]
+
+
+def angle(q: np.ndarray) -> np.ndarray:
+    """Rotation angle in [0, pi] (radians) of quaternions (..., 4)."""
+    norm = np.sqrt(np.sum(q[..., :3] ** 2, axis=-1))
+    return 2.0 * np.arctan2(norm, np.abs(q[..., 3]))
+
+
+def sign_continuous(q: np.ndarray) -> np.ndarray:
+    """Quaternions (F, ..., 4) with signs flipped so that consecutive frames have a non-negative dot product.
+
+    ``q`` and ``-q`` are the same rotation; input tracks (a BVH reader's Euler angles wrapping at +-180 deg, another
+    tool's canonical ``w >= 0``) can flip sign between frames, which would put a jump into any transform along time.
+    """
+    if len(q) < 2:
+        return np.array(q, dtype=np.float64)
+    dots = np.sum(q[1:] * q[:-1], axis=-1)
+    flips = np.concatenate([np.ones((1,) + dots.shape[1:]), np.where(dots < 0, -1.0, 1.0)])
+    return q * np.cumprod(flips, axis=0)[..., None]
