@@ -201,6 +201,13 @@ class Motion:
         Local joint rotations as unit quaternions, scalar-last. Stored normalized, float64.
     name : str
         Clip name for reports (e.g. ``"09_06"``).
+    source_unit_cm : float
+        Centimetres per length unit of the file the motion came from (1 = cm, 0.1 = mm, 100 = m, 2.54 = inch,
+        5.6444 = CMU units), > 0. Metadata only: the arrays are always in cm; writers use it to write the
+        source unit back (:mod:`mocapbench.io.units`). Default 1.
+    up_axis : str
+        ``"y"`` or ``"z"`` (or ``"x"``): the axis that points up in the source's coordinates. Metadata only;
+        the arrays keep the source's axes. Default ``"y"``.
     """
 
     skeleton: Skeleton
@@ -208,6 +215,8 @@ class Motion:
     root_positions: np.ndarray
     rotations: np.ndarray
     name: str = ""
+    source_unit_cm: float = 1.0
+    up_axis: str = "y"
 
     def __post_init__(self) -> None:
         if not isinstance(self.skeleton, Skeleton):
@@ -215,6 +224,12 @@ class Motion:
         fps = float(self.fps)
         if not np.isfinite(fps) or fps <= 0:
             raise ValueError(f"`fps` must be a finite number > 0, got {self.fps}.")
+        unit = float(self.source_unit_cm)
+        if not np.isfinite(unit) or unit <= 0:
+            raise ValueError(f"`source_unit_cm` must be a finite number > 0, got {self.source_unit_cm}.")
+        if self.up_axis not in ("x", "y", "z"):
+            raise ValueError(f"`up_axis` must be 'x', 'y' or 'z', got {self.up_axis!r}.")
+        object.__setattr__(self, "source_unit_cm", unit)
         num_joints = self.skeleton.num_joints
         rotations = self.rotations
         if isinstance(rotations, Rotation):
@@ -301,7 +316,15 @@ class Motion:
         """Frames ``start:stop`` as a new motion."""
         if not 0 <= start < stop <= self.num_frames:
             raise ValueError(f"Frame range {start}:{stop} is outside 0:{self.num_frames} or empty.")
-        return Motion(self.skeleton, self.fps, self.root_positions[start:stop], self.rotations[start:stop], self.name)
+        return Motion(
+            self.skeleton,
+            self.fps,
+            self.root_positions[start:stop],
+            self.rotations[start:stop],
+            self.name,
+            source_unit_cm=self.source_unit_cm,
+            up_axis=self.up_axis,
+        )
 
 
 # Frames per forward-kinematics block: 512 frames x 31 joints keep the (3, 3, J, F) arrays (~1 MB) in cache;

@@ -15,7 +15,21 @@ from scipy.spatial.transform import Rotation
 
 from mocapbench.motion import Motion, Skeleton
 
-__all__ = ["SyntheticConfig", "cmu_like_skeleton", "sinusoidal_motion"]
+__all__ = [
+    "SyntheticConfig",
+    "cmu_like_skeleton",
+    "sinusoidal_motion",
+    # re-exported from mocapbench.synthetic_rigs
+    "RigCase",
+    "RigConfig",
+    "concatenate_takes",
+    "rig_motion",
+    "rig_skeleton",
+    "user_case",
+    "user_cases",
+    "with_tpose_first_frame",
+    "write_case_bvh",
+]
 
 # (name, parent name, rest offset from the parent in cm: Y up, Z forward, +X the character's left)
 _CMU_LIKE_JOINTS: tuple[tuple[str, str | None, tuple[float, float, float]], ...] = (
@@ -172,3 +186,17 @@ def sinusoidal_motion(config: SyntheticConfig | None = None, **overrides) -> Mot
         rotations=rotations.reshape(config.num_frames, num_joints, 4),
         name=f"synthetic-seed{config.seed}",
     )
+
+
+# Users' rigs (15-70 joints, Y/Z-up, any unit and Euler order, T-pose frame, cuts): mocapbench.synthetic_rigs.
+from mocapbench.synthetic_rigs import (  # noqa: E402
+    RigCase,
+    RigConfig,
+    concatenate_takes,
+    rig_motion,
+    rig_skeleton,
+    user_case,
+    user_cases,
+    with_tpose_first_frame,
+    write_case_bvh,
+)

@@ -445,7 +445,13 @@ def _to_motion_arrays(parser: _HierarchyParser, values: np.ndarray, length_unit_
 
 
 def write_bvh(
-    motion: Motion, path: str | Path, *, length_unit_cm: float = 1.0, overwrite: bool = False, decimals: int = 6
+    motion: Motion,
+    path: str | Path,
+    *,
+    length_unit_cm: float = 1.0,
+    overwrite: bool = False,
+    decimals: int = 6,
+    position_channels: str = "root",
 ) -> Path:
     """Write ``motion`` as a BVH file.
 
@@ -468,6 +474,10 @@ def write_bvh(
     decimals : int, keyword-only
         Decimals of every number, 1..15. Default 6: 1e-6 file units and 1e-6 degrees, so a read-back motion
         has the same joint positions within about 1e-4 cm for a 2 m tall skeleton in cm.
+    position_channels : str, keyword-only
+        ``"root"`` (default): position channels on the root only. ``"all"``: ``CHANNELS 6 Xposition Yposition
+        Zposition`` + rotations on every joint, the non-root ones holding the joint's OFFSET in every frame (what
+        MotionBuilder exports).
 
     Returns
     -------
@@ -485,6 +495,8 @@ def write_bvh(
         raise ValueError(f"`length_unit_cm` must be a finite number > 0, got {length_unit_cm}.")
     if not 1 <= decimals <= 15:
         raise ValueError(f"`decimals` must be in [1, 15], got {decimals}.")
+    if position_channels not in ("root", "all"):
+        raise ValueError(f"`position_channels` must be 'root' or 'all', got {position_channels!r}.")
     path = check_output(path, force=overwrite)
     skeleton = motion.skeleton
     order = _depth_first_order(skeleton.parents)
@@ -496,7 +508,8 @@ def write_bvh(
         keyword = "ROOT" if joint == 0 else "JOINT"
         offset = " ".join(number.format(v) for v in skeleton.offsets[joint] / length_unit_cm)
         rotation_channels = " ".join(f"{axis}rotation" for axis in skeleton.channel_orders[joint])
-        channels = f"6 Xposition Yposition Zposition {rotation_channels}" if joint == 0 else f"3 {rotation_channels}"
+        with_position = joint == 0 or position_channels == "all"
+        channels = f"6 Xposition Yposition Zposition {rotation_channels}" if with_position else f"3 {rotation_channels}"
         lines.extend([f"{indent}{keyword} {skeleton.names[joint]}", f"{indent}{{", f"{indent}\tOFFSET {offset}"])
         lines.append(f"{indent}\tCHANNELS {channels}")
         for child in skeleton.children(joint):
@@ -517,8 +530,13 @@ def write_bvh(
             # At gimbal lock scipy sets the third angle to 0 and warns; the angles still give the same rotation.
             warnings.filterwarnings("ignore", message="Gimbal lock detected", category=UserWarning)
             euler[:, members] = Rotation.from_quat(motion.rotations[:, members]).as_euler(axes, degrees=True)
-    columns.append(euler[:, order].reshape(motion.num_frames, -1))
-    values = np.concatenate(columns, axis=1)
+    if position_channels == "all":
+        positions = np.broadcast_to(skeleton.offsets[order] / length_unit_cm, euler.shape).copy()
+        positions[:, 0] = motion.root_positions / length_unit_cm
+        values = np.concatenate([positions, euler[:, order]], axis=2).reshape(motion.num_frames, -1)
+    else:
+        columns.append(euler[:, order].reshape(motion.num_frames, -1))
+        values = np.concatenate(columns, axis=1)
     row = " ".join([number] * values.shape[1])
     with open_output(path, "w", force=overwrite) as handle:
         handle.write("\n".join(lines) + "\n")
