@@ -82,6 +82,7 @@ from mocapbench.codecs.mcb_linf_model import (
     TrainedModel,
 )
 from mocapbench.codecs.registry import register_codec
+from mocapbench.codecs.segments import find_cuts, read_cuts, write_cuts
 from mocapbench.entropy.ans import TOKEN_COUNT, ClassTables, decode_classed, encode_classed, tokenize
 from mocapbench.entropy.backend import zstd_pack_ints, zstd_unpack_ints
 from mocapbench.entropy.bitio import ByteReader, ByteWriter
@@ -92,6 +93,18 @@ from mocapbench.motion import Motion
 __all__ = ["McbLinfCodec", "TrainedModel", "bcc_quantize", "fit_model", "load_default_model"]
 
 _ENTROPY_CODERS = ("bands", "trained")  # stream codes 0, 1: append only
+
+
+# Set on the entropy-coder byte when a cut list follows the settings (streams without cuts are unchanged).
+_CUTS_FLAG = 0x80
+
+
+# What to do when the settings need a model and none is held for the motion's skeleton.
+_ON_MISSING_MODEL = ("untrained", "error")
+
+
+# The untrained mode: child - parent vectors (no basis to learn) and per-band tables carried in the stream.
+_UNTRAINED_REPRESENTATION, _UNTRAINED_ENTROPY = "bone", "bands"
 
 
 # Base-layer steps tried by the rate search, as multiples of eps: 0.5 to 4 in quarter octaves (on cmu_test the
@@ -243,6 +256,16 @@ def _read_lattice(reader: ByteReader, payload: memoryview, count: int, model: Tr
     return 2 * halves + parity[:, None]
 
 
+@dataclass(frozen=True, eq=False)
+class _Stream:
+    """What one encode codes with: the effective representation and entropy coder, the model, the cuts (N,)."""
+
+    representation: str
+    entropy: str
+    model: TrainedModel | None
+    cuts: np.ndarray
+
+
 @dataclass(frozen=True)
 class _Candidate:
     """One base-layer step tried by the encoder: its payload and the mean error it decodes to."""
@@ -290,10 +313,19 @@ class McbLinfCodec(Codec):
             0.45, low=0.0, high=0.5, doc="rounding offset of the base quantizer (0.5: nearest; less: a dead zone)"
         )
         zstd_level: int = param(19, low=1, high=22, doc="zstd level of the bands coded with zstd")
+        cut_detection: bool = param(
+            True, doc="split the DCT windows at discontinuities (a T-pose frame, a cut between takes, a teleport)"
+        )
+        on_missing_model: str = param(
+            "untrained", choices=_ON_MISSING_MODEL,
+            doc="settings that need a model, on a skeleton with none: 'untrained' codes with representation='bone' "
+                "and entropy='bands' (no training; the encode stats say so), 'error' raises NotFittedError",
+        )
 
     def __init__(self, config=None) -> None:
         super().__init__(config)
         self._model: TrainedModel | None = None
+        self._untrained_reason = ""  # why the last encode used the untrained mode ("" if it did not)
 
     # -- learned state ---------------------------------------------------------------------------------
     def fit(self, motions: Sequence[Motion]) -> "McbLinfCodec":
@@ -311,27 +343,39 @@ class McbLinfCodec(Codec):
             return self._model
         return load_default_model() if representation == "pca" else None
 
-    def _encoding_model(self, num_joints: int) -> TrainedModel | None:
+    def _encoding_mode(self, num_joints: int) -> tuple[str, str, TrainedModel | None]:
+        """``(representation, entropy coder, model)`` for a motion of ``num_joints`` joints.
+
+        The configured settings when they need no model or the held model fits the skeleton; otherwise the
+        untrained mode (``on_missing_model="untrained"``, the reason kept for the encode stats) or NotFittedError.
+        """
         config = self.config
+        self._untrained_reason = ""
         if not _needs_model(config.representation, config.entropy):
-            return None
+            return config.representation, config.entropy, None
         model = self._held_model(config.representation)
         if model is None:
-            raise NotFittedError(
-                f"mcb-linf: entropy='trained' with representation='{config.representation}' needs a model: call "
-                f"fit() on training motions, or use entropy='bands'."
+            problem = (
+                f"entropy='{config.entropy}' with representation='{config.representation}' needs a model and none "
+                f"is held"
             )
-        if model.num_joints != num_joints:
+        elif model.num_joints != num_joints:
+            problem = f"the model is for {model.num_joints} joints, the motion has {num_joints}"
+        else:
+            return config.representation, config.entropy, model
+        if config.on_missing_model == "error":
             raise NotFittedError(
-                f"mcb-linf: the model is for {model.num_joints} joints, the motion has {num_joints}; call fit() on "
-                f"motions of this skeleton, or use representation='bone' or 'absolute' with entropy='bands'."
+                f"mcb-linf: {problem}; fit a model on motions of this skeleton (`mocapbench fit`), or use "
+                f"on_missing_model='untrained'."
             )
-        return model
+        self._untrained_reason = problem
+        return _UNTRAINED_REPRESENTATION, _UNTRAINED_ENTROPY, None
 
     @property
     def model_bytes(self) -> int:
+        """Bytes of the held model the last encode used (0 when it needed none or ran untrained)."""
         config = self.config
-        if not _needs_model(config.representation, config.entropy):
+        if not _needs_model(config.representation, config.entropy) or self._untrained_reason:
             return 0
         model = self._held_model(config.representation)
         return model.stored_bytes if model is not None else 0
@@ -340,14 +384,16 @@ class McbLinfCodec(Codec):
     def encode_payload(self, motion: Motion) -> bytes:
         positions = motion.positions()
         config = self.config
-        model = self._encoding_model(motion.num_joints)
+        representation, entropy, model = self._encoding_mode(motion.num_joints)
         parents = motion.skeleton.parents
-        signal = to_signal(positions, parents, config.representation, model)
-        spectrum = forward_dct(signal, config.clip_frames)
-        layout = CoefficientLayout.of(motion.num_frames, config.clip_frames, 3 * motion.num_joints)
+        cuts = find_cuts(positions) if config.cut_detection else np.zeros(0, dtype=np.int64)
+        signal = to_signal(positions, parents, representation, model)
+        spectrum = forward_dct(signal, config.clip_frames, cuts)
+        layout = CoefficientLayout.of(motion.num_frames, config.clip_frames, 3 * motion.num_joints, cuts)
+        stream = _Stream(representation, entropy, model, cuts)
 
         def attempt(step: float) -> _Candidate:
-            return self._encode_with_step(positions, parents, spectrum, layout, step, model)
+            return self._encode_with_step(positions, parents, spectrum, layout, step, stream)
 
         if config.mean_cm > 0:
             steps = [config.mean_cm * rel for rel in _MEAN_TARGET_STEPS]
@@ -366,20 +412,24 @@ class McbLinfCodec(Codec):
             "bound_slack_cm": config.eps_cm - worst,
             "mean_error_cm": best.mean_error,
             "corrected_joints": best.corrected_joints,
+            "cuts": len(cuts),
+            "model_mode": f"untrained ({representation}, {entropy}): {self._untrained_reason}"
+            if self._untrained_reason else ("model" if model is not None else "none needed"),
         }
         return best.payload
 
-    def _encode_with_step(self, positions, parents, spectrum, layout: CoefficientLayout, step: float, model):
+    def _encode_with_step(self, positions, parents, spectrum, layout: CoefficientLayout, step: float, stream):
         """A :class:`_Candidate`: the payload coded with base step ``step`` (cm), its mean error, its corrections."""
         num_frames, num_joints, _ = positions.shape
         config = self.config
+        model, cuts = stream.model, stream.cuts
         steps = quantization_steps(
             layout.frequencies, layout.channels, step, config.frequency_slope, config.root_step_rel, config.clip_frames
         )
         # Dead-zone rounding (offset < 1/2) zeroes more small coefficients; the refinement layer keeps the bound.
         coefficients = dead_zone_quantize(spectrum, steps, config.rounding)
         base = base_positions(
-            coefficients, steps, num_frames, parents, config.clip_frames, config.representation, model
+            coefficients, steps, num_frames, parents, config.clip_frames, stream.representation, model, cuts
         ).reshape(-1, 3)
         residual = positions.reshape(-1, 3) - base
         radius = config.eps_cm * (1.0 - _SAFETY_MARGIN)
@@ -394,19 +444,21 @@ class McbLinfCodec(Codec):
         writer.write_f64(config.frequency_slope)
         writer.write_f64(config.root_step_rel)
         writer.write_varint(config.clip_frames)
-        writer.write_u8(REPRESENTATIONS.index(config.representation))
-        writer.write_u8(_ENTROPY_CODERS.index(config.entropy))
-        if config.representation == "bone":
+        writer.write_u8(REPRESENTATIONS.index(stream.representation))
+        writer.write_u8(_ENTROPY_CODERS.index(stream.entropy) | (_CUTS_FLAG if len(cuts) else 0))
+        if len(cuts):
+            write_cuts(writer, cuts)
+        if stream.representation == "bone":
             writer.write_varints(parents[1:] + 1)  # the joint tree (offsets are not needed)
         if model is not None:
             writer.write_u32(model.tag)
-        if config.entropy == "trained":
+        if stream.entropy == "trained":
             _write_trained(writer, coefficients, layout, steps, model)
         else:
             _write_bands(writer, coefficients, layout, config.zstd_level)
         writer.write_varint(len(corrected))
         _write_symbols(writer, np.diff(corrected, prepend=-1) - 1, config.zstd_level)
-        _write_lattice(writer, lattice, model if config.entropy == "trained" else None, config.zstd_level)
+        _write_lattice(writer, lattice, model if stream.entropy == "trained" else None, config.zstd_level)
         return _Candidate(writer.getvalue(), step, mean_error, len(corrected))
 
     # -- decoding --------------------------------------------------------------------------------------
@@ -428,8 +480,9 @@ class McbLinfCodec(Codec):
 
     def decode_payload(self, header: Header, payload: memoryview):
         reader = ByteReader(payload)
-        eps, step, slope, root_step_rel, clip_frames, representation, entropy = _read_settings(reader)
+        eps, step, slope, root_step_rel, clip_frames, representation, entropy, has_cuts = _read_settings(reader)
         num_frames, num_joints = header.num_frames, header.num_joints
+        cuts = read_cuts(reader, num_frames, "mcb-linf") if has_cuts else np.zeros(0, dtype=np.int64)
         parents = np.full(num_joints, -1)
         if representation == "bone":
             parents = np.concatenate([[-1], reader.read_varints(num_joints - 1, "joint tree").astype(np.int64) - 1])
@@ -438,13 +491,13 @@ class McbLinfCodec(Codec):
         model = None
         if _needs_model(representation, entropy):
             model = self._decoding_model(representation, reader.read_u32("model tag"), num_joints)
-        layout = CoefficientLayout.of(num_frames, clip_frames, 3 * num_joints)
+        layout = CoefficientLayout.of(num_frames, clip_frames, 3 * num_joints, cuts)
         steps = quantization_steps(layout.frequencies, layout.channels, step, slope, root_step_rel, clip_frames)
         if entropy == "trained":
             coefficients = _read_trained(reader, layout, steps, model)
         else:
             coefficients = _read_bands(reader, payload, layout)
-        positions = base_positions(coefficients, steps, num_frames, parents, clip_frames, representation, model)
+        positions = base_positions(coefficients, steps, num_frames, parents, clip_frames, representation, model, cuts)
         positions = positions.reshape(-1, 3)
         num_corrected = reader.read_varint("corrected joint count")
         if num_corrected > num_frames * num_joints:
@@ -462,10 +515,13 @@ class McbLinfCodec(Codec):
         return positions.reshape(num_frames, num_joints, 3), None
 
     def describe_payload(self, header: Header, payload: memoryview):
-        eps, step, slope, root_step_rel, clip_frames, representation, entropy = _read_settings(ByteReader(payload))
+        reader = ByteReader(payload)
+        eps, step, slope, root_step_rel, clip_frames, representation, entropy, has_cuts = _read_settings(reader)
+        cuts = read_cuts(reader, header.num_frames, "mcb-linf") if has_cuts else []
         return {"eps_cm (guaranteed L-inf)": eps, "base step cm": step, "frequency slope": slope,
                 "root step (x base step)": root_step_rel, "clip frames": clip_frames,
-                "representation": representation, "entropy coder": entropy}
+                "representation": representation, "entropy coder": entropy,
+                "cuts (frames starting a segment)": list(map(int, cuts))}
 
 
 def _needs_model(representation: str, entropy: str) -> bool:
@@ -473,8 +529,8 @@ def _needs_model(representation: str, entropy: str) -> bool:
     return representation == "pca" or entropy == "trained"
 
 
-def _read_settings(reader: ByteReader) -> tuple[float, float, float, float, int, str, str]:
-    """The stream's leading fields, checked: (eps, step, slope, root step, L, representation, entropy coder)."""
+def _read_settings(reader: ByteReader) -> tuple[float, float, float, float, int, str, str, bool]:
+    """The stream's leading fields, checked: (eps, step, slope, root step, L, representation, entropy coder, cuts?)."""
     eps = reader.read_f64("eps")
     step = reader.read_f64("base step")
     slope = reader.read_f64("frequency slope")
@@ -482,6 +538,8 @@ def _read_settings(reader: ByteReader) -> tuple[float, float, float, float, int,
     clip_frames = reader.read_varint("clip length")
     representation = reader.read_u8("representation")
     entropy = reader.read_u8("entropy coder")
+    has_cuts = bool(entropy & _CUTS_FLAG)
+    entropy &= ~_CUTS_FLAG
     if (
         not (0 < eps < np.inf and 0 < step < np.inf and 0 <= slope <= 64 and 0 < root_step_rel <= 1)
         or not 4 <= clip_frames <= 4096
@@ -493,7 +551,10 @@ def _read_settings(reader: ByteReader) -> tuple[float, float, float, float, int,
             f"representation < {len(REPRESENTATIONS)}, entropy coder < {len(_ENTROPY_CODERS)}; found {eps}, "
             f"{step}, {slope}, {root_step_rel}, {clip_frames}, {representation}, {entropy}."
         )
-    return eps, step, slope, root_step_rel, clip_frames, REPRESENTATIONS[representation], _ENTROPY_CODERS[entropy]
+    return (
+        eps, step, slope, root_step_rel, clip_frames, REPRESENTATIONS[representation], _ENTROPY_CODERS[entropy],
+        has_cuts,
+    )
 
 
 def _coarsest_meeting_target(attempt, steps: Sequence[float], target_cm: float) -> _Candidate:

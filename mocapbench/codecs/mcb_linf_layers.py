@@ -2,7 +2,8 @@
 
 Pure functions shared by the encoder, the decoder and the model fit (:mod:`.mcb_linf_model`); the design is in
 :mod:`.mcb_linf`. Shapes: positions ``(F, J, 3)`` cm; a signal ``(F, C)`` with ``C = 3 J`` channels; its temporal
-DCT on clips of L frames is flattened as ``[full clips (k, c, clip) ..., partial clip (k, c) ...]`` (one int per
+DCT on windows of L frames (split at the motion's cuts, :mod:`mocapbench.codecs.segments`) is flattened as
+``[full windows (k, c, window) ..., each shorter window (k, c) ...]`` (one int per
 coefficient in :class:`CoefficientLayout`).
 """
 
@@ -13,6 +14,8 @@ from functools import cached_property, lru_cache
 
 import numpy as np
 import scipy.fft
+
+from mocapbench.codecs.segments import window_lengths
 
 __all__ = [
     "BAND_EDGES",
@@ -119,21 +122,29 @@ def band_of(frequencies: np.ndarray) -> np.ndarray:
     return _BAND_OF_FREQUENCY[frequencies]
 
 
-def _clip_layout(num_frames: int, clip_frames: int) -> tuple[int, int]:
-    """Number of full clips and the length of the final partial clip (0 if none)."""
-    return num_frames // clip_frames, num_frames % clip_frames
+def _windows(num_frames: int, clip_frames: int, cuts=()) -> tuple[np.ndarray, list[tuple[int, int]]]:
+    """Starts of the full windows (L frames), and ``(start, length)`` of the shorter ones, both in time order.
+
+    Without cuts: ``F // L`` full windows then one partial of ``F mod L`` frames; with cuts, every segment
+    between cuts (:mod:`mocapbench.codecs.segments`) has its own full windows and its own remainder.
+    """
+    full, partial = [], []
+    start = 0
+    for length in window_lengths(num_frames, clip_frames, cuts):
+        (full.append(start) if length == clip_frames else partial.append((start, length)))
+        start += length
+    return np.asarray(full, dtype=np.int64), partial
 
 
-def coefficient_frequencies(num_frames: int, clip_frames: int, channels: int) -> np.ndarray:
+def coefficient_frequencies(num_frames: int, clip_frames: int, channels: int, cuts=()) -> np.ndarray:
     """DCT frequency of every flattened coefficient, on the scale of a full clip of L frames.
 
-    The coefficients are flattened as ``[full clips (k, c, clip) ..., partial clip (k, c) ...]``; the partial clip's
-    frequency k of ``p`` frames is reported as ``k L / p`` (rounded down). Depends only on (F, L, C).
+    The coefficients are flattened as ``[full windows (k, c, window) ..., each shorter window (k, c) ...]``; a
+    window's frequency k of ``p`` frames is reported as ``k L / p`` (rounded down). Depends only on (F, L, C, cuts).
     """
-    full, partial = _clip_layout(num_frames, clip_frames)
-    parts = [np.repeat(np.arange(clip_frames), channels * full)]
-    if partial:
-        parts.append(np.repeat((np.arange(partial) * clip_frames) // partial, channels))
+    full, partial = _windows(num_frames, clip_frames, cuts)
+    parts = [np.repeat(np.arange(clip_frames), channels * len(full))]
+    parts += [np.repeat((np.arange(length) * clip_frames) // length, channels) for _, length in partial]
     return np.concatenate(parts)
 
 
@@ -144,21 +155,19 @@ def band_order(frequencies: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return order, bands[order]
 
 
-def coefficient_channels(num_frames: int, clip_frames: int, channels: int) -> np.ndarray:
+def coefficient_channels(num_frames: int, clip_frames: int, channels: int, cuts=()) -> np.ndarray:
     """Channel of every flattened coefficient (same layout as :func:`coefficient_frequencies`)."""
-    full, partial = _clip_layout(num_frames, clip_frames)
-    parts = [np.tile(np.repeat(np.arange(channels), full), clip_frames)]
-    if partial:
-        parts.append(np.tile(np.arange(channels), partial))
+    full, partial = _windows(num_frames, clip_frames, cuts)
+    parts = [np.tile(np.repeat(np.arange(channels), len(full)), clip_frames)]
+    parts += [np.tile(np.arange(channels), length) for _, length in partial]
     return np.concatenate(parts)
 
 
-def coefficient_windows(num_frames: int, clip_frames: int, channels: int) -> np.ndarray:
-    """Clip window (0, 1, ...) of every flattened coefficient (same layout as :func:`coefficient_frequencies`)."""
-    full, partial = _clip_layout(num_frames, clip_frames)
-    parts = [np.tile(np.arange(full), clip_frames * channels)]
-    if partial:
-        parts.append(np.full(partial * channels, full))
+def coefficient_windows(num_frames: int, clip_frames: int, channels: int, cuts=()) -> np.ndarray:
+    """Window (full windows 0, 1, ..., then the shorter ones) of every flattened coefficient (same layout)."""
+    full, partial = _windows(num_frames, clip_frames, cuts)
+    parts = [np.tile(np.arange(len(full)), clip_frames * channels)]
+    parts += [np.full(length * channels, len(full) + index) for index, (_, length) in enumerate(partial)]
     return np.concatenate(parts)
 
 
@@ -178,30 +187,31 @@ def quantization_steps(frequencies, channels, step: float, slope: float, root_st
     return np.where(channels < 3, steps * root_step_rel, steps)
 
 
-def forward_dct(signal: np.ndarray, clip_frames: int) -> np.ndarray:
-    """Temporal DCT-II (orthonormal) of (F, C) on clips of L frames, flattened in the band layout's order."""
+def forward_dct(signal: np.ndarray, clip_frames: int, cuts=()) -> np.ndarray:
+    """Temporal DCT-II (orthonormal) of (F, C) on windows of L frames split at ``cuts``, flattened in layout order."""
     num_frames, channels = signal.shape
-    full, partial = _clip_layout(num_frames, clip_frames)
+    full, partial = _windows(num_frames, clip_frames, cuts)
     parts = []
-    if full:
-        clips = signal[: full * clip_frames].reshape(full, clip_frames, channels)
-        parts.append(scipy.fft.dct(clips, axis=1, norm="ortho").transpose(1, 2, 0).ravel())  # (k, c, clip)
-    if partial:
-        parts.append(scipy.fft.dct(signal[full * clip_frames :], axis=0, norm="ortho").ravel())  # (k, c)
+    if len(full):
+        clips = signal[full[:, None] + np.arange(clip_frames)]  # (n, L, C)
+        parts.append(scipy.fft.dct(clips, axis=1, norm="ortho").transpose(1, 2, 0).ravel())  # (k, c, window)
+    for start, length in partial:
+        parts.append(scipy.fft.dct(signal[start : start + length], axis=0, norm="ortho").ravel())  # (k, c)
     return np.concatenate(parts)
 
 
-def inverse_dct(coefficients: np.ndarray, num_frames: int, clip_frames: int, channels: int) -> np.ndarray:
+def inverse_dct(coefficients: np.ndarray, num_frames: int, clip_frames: int, channels: int, cuts=()) -> np.ndarray:
     """Inverse of :func:`forward_dct`: (F, C)."""
-    full, partial = _clip_layout(num_frames, clip_frames)
+    full, partial = _windows(num_frames, clip_frames, cuts)
     out = np.empty((num_frames, channels))
-    split = full * clip_frames * channels
-    if full:
-        clips = coefficients[:split].reshape(clip_frames, channels, full).transpose(2, 0, 1)
-        out[: full * clip_frames] = scipy.fft.idct(clips, axis=1, norm="ortho").reshape(-1, channels)
-    if partial:
-        tail = coefficients[split:].reshape(partial, channels)
-        out[full * clip_frames :] = scipy.fft.idct(tail, axis=0, norm="ortho")
+    split = len(full) * clip_frames * channels
+    if len(full):
+        clips = coefficients[:split].reshape(clip_frames, channels, len(full)).transpose(2, 0, 1)
+        out[full[:, None] + np.arange(clip_frames)] = scipy.fft.idct(clips, axis=1, norm="ortho")
+    for start, length in partial:
+        tail = coefficients[split : split + length * channels].reshape(length, channels)
+        out[start : start + length] = scipy.fft.idct(tail, axis=0, norm="ortho")
+        split += length * channels
     return out
 
 
@@ -254,9 +264,11 @@ def _from_bones(bones: np.ndarray, parents: np.ndarray) -> np.ndarray:
     return positions
 
 
-def base_positions(coefficients, steps, num_frames, parents, clip_frames, representation, spatial) -> np.ndarray:
+def base_positions(
+    coefficients, steps, num_frames, parents, clip_frames, representation, spatial, cuts=()
+) -> np.ndarray:
     """Base-layer positions (F, J, 3) cm from the quantized coefficients; shared by encoder and decoder."""
-    signal = inverse_dct(coefficients * steps, num_frames, clip_frames, 3 * len(parents))
+    signal = inverse_dct(coefficients * steps, num_frames, clip_frames, 3 * len(parents), cuts)
     return from_signal(signal, parents, representation, spatial)
 
 
@@ -269,11 +281,11 @@ class CoefficientLayout:
     windows: np.ndarray
 
     @classmethod
-    def of(cls, num_frames: int, clip_frames: int, channels: int) -> "CoefficientLayout":
+    def of(cls, num_frames: int, clip_frames: int, channels: int, cuts=()) -> "CoefficientLayout":
         return cls(
-            coefficient_frequencies(num_frames, clip_frames, channels),
-            coefficient_channels(num_frames, clip_frames, channels),
-            coefficient_windows(num_frames, clip_frames, channels),
+            coefficient_frequencies(num_frames, clip_frames, channels, cuts),
+            coefficient_channels(num_frames, clip_frames, channels, cuts),
+            coefficient_windows(num_frames, clip_frames, channels, cuts),
         )
 
     @property

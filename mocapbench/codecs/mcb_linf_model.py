@@ -15,6 +15,7 @@ from functools import lru_cache
 from importlib import resources
 
 import numpy as np
+import scipy.linalg
 
 from mocapbench.codecs.mcb_linf_layers import (
     BAND_EDGES,
@@ -152,10 +153,17 @@ class TrainedModel:
 
 
 def _fit_basis(motions: Sequence[Motion]) -> tuple[np.ndarray, np.ndarray]:
-    """PCA of the root-relative joint positions (all frames pooled), rounded to float32: (basis, mean)."""
+    """PCA of the root-relative joint positions (all frames pooled), rounded to float32: (basis, mean).
+
+    Works from any number of frames (2 upwards): the basis is always square, D x D with D = 3 (J - 1).
+    """
     data = np.concatenate([root_relative(m.positions()) for m in motions])
     mean = data.mean(axis=0)
     _, _, rows = np.linalg.svd(data - mean, full_matrices=False)
+    if len(rows) < data.shape[1]:
+        # Fewer frames than channels: the SVD gives only F directions; complete them to an orthonormal basis of
+        # every channel (the remaining directions carry no training variance, their order does not matter).
+        rows = np.vstack([rows, scipy.linalg.null_space(rows).T])
     # Round to float32 once: encoder and decoder then use bit-identical arrays, whatever saved them.
     return rows.astype(np.float32).astype(np.float64), mean.astype(np.float32).astype(np.float64)
 

@@ -88,16 +88,40 @@ def test_shipped_model_is_orthonormal_and_reported():
     assert create("mcb-linf", representation="bone", entropy="bands").model_bytes == 0
 
 
-def test_pca_on_another_skeleton_asks_for_fit():
+def test_pca_on_another_skeleton_asks_for_fit_when_told_to():
     from mocapbench.codecs import NotFittedError
     from mocapbench.motion import Motion, Skeleton
 
     skeleton = Skeleton(names=("a", "b"), parents=np.array([-1, 0]), offsets=np.array([[0, 0, 0], [0, 10.0, 0]]))
     motion = Motion(skeleton, 30.0, np.zeros((5, 3)), np.tile([0, 0, 0, 1.0], (5, 2, 1)))
     with pytest.raises(NotFittedError, match="model is for 31 joints, the motion has 2"):
-        create("mcb-linf").encode(motion)
+        create("mcb-linf", on_missing_model="error").encode(motion)
     with pytest.raises(NotFittedError, match="entropy='trained' with representation='bone' needs a model"):
-        create("mcb-linf", representation="bone").encode(motion)
+        create("mcb-linf", representation="bone", on_missing_model="error").encode(motion)
+
+
+@pytest.mark.parametrize("representation", ["pca", "bone"])
+def test_a_skeleton_without_a_model_is_coded_untrained_within_the_bound(representation):
+    from mocapbench.motion import Motion, Skeleton
+
+    rng = np.random.default_rng(0)
+    joints, frames = 7, 90
+    skeleton = Skeleton(
+        names=tuple(f"j{i}" for i in range(joints)), parents=np.array([-1, 0, 1, 2, 0, 4, 5]),
+        offsets=np.vstack([[0, 0, 0], rng.normal(0, 10, (joints - 1, 3))]),
+    )
+    angles = np.cumsum(rng.normal(0, 0.02, (frames, joints, 3)), axis=0)
+    from scipy.spatial.transform import Rotation
+
+    rotations = Rotation.from_rotvec(angles.reshape(-1, 3)).as_quat().reshape(frames, joints, 4)
+    motion = Motion(skeleton, 30.0, np.cumsum(rng.normal(0, 1, (frames, 3)), axis=0), rotations)
+    codec = create("mcb-linf", eps_cm=0.5, representation=representation)
+    data = codec.encode(motion)
+    assert "untrained (bone, bands)" in codec.last_encode_stats["model_mode"]
+    assert codec.model_bytes == 0
+    decoded = create("mcb-linf").decode(data)  # no model needed to decode
+    assert metrics.max_joint_error(motion.positions(), decoded.positions) <= 0.5
+    assert len(data) < 0.25 * metrics.raw_position_bytes(joints, frames)
 
 
 def test_bound_holds_on_a_real_clip(cmu_09_06):
