@@ -60,6 +60,7 @@ import scipy.fft
 from mocapbench.codecs import container
 from mocapbench.codecs.base import Codec, CodecConfig, Header, NotFittedError, param
 from mocapbench.codecs.registry import register_codec
+from mocapbench.codecs.segments import find_cuts, read_cuts, window_lengths, write_cuts
 from mocapbench.entropy.bitio import BitReader, BitWriter, ByteReader, ByteWriter
 from mocapbench.entropy.errors import BitstreamError
 from mocapbench.entropy.huffman import decode_symbols, encode_symbols
@@ -442,10 +443,15 @@ def _clip_inverse(coefficients: np.ndarray, bases: np.ndarray) -> np.ndarray:
 
 def _check_joints(name: str, bases: np.ndarray, num_joints: int) -> None:
     if bases.shape[-1] != num_joints:
-        raise ValueError(
-            f"{name}: the spatial bases are {bases.shape[-1]} × {bases.shape[-1]} but the motion has {num_joints} "
-            f"joints; LSDT bases are tied to a skeleton: use basis='fit' and fit() on motions of this skeleton."
+        raise NotFittedError(
+            f"{name}: the spatial bases are {bases.shape[-1]} x {bases.shape[-1]} but the motion has {num_joints} "
+            f"joints; LSDT bases are learned per skeleton: fit them on clips of this skeleton "
+            f"(`mocapbench fit CLIPS... -o MODEL --codec {name}`, then `--model MODEL`)."
         )
+
+
+#: Set on the count-coding byte when a cut list follows it (clip scheme; streams without cuts are unchanged).
+_CUTS_FLAG = 0x80
 
 
 class _SpatialTransformCodec(Codec):
@@ -499,12 +505,15 @@ class _SpatialTransformCodec(Codec):
         step = self.config.step_cm
         threshold = self.config.threshold_steps * step
         frames = np.ascontiguousarray(positions.transpose(0, 2, 1))  # (F, 3, J): the columns m^d_i
+        cuts = np.zeros(0, dtype=np.int64)
         if self.scheme == "frame":
             vectors = _frame_closed_loop(frames, bases, step, threshold).reshape(-1, num_joints)
         else:
+            if self.config.cut_detection:
+                cuts = find_cuts(positions)
             blocks = []
             start = 0
-            for length, count in self._clip_groups(num_frames):
+            for length, count in self._clip_groups(num_frames, cuts=cuts):
                 stop = start + length * count
                 batch = frames[start:stop].reshape(count, length, 3, num_joints)
                 coefficients = _clip_forward(batch, bases)
@@ -513,16 +522,19 @@ class _SpatialTransformCodec(Codec):
             vectors = np.concatenate(blocks)
         writer = ByteWriter()
         writer.write_bytes(self._fingerprint(num_joints))
-        writer.write_u8(COUNT_CODINGS.index(self.config.count_coding))
+        writer.write_u8(COUNT_CODINGS.index(self.config.count_coding) | (_CUTS_FLAG if len(cuts) else 0))
         writer.write_f64(step)
         if self.scheme == "clip":
             writer.write_varint(self.config.clip_length)
+            if len(cuts):
+                write_cuts(writer, cuts)
         writer.write_bytes(code_vectors(vectors, self.config.count_coding))
         nonzero = int(np.count_nonzero(vectors))
         self.last_encode_stats = {
             "latency_frames": 0 if self.scheme == "frame" else self.config.clip_length,
             "nonzero_coefficients": nonzero,
             "nonzero_percent": 100.0 * nonzero / vectors.size,
+            "cuts": len(cuts),
         }
         return writer.getvalue()
 
@@ -541,6 +553,8 @@ class _SpatialTransformCodec(Codec):
         if bases.shape[-1] != num_joints:
             raise BitstreamError(f"{self.name}: the stream has {num_joints} joints, the bases {bases.shape[-1]}.")
         coding = reader.read_u8("count coding")
+        has_cuts = bool(coding & _CUTS_FLAG) and self.scheme == "clip"
+        coding &= ~_CUTS_FLAG if self.scheme == "clip" else 0xFF
         if coding >= len(COUNT_CODINGS):
             raise BitstreamError(f"{self.name}: expected a count coding in 0..{len(COUNT_CODINGS) - 1}, found {coding}.")
         step = reader.read_f64("quantization step")
@@ -550,8 +564,9 @@ class _SpatialTransformCodec(Codec):
             clip_length = reader.read_varint("clip length")
             if not 1 <= clip_length <= 1 << 20:
                 raise BitstreamError(f"{self.name}: expected a clip length in [1, 2**20], found {clip_length}.")
+            cuts = read_cuts(reader, num_frames, self.name) if has_cuts else ()
         else:
-            clip_length = 0
+            clip_length, cuts = 0, ()
         vectors = decode_vectors(reader.read_bytes(reader.remaining, "coefficient streams"), 3 * num_frames,
                                  num_joints, COUNT_CODINGS[coding])
         if self.scheme == "frame":
@@ -559,7 +574,7 @@ class _SpatialTransformCodec(Codec):
         else:
             parts = []
             start = 0
-            for length, count in self._clip_groups(num_frames, clip_length):
+            for length, count in self._clip_groups(num_frames, clip_length, cuts):
                 stop = start + count * 3 * length
                 coefficients = vectors[start:stop].reshape(count, 3, length, num_joints) * step
                 parts.append(_clip_inverse(coefficients, bases).reshape(count * length, 3, num_joints))
@@ -568,22 +583,32 @@ class _SpatialTransformCodec(Codec):
         return positions, None
 
     # -- stream layout ---------------------------------------------------------------------------------
-    def _clip_groups(self, num_frames: int, clip_length: int | None = None) -> list[tuple[int, int]]:
-        """``(length, number of clips)`` groups in stream order: the full clips, then the partial one."""
+    def _clip_groups(self, num_frames: int, clip_length: int | None = None, cuts=()) -> list[tuple[int, int]]:
+        """``(length, number of clips)`` runs in stream (time) order: each segment's full clips, then its remainder.
+
+        Segments are the frames between ``cuts`` (:mod:`mocapbench.codecs.segments`); without cuts: the full clips,
+        then the partial one.
+        """
         clip_length = self.config.clip_length if clip_length is None else clip_length
-        groups = [(clip_length, num_frames // clip_length)] if num_frames >= clip_length else []
-        if num_frames % clip_length:
-            groups.append((num_frames % clip_length, 1))
+        groups: list[tuple[int, int]] = []
+        for length in window_lengths(num_frames, clip_length, cuts):
+            if groups and groups[-1][0] == length:
+                groups[-1] = (length, groups[-1][1] + 1)
+            else:
+                groups.append((length, 1))
         return groups
 
     def describe_payload(self, header: Header, payload: memoryview) -> dict[str, Any]:
         info: dict[str, Any] = {"scheme": self.scheme}
         reader = ByteReader(payload)
         reader.read_bytes(len(self._fingerprint(header.num_joints)), "bases fingerprint")
-        info["count_coding"] = COUNT_CODINGS[reader.read_u8("count coding") % len(COUNT_CODINGS)]
+        coding = reader.read_u8("count coding")
+        info["count_coding"] = COUNT_CODINGS[(coding & ~_CUTS_FLAG) % len(COUNT_CODINGS)]
         info["step_cm"] = reader.read_f64("quantization step")
         if self.scheme == "clip":
             info["clip_length"] = reader.read_varint("clip length")
+            cuts = read_cuts(reader, header.num_frames, self.name) if coding & _CUTS_FLAG else ()
+            info["cuts (frames starting a segment)"] = [int(cut) for cut in cuts]
         return info
 
 
@@ -609,9 +634,16 @@ class _FrameConfig(CodecConfig):
     count_coding: str = param("fixed", choices=COUNT_CODINGS, doc=_COUNT_DOC)
 
 
+_CUT_DOC = (
+    "split the clips at discontinuities (a T-pose frame, a cut between takes, a teleport; "
+    "mocapbench.codecs.segments): not in the paper, which codes fixed clips of L frames"
+)
+
+
 @dataclass(frozen=True)
 class _ClipConfig(_FrameConfig):
     clip_length: int = param(120, low=1, high=1 << 20, unit="frames", doc=_CLIP_DOC)
+    cut_detection: bool = param(True, doc=_CUT_DOC)
 
 
 _SPARSITY_DOC = "P, nonzeros per training vector in LSDT training (eq. 6); committed bases exist for 2, 5, 8, 11"
@@ -637,6 +669,7 @@ class _LsdtFrameConfig(_FrameConfig):
 @dataclass(frozen=True)
 class _LsdtClipConfig(_LsdtFrameConfig):
     clip_length: int = param(120, low=1, high=1 << 20, unit="frames", doc=_CLIP_DOC)
+    cut_detection: bool = param(True, doc=_CUT_DOC)
 
 
 class _LsdtBases:
@@ -645,20 +678,22 @@ class _LsdtBases:
     _trained: np.ndarray | None = None
 
     def fit(self, motions: Sequence[Motion]):
-        """With ``basis='fit'``, run Algorithm 1 on the frames of ``motions`` (DCT init); otherwise do nothing.
+        """Run Algorithm 1 on the frames of ``motions`` (DCT init) with ``basis='fit'``, or with ``basis='cmu-v1'``
+        when the motions' skeleton is not the committed bases' (31 joints); otherwise do nothing.
 
         The committed bases (``basis='cmu-v1'``) were produced from ``cmu_train`` by
-        ``python -m mocapbench.benchmarks.train_lsdt``; refitting on the training motions of a run would only
-        repeat that.
+        ``python -m mocapbench.benchmarks.train_lsdt``; refitting on the CMU training motions of a run would only
+        repeat that. Any number of motions of any length (1 frame upwards) fits.
         """
-        if self.config.basis != "fit":
-            return self
         if not motions:
             raise ValueError(f"{self.name}: fit() needs at least one training motion.")
         joints = {motion.num_joints for motion in motions}
         if len(joints) != 1:
             raise ValueError(f"{self.name}: fit() needs motions of one joint count, got {sorted(joints)}.")
         num_joints = joints.pop()
+        if self.config.basis != "fit" and num_joints == load_committed_bases(self.config.sparsity).shape[-1]:
+            self._trained = None
+            return self
         if self.config.sparsity > num_joints:
             raise ValueError(f"{self.name}: sparsity={self.config.sparsity} exceeds the {num_joints} joints of the motions.")
         positions = np.concatenate([motion.positions() for motion in motions])
@@ -669,14 +704,18 @@ class _LsdtBases:
         return self
 
     def set_bases(self, bases: np.ndarray):
-        """Use given bases as the learned state (``basis='fit'`` only), e.g. bases trained once for many configs.
+        """Use given bases as the learned state, e.g. bases trained once for many configs or read from a model file.
+
+        With ``basis='cmu-v1'`` only bases of another joint count than the committed ones are accepted (the
+        committed file serves its own skeleton).
 
         Parameters
         ----------
         bases : ndarray, shape (3, J, J), float
             Orthogonal ``B^x, B^y, B^z`` (``||B Bᵀ − I|| < 1e-10``).
         """
-        if self.config.basis != "fit":
+        committed = None if self.config.basis == "fit" else load_committed_bases(self.config.sparsity).shape[-1]
+        if committed is not None and np.shape(bases)[-1] == committed:
             raise ValueError(f"{self.name}: set_bases needs basis='fit'; basis={self.config.basis!r} uses the committed file.")
         bases = np.array(bases, dtype=np.float64)
         if bases.ndim != 3 or bases.shape[0] != 3 or bases.shape[1] != bases.shape[2]:
@@ -688,10 +727,10 @@ class _LsdtBases:
         return self
 
     def _bases(self, num_joints: int) -> np.ndarray:
-        if self.config.basis == "fit":
-            if self._trained is None:
-                raise NotFittedError(f"{self.name}: basis='fit' needs fit(motions) before encoding or decoding.")
+        if self._trained is not None and (self.config.basis == "fit" or self._trained.shape[-1] == num_joints):
             return self._trained
+        if self.config.basis == "fit":
+            raise NotFittedError(f"{self.name}: basis='fit' needs fit(motions) before encoding or decoding.")
         return load_committed_bases(self.config.sparsity)
 
     def _fingerprint(self, num_joints: int) -> bytes:
@@ -700,8 +739,10 @@ class _LsdtBases:
     @property
     def model_bytes(self) -> int:
         """Bytes of the three J × J float64 bases a decoder needs beside the stream (31 joints: 23,064)."""
+        if self._trained is not None:
+            return int(self._trained.nbytes)
         if self.config.basis == "fit":
-            return 0 if self._trained is None else int(self._trained.nbytes)
+            return 0
         return int(load_committed_bases(self.config.sparsity).nbytes)
 
 

@@ -193,3 +193,13 @@ def test_corrupt_payloads_past_the_crc_fail_cleanly(synthetic_motion):
         assert positions.shape == synthetic_motion.positions().shape
         outcomes["decoded"] += 1
     assert outcomes["error"] > 0
+
+
+@pytest.mark.parametrize("frames", [2, 5])
+def test_fit_from_clips_shorter_than_their_channel_count(frames, synthetic_motion):
+    """Fewer frames than the 3 (J - 1) root-relative channels used to crash the PCA (issue 16)."""
+    training = [sinusoidal_motion(num_frames=frames, seed=seed) for seed in (21, 22)]
+    codec = create("mcb-linf", eps_cm=0.5).fit(training)
+    data = codec.encode(synthetic_motion)
+    assert codec.last_encode_stats["model_mode"] == "model"
+    assert metrics.max_joint_error(synthetic_motion.positions(), codec.decode(data).positions) <= 0.5
