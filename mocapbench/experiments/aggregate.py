@@ -1,12 +1,15 @@
 """Read one or more sweep folders (every ``results.jsonl`` below them) into one pandas DataFrame.
 
 Usage: ``python -m mocapbench.experiments.aggregate SWEEP_DIR... [--csv out.csv]`` prints a summary per codec.
+A results line that does not parse stops it with one line naming the file and the line (exit code 2): a dropped
+row would change the tables silently; re-running the sweep with the same ``hydra.sweep.dir`` redoes its clip.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import sys
 from pathlib import Path
 from typing import Iterable
 
@@ -14,10 +17,10 @@ import numpy as np
 import pandas as pd
 
 from mocapbench.experiments.document import markdown_table
-from mocapbench.experiments.run import ERRORS_FILE, RESULTS_FILE, read_rows
+from mocapbench.experiments.results import ERRORS_FILE, RESULTS_FILE, CorruptResultsError, read_rows, scan_rows
 from mocapbench.io.safe_output import check_output, write_text
 
-__all__ = ["aggregate", "read_errors", "curve_points", "AggregateError"]
+__all__ = ["aggregate", "read_errors", "curve_points", "AggregateError", "CorruptResultsError"]
 
 
 class AggregateError(ValueError):
@@ -46,6 +49,8 @@ def aggregate(folders: Iterable[str | Path]) -> pd.DataFrame:
     ------
     AggregateError
         A folder does not exist or no folder holds a single row.
+    CorruptResultsError
+        A line of a ``results.jsonl`` does not parse (the message names the file and the line).
     """
     folders = list(folders)
     frames = []
@@ -71,7 +76,7 @@ def read_errors(folders: Iterable[str | Path]) -> pd.DataFrame:
     """Every ``errors.jsonl`` record below ``folders`` (empty DataFrame if there is none)."""
     records = []
     for path in _result_files(folders, ERRORS_FILE):
-        for record in read_rows(path):
+        for record in scan_rows(path)[0]:  # an error log's torn last line does not hide the other errors
             record["job_dir"] = str(path.parent)
             records.append(record)
     return pd.DataFrame(records)
@@ -133,7 +138,11 @@ def _main(argv: list[str] | None = None) -> None:
             check_output(args.csv, force=args.force)
         except OSError as error:
             parser.error(str(error))
-    data = aggregate(args.folders)
+    try:
+        data = aggregate(args.folders)
+    except (AggregateError, CorruptResultsError) as error:
+        print(f"aggregate: {error}", file=sys.stderr)
+        raise SystemExit(2) from None
     if args.csv:
         write_text(args.csv, data.to_csv(index=False), force=args.force)
     points = curve_points(data)

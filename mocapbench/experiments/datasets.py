@@ -13,20 +13,64 @@ A dataset config is a plain mapping with a ``kind``:
     is read on the folder's ASF; ``length_unit_cm``, ``drop_first_frame`` and ``fps`` are passed on); ``train``
     another folder (``train: {path: ...}``) or ``null`` to fit learned codecs on the measured clips themselves
     (stated in the report as in-sample).
+``cmu_tree``
+    The whole CMU database as a user downloads it (``dataset=cmu_full``): every ``SS_TT.amc`` below ``path``, at
+    any depth, read on the ``SS.asf`` beside it (the layout of CMU's ``allasfamc.zip``, ``subjects/SS/``, and of
+    ``../shared/data/cmu``, ``asf_amc/SS/``), sorted by subject and trial number; ``format: bvh`` reads every
+    ``SS_TT.bvh`` instead (the cgspeed BVH release, CMU units, frame 0 dropped). ``clips`` keeps only the named
+    clips, ``exclude`` leaves the named clips out (``cmu_full`` leaves out ``cmu_train``, its training set).
 
-Loaded clips are cached per process, so the jobs of a sweep that a worker runs one after another parse them once.
+A job measures a shard, a list of clips (:mod:`mocapbench.experiments.shards`): :func:`catalogue` names every
+clip of a dataset with its frame count (read from ``manifest.csv``, a BVH header or estimated from the file size)
+without parsing any motion, and :func:`iter_clips` reads only the named clips, one at a time, so a job holds one
+clip in memory whatever the size of the dataset. :func:`load_clips` (every clip at once) is cached per process.
 """
 
 from __future__ import annotations
 
+import csv
 import json
+import re
+from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any, Iterator, Mapping, Sequence
 
 from mocapbench.motion import Motion
 
-__all__ = ["DatasetError", "load_clips", "load_training", "describe_dataset", "describe_training", "cmu_used"]
+__all__ = [
+    "DatasetError",
+    "ClipRef",
+    "catalogue",
+    "iter_clips",
+    "load_clips",
+    "load_training",
+    "training_spec",
+    "describe_dataset",
+    "describe_training",
+    "cmu_used",
+]
+
+# Bytes per frame of a CMU AMC file (31 joints; 799 on the 63 clips of ../shared/data/cmu) and of a CMU BVH file,
+# used to estimate the frames of a file without reading it (the estimate only balances shards).
+_AMC_BYTES_PER_FRAME = 800.0
+_BVH_BYTES_PER_FRAME = 760.0
+
+
+@dataclass(frozen=True)
+class ClipRef:
+    """One clip of a dataset, named without reading its motion.
+
+    Attributes
+    ----------
+    name : str
+        The clip's name, equal to the ``Motion.name`` its loader gives (the results rows' ``clip``).
+    frames : int
+        Its frame count, exact where the file says it cheaply, else estimated from the file size (for balancing).
+    """
+
+    name: str
+    frames: int
 
 
 class DatasetError(ValueError):
@@ -78,13 +122,18 @@ def load_clips(spec: Mapping[str, Any]) -> list[Motion]:
     return list(_load_cached(_key(spec)))
 
 
-def load_training(spec: Mapping[str, Any]) -> list[Motion]:
-    """The motions that codecs with learned state are fit on (``spec["train"]``; the clips themselves if null)."""
+def training_spec(spec: Mapping[str, Any]) -> dict[str, Any]:
+    """The dataset spec of the training set of ``spec`` (``spec`` itself, less its ``train``, if that is null)."""
     spec = _plain(spec)
     train = spec.get("train")
     if train is None:
-        return load_clips(spec)
-    return list(_load_cached(_key(_inherit(spec, train))))
+        return {**spec, "train": None}
+    return _inherit(spec, train)
+
+
+def load_training(spec: Mapping[str, Any]) -> list[Motion]:
+    """The motions that codecs with learned state are fit on (``spec["train"]``; the clips themselves if null)."""
+    return list(_load_cached(_key(training_spec(spec))))
 
 
 def describe_dataset(spec: Mapping[str, Any]) -> str:
@@ -107,7 +156,7 @@ def cmu_used(spec: Mapping[str, Any]) -> bool:
     kinds = {spec.get("kind")}
     if isinstance(spec.get("train"), Mapping):
         kinds.add(spec["train"].get("kind", spec.get("kind")))
-    return "cmu" in kinds
+    return bool(kinds & {"cmu", "cmu_tree"})
 
 
 def _inherit(parent: Mapping[str, Any], train: Any) -> dict[str, Any]:
@@ -131,6 +180,10 @@ def _describe(spec: Mapping[str, Any]) -> str:
         return f"CMU ASF/AMC {what}"
     if kind == "folder":
         return f"folder {spec.get('path')}"
+    if kind == "cmu_tree":
+        what = f"clips {','.join(str(c) for c in spec['clips'])}" if spec.get("clips") else "every clip"
+        less = f" except {len(spec['exclude'])} excluded" if spec.get("exclude") else ""
+        return f"CMU {str(spec.get('format', 'amc')).upper()} tree {spec.get('path')}: {what}{less}"
     return str(spec.get("name", kind))
 
 
@@ -145,11 +198,208 @@ def _load_cached(key: str) -> tuple[Motion, ...]:
         motions = _cmu(spec, where)
     elif kind == "folder":
         motions = _folder(spec, where)
+    elif kind == "cmu_tree":
+        motions = list(iter_clips(spec))
     else:
-        raise DatasetError(f"dataset {where}: `kind` must be one of ['synthetic', 'cmu', 'folder'], got {kind!r}.")
+        raise DatasetError(f"dataset {where}: `kind` must be one of {list(_KINDS)}, got {kind!r}.")
     if not motions:
         raise DatasetError(f"dataset {where}: no clips.")
     return tuple(motions)
+
+
+_KINDS = ("synthetic", "cmu", "folder", "cmu_tree")
+
+
+def catalogue(spec: Mapping[str, Any]) -> list[ClipRef]:
+    """Every clip of the dataset ``spec`` with its frame count, in :func:`load_clips` order, no motion parsed.
+
+    Raises
+    ------
+    DatasetError
+        Malformed config or an empty dataset.
+    mocapbench.datasets.cmu.DataNotFoundError
+        A CMU dataset whose data folder is missing.
+    """
+    spec = _plain(spec)
+    where = repr(spec.get("name", "?"))
+    kind = _require(spec, "kind", where)
+    if kind == "synthetic":
+        clips = _require(spec, "clips", where)
+        frames = int(clips.get("num_frames", 240))
+        refs = [ClipRef(f"synthetic-seed{int(seed)}", frames) for seed in _require(clips, "seeds", where + ".clips")]
+    elif kind == "cmu":
+        refs = [ClipRef(name, frames) for name, frames, _ in _cmu_files(spec, where)]
+    elif kind == "folder":
+        refs = [ClipRef(file.stem, _estimate_frames(file)) for file in _folder_files(spec, where)]
+    elif kind == "cmu_tree":
+        refs = [ClipRef(name, _estimate_frames(file)) for name, file, _ in _tree_files(spec, where)]
+    else:
+        raise DatasetError(f"dataset {where}: `kind` must be one of {list(_KINDS)}, got {kind!r}.")
+    if not refs:
+        raise DatasetError(f"dataset {where}: no clips.")
+    return refs
+
+
+def iter_clips(spec: Mapping[str, Any], names: Sequence[str] | None = None) -> Iterator[Motion]:
+    """The clips of ``spec`` named in ``names`` (default: every clip), read one at a time in dataset order.
+
+    Only the named files are parsed, and each ASF once; a caller that drops each motion after use holds one clip.
+
+    Raises
+    ------
+    DatasetError
+        A name that is not a clip of the dataset (the message lists a few that are).
+    """
+    spec = _plain(spec)
+    where = repr(spec.get("name", "?"))
+    kind = _require(spec, "kind", where)
+    wanted = None if names is None else list(names)
+    known = [ref.name for ref in catalogue(spec)]
+    if wanted is not None:
+        missing = sorted(set(wanted) - set(known))
+        if missing:
+            raise DatasetError(f"dataset {where}: no clip named {missing[:5]}; it has {known[:5]}... ({len(known)})")
+    keep = set(known if wanted is None else wanted)
+    if kind == "synthetic":
+        from mocapbench.synthetic import sinusoidal_motion
+
+        clips = spec["clips"]
+        extra = {key: value for key, value in clips.items() if key != "seeds"}
+        for seed in clips["seeds"]:
+            if f"synthetic-seed{int(seed)}" in keep:
+                yield sinusoidal_motion(seed=int(seed), **extra)
+        return
+    from mocapbench.datasets import cmu
+    from mocapbench.io.asf_amc import read_amc, read_asf
+    from mocapbench.io.bvh import read_bvh
+
+    asf_cache: dict[Path, Any] = {}
+
+    def amc(path: Path, asf_path: Path, name: str, fps: float) -> Motion:
+        if asf_path not in asf_cache:
+            asf_cache[asf_path] = read_asf(asf_path)
+        return read_amc(path, asf_cache[asf_path], name=name, fps=fps)
+
+    if kind == "cmu":
+        for name, _, (path, asf_path) in _cmu_files(spec, where):
+            if name in keep:
+                yield (amc(path, asf_path, name, 120.0) if asf_path is not None else
+                       read_bvh(path, length_unit_cm=cmu.CMU_CM_PER_UNIT, drop_first_frame=True, name=name))
+    elif kind == "folder":
+        from mocapbench.io.asf_amc import find_asf
+
+        for file in _folder_files(spec, where):
+            if file.stem not in keep:
+                continue
+            if file.suffix.lower() == ".bvh":
+                yield read_bvh(file, length_unit_cm=float(spec.get("length_unit_cm", 1.0)),
+                               drop_first_frame=bool(spec.get("drop_first_frame", False)))
+            else:
+                yield amc(file, find_asf(file), file.stem, float(spec.get("fps", 120.0)))
+    elif kind == "cmu_tree":
+        for name, file, asf_path in _tree_files(spec, where):
+            if name not in keep:
+                continue
+            if asf_path is None:
+                yield read_bvh(file, length_unit_cm=cmu.CMU_CM_PER_UNIT, drop_first_frame=True, name=name)
+            else:
+                yield amc(file, asf_path, name, float(spec.get("fps", 120.0)))
+
+
+def _cmu_files(spec: Mapping[str, Any], where: str) -> list[tuple[str, int, tuple[Path, Path | None]]]:
+    """(name, frames, (motion file, ASF or None)) of every clip of a ``kind: cmu`` spec."""
+    from mocapbench.datasets import cmu
+
+    data_dir = cmu.cmu_data_dir(_resolve_data_dir(spec.get("data_dir")))
+    split, clips = spec.get("split"), spec.get("clips")
+    if (split is None) == (clips is None):
+        raise DatasetError(
+            f"dataset {where}: give exactly one of `split` or `clips`, got split={split!r}, clips={clips!r}."
+        )
+    fmt = str(spec.get("format", "amc"))
+    names = cmu.clip_names(str(split), data_dir=data_dir) if split is not None else [str(c) for c in clips]
+    counts = _manifest_frames(data_dir)
+    out = []
+    for name in names:
+        paths = cmu._clip_paths(name, fmt, data_dir)
+        key = str(paths[0].relative_to(data_dir))
+        out.append((name, counts.get(key) or _estimate_frames(paths[0]), paths))
+    return out
+
+
+@lru_cache(maxsize=4)
+def _manifest_frames(data_dir: Path) -> dict[str, int]:
+    """``file -> frames`` of the data folder's ``manifest.csv`` (empty if it has none)."""
+    manifest = Path(data_dir) / "manifest.csv"
+    if not manifest.is_file():
+        return {}
+    with open(manifest, newline="", encoding="utf-8") as handle:
+        return {row["file"]: int(row["frames"]) for row in csv.DictReader(handle) if row.get("frames")}
+
+
+def _folder_files(spec: Mapping[str, Any], where: str) -> list[Path]:
+    from mocapbench.datasets.cmu import DataNotFoundError
+
+    folder = Path(str(_require(spec, "path", where))).expanduser()
+    if not folder.is_dir():
+        raise DataNotFoundError(f"{folder} is not a folder.")
+    files = sorted(p for p in folder.iterdir() if p.suffix.lower() in (".bvh", ".amc") and p.is_file())
+    if not files:
+        raise DataNotFoundError(f"{folder} holds no .bvh or .amc file.")
+    return files
+
+
+_CMU_NAME = re.compile(r"^(\d+)_(\d+)$")
+
+
+def _tree_files(spec: Mapping[str, Any], where: str) -> list[tuple[str, Path, Path | None]]:
+    """(name, motion file, ASF or None) of every CMU clip below ``spec["path"]``, sorted by subject and trial."""
+    from mocapbench.datasets.cmu import DataNotFoundError
+
+    root = Path(str(_resolve_data_dir(_require(spec, "path", where)))).expanduser()
+    if not root.is_dir():
+        raise DataNotFoundError(
+            f"dataset {where}: {root} is not a folder; download the CMU database (README, 'Data') and set "
+            f"data_dir=... or dataset.path=..."
+        )
+    fmt = str(spec.get("format", "amc"))
+    if fmt not in ("amc", "bvh"):
+        raise DatasetError(f"dataset {where}: `format` must be 'amc' or 'bvh', got {fmt!r}.")
+    found: dict[str, tuple[Path, Path | None]] = {}
+    for file in root.rglob(f"*.{fmt}"):
+        match = _CMU_NAME.match(file.stem)
+        if not match or not file.is_file():
+            continue
+        name = file.stem
+        if name in found:
+            raise DatasetError(f"dataset {where}: clip {name} is in two places: {found[name][0]} and {file}.")
+        asf = None
+        if fmt == "amc":
+            asf = file.with_name(f"{match.group(1)}.asf")
+            if not asf.is_file():
+                raise DataNotFoundError(f"dataset {where}: {file} has no skeleton {asf.name} beside it.")
+        found[name] = (file, asf)
+    only = {str(c) for c in spec.get("clips") or []}
+    drop = {str(c) for c in spec.get("exclude") or []}
+    names = [n for n in found if (not only or n in only) and n not in drop]
+    if only - set(found):
+        raise DataNotFoundError(f"dataset {where}: clips {sorted(only - set(found))[:5]} are not below {root}.")
+    names.sort(key=lambda n: tuple(int(part) for part in n.split("_")))
+    if not names:
+        raise DataNotFoundError(f"dataset {where}: no SS_TT.{fmt} file below {root}.")
+    return [(n, *found[n]) for n in names]
+
+
+def _estimate_frames(path: Path) -> int:
+    """Frames of a motion file: a BVH's ``Frames:`` line (read from its first 64 KiB), else from its size."""
+    if path.suffix.lower() == ".bvh":
+        with open(path, "rb") as handle:
+            head = handle.read(65536)
+        match = re.search(rb"Frames:\s*(\d+)", head)
+        if match:
+            return int(match.group(1))
+        return max(1, round(path.stat().st_size / _BVH_BYTES_PER_FRAME))
+    return max(1, round(path.stat().st_size / _AMC_BYTES_PER_FRAME))
 
 
 def _synthetic(spec: Mapping[str, Any], where: str) -> list[Motion]:

@@ -49,16 +49,17 @@ def evaluate(codec: Codec, motion: Motion, *, reference_positions: np.ndarray | 
         ``joints``, ``fps``, ``height_cm``), rate (``raw_bytes``, ``bitstream_bytes``, ``model_bytes``,
         ``compression_ratio``, ``bits_per_joint_frame``), distortion (``max_err_cm``, ``max_err_percent_height``,
         ``mean_err_cm``, ``p99_err_cm``, ``kg_percent``, ``worst_joint``, ``worst_frame``), speed
-        (``encode_s``, ``decode_s``, ``encode_fps``, ``decode_fps``) and package versions. KG is NaN for a
+        (``encode_s``, ``decode_s`` wall; ``encode_cpu_s``, ``decode_cpu_s`` CPU of the process, which the cost
+        estimator of :mod:`mocapbench.experiments.cost` reads; ``encode_fps``, ``decode_fps``) and package versions. KG is NaN for a
         static clip, where it is undefined.
     """
     reference = motion.positions() if reference_positions is None else reference_positions
-    start = time.perf_counter()
+    start, cpu = time.perf_counter(), time.process_time()
     data = codec.encode(motion)
-    encode_s = time.perf_counter() - start
-    start = time.perf_counter()
+    encode_s, encode_cpu_s = time.perf_counter() - start, time.process_time() - cpu
+    start, cpu = time.perf_counter(), time.process_time()
     decoded = codec.decode(data)
-    decode_s = time.perf_counter() - start
+    decode_s, decode_cpu_s = time.perf_counter() - start, time.process_time() - cpu
     positions = decoded.positions
     frames, joints = motion.num_frames, motion.num_joints
     raw = metrics.raw_position_bytes(joints, frames)
@@ -92,6 +93,8 @@ def evaluate(codec: Codec, motion: Motion, *, reference_positions: np.ndarray | 
             "worst_frame": worst_frame,
             "encode_s": encode_s,
             "decode_s": decode_s,
+            "encode_cpu_s": encode_cpu_s,
+            "decode_cpu_s": decode_cpu_s,
             "encode_fps": frames / encode_s if encode_s > 0 else float("inf"),
             "decode_fps": frames / decode_s if decode_s > 0 else float("inf"),
         }

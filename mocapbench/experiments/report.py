@@ -355,8 +355,14 @@ def _main(argv: list[str] | None = None) -> None:
     parser.add_argument("--command", help="the command that produced the sweeps, quoted in the report")
     parser.add_argument("--quiet", action="store_true", help="print only the report path")
     args = parser.parse_args(argv)
-    folder = build_report(args.folders, name=args.name, reports_root=args.reports_root, anchor=args.anchor,
-                          command=args.command)
+    from mocapbench.experiments.results import CorruptResultsError
+
+    try:
+        folder = build_report(args.folders, name=args.name, reports_root=args.reports_root, anchor=args.anchor,
+                              command=args.command)
+    except CorruptResultsError as error:  # a dropped row would change the headline silently
+        print(f"report: {error}", file=sys.stderr)
+        raise SystemExit(2) from None
     if not args.quiet:
         print(markdown_table(headline_table(curve_points(aggregate(args.folders)))))
     print(f"report: {folder / 'index.html'}")

@@ -1,4 +1,4 @@
-"""Hydra entry point: one job = one codec config over one dataset, rows to ``results.jsonl`` in the job's folder.
+"""Hydra entry point: one job = one shard (a codec config over a list of clips), rows appended to ``results.jsonl``.
 
 Usage::
 
@@ -7,12 +7,16 @@ Usage::
     python -m mocapbench.experiments.run -m sweep=all dataset=cmu_test      # every codec's curve on CMU
     python -m mocapbench.experiments.run -m sweep=all hydra.sweep.dir=multirun/mine   # re-run resumes
 
-A job fits the codec on the dataset's training set (``fit``), then encodes and decodes every clip with
-:func:`mocapbench.experiments.evaluate.evaluate`. After each clip it rewrites ``results.jsonl`` atomically
-(temporary file + ``os.replace``), so a killed job loses at most the clip in progress; a re-run skips clips
-already in the file, and a finished job leaves ``job.json`` with ``"status": "done"`` so the sweeper does not
-launch it again. A clip that fails is logged (clip, codec, config, error) to the log and ``errors.jsonl``; the job
-goes on with the next clip and the sweep with the next job.
+A job measures shard ``shard.index`` of ``shard.count`` of its dataset (:mod:`mocapbench.experiments.shards`; the
+sweeper sizes shards to a CPU budget): it names the shard's clips from the dataset's catalogue, gives the codec its
+learned state (:mod:`mocapbench.experiments.fitted`: nothing, the shipped model, or the state fit once for the
+whole sweep), then reads, encodes and decodes one clip at a time with
+:func:`mocapbench.experiments.evaluate.evaluate`, appending each clip's row to ``results.jsonl``
+(:mod:`mocapbench.experiments.results`: one ``O_APPEND`` write per row, earlier rows never rewritten). A killed job
+loses at most the clip in progress; a re-run skips the clips already in the file (a line that does not parse is
+moved aside with the file and its clip runs again), and a finished job leaves ``job.json`` with
+``"status": "done"`` so the sweeper does not launch it again. A clip that fails is logged (clip, codec, config,
+error) to the log and ``errors.jsonl``; the job goes on with the next clip and the sweep with the next job.
 """
 
 from __future__ import annotations
@@ -32,57 +36,30 @@ import numpy as np
 from hydra.core.hydra_config import HydraConfig
 from omegaconf import DictConfig
 
-__all__ = ["main", "run_job", "read_rows", "write_rows_atomic", "RESULTS_FILE", "ERRORS_FILE", "EXAMPLE_FILE"]
+from mocapbench.experiments.results import (
+    ERRORS_FILE,
+    RESULTS_FILE,
+    CorruptResultsError,
+    append_row,
+    read_rows,
+    repair,
+    write_rows_atomic,
+)
+
+__all__ = [
+    "main",
+    "run_job",
+    "read_rows",
+    "write_rows_atomic",
+    "CorruptResultsError",
+    "RESULTS_FILE",
+    "ERRORS_FILE",
+    "EXAMPLE_FILE",
+]
 
 log = logging.getLogger(__name__)
 
-RESULTS_FILE = "results.jsonl"
-ERRORS_FILE = "errors.jsonl"
 EXAMPLE_FILE = "example.npz"
-
-
-def _builtin(value: Any) -> Any:
-    if isinstance(value, np.generic):
-        return value.item()
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    if isinstance(value, Path):
-        return str(value)
-    return str(value)
-
-
-def read_rows(path: Path) -> list[dict[str, Any]]:
-    """Rows of a ``results.jsonl`` (empty list if absent). A torn last line (impossible with atomic writes,
-    possible in a file edited by hand) is reported and dropped."""
-    if not path.exists():
-        return []
-    rows = []
-    for number, line in enumerate(path.read_text().splitlines(), 1):
-        if not line.strip():
-            continue
-        try:
-            rows.append(json.loads(line))
-        except json.JSONDecodeError as error:
-            log.error("%s:%d: unreadable results line dropped (%s)", path, number, error)
-    return rows
-
-
-def write_rows_atomic(path: Path, rows: list[dict[str, Any]]) -> None:
-    """Write ``rows`` as JSON lines to ``path`` through a temporary file and ``os.replace`` (atomic on POSIX)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
-    with open(tmp, "w") as handle:
-        for row in rows:
-            handle.write(json.dumps(row, default=_builtin) + "\n")
-        handle.flush()
-        os.fsync(handle.fileno())
-    os.replace(tmp, path)
-
-
-def _append_error(folder: Path, record: dict[str, Any]) -> None:
-    errors = read_rows(folder / ERRORS_FILE)
-    errors.append(record)
-    write_rows_atomic(folder / ERRORS_FILE, errors)
 
 
 def _set_threads(threads: int | None) -> None:
@@ -96,26 +73,31 @@ def _set_threads(threads: int | None) -> None:
     threadpool_limits(int(threads))
 
 
-def run_job(cfg: Any, output_dir: Path) -> dict[str, Any]:
-    """Run one benchmark job; every failure is caught, logged and recorded.
+def run_job(cfg: Any, output_dir: Path, fitted_dir: Path | None = None) -> dict[str, Any]:
+    """Run one benchmark job (a shard); every failure is caught, logged and recorded.
 
     Parameters
     ----------
     cfg : DictConfig
-        The composed ``benchmark`` config (``codec``, ``dataset``, ``threads_per_job``, ``save_example``).
+        The composed ``benchmark`` config (``codec``, ``dataset``, ``shard``, ``threads_per_job``,
+        ``save_example``).
     output_dir : Path
         The job's folder: ``results.jsonl``, ``errors.jsonl``, ``example.npz`` and ``job.json`` go there.
+    fitted_dir : Path, optional
+        Where the sweep keeps learned state shared by its jobs (``<sweep dir>/fitted``); default
+        ``<output_dir>/fitted``.
 
     Returns
     -------
     dict
-        The ``job.json`` record: ``status`` (``done`` or ``failed``), ``rows``, ``errors``, ``seconds``.
+        The ``job.json`` record: ``status`` (``done`` or ``failed``), ``rows``, ``errors``, ``seconds``,
+        ``clips`` (of the shard), ``shard`` (``index``, ``count``).
     """
     from hydra.utils import instantiate
     from omegaconf import OmegaConf
     from tqdm import tqdm
 
-    from mocapbench.experiments import datasets
+    from mocapbench.experiments import datasets, fitted, shards
     from mocapbench.experiments.evaluate import evaluate
     from mocapbench.experiments.sweeper import JOB_FILE
 
@@ -124,10 +106,16 @@ def run_job(cfg: Any, output_dir: Path) -> dict[str, Any]:
     output_dir.mkdir(parents=True, exist_ok=True)
     _set_threads(cfg.get("threads_per_job"))
     results_path = output_dir / RESULTS_FILE
-    rows = read_rows(results_path)
+    job_path = output_dir / JOB_FILE
+    if job_path.exists():
+        job_path.unlink()  # re-running: the job is unfinished until it says otherwise
+    rows = repair(results_path)
     done = {row.get("clip") for row in rows}
+    count = len(rows)
     codec_cfg = OmegaConf.to_container(cfg.codec, resolve=True)
     dataset_cfg = OmegaConf.to_container(cfg.dataset, resolve=True)
+    shard = OmegaConf.to_container(cfg.shard, resolve=True) if cfg.get("shard") is not None else {}
+    index, total = int(shard.get("index", 0)), int(shard.get("count", 1))
     context = {"codec": codec_cfg.get("name"), "config": {k: v for k, v in codec_cfg.items() if not k.startswith("_")}}
     errors = 0
 
@@ -138,44 +126,49 @@ def run_job(cfg: Any, output_dir: Path) -> dict[str, Any]:
                   "traceback": traceback.format_exc(limit=8)}
         log.error("job failed at %s: codec=%s clip=%s config=%s error=%s", stage, context["codec"], clip,
                   context["config"], record["error"])
-        _append_error(output_dir, record)
+        append_row(output_dir / ERRORS_FILE, record)
 
-    status = "failed"
+    status, clips = "failed", []
     try:
-        motions = datasets.load_clips(dataset_cfg)
-        todo = [motion for motion in motions if motion.name not in done]
+        clips = [ref.name for ref in shards.shard_clips(datasets.catalogue(dataset_cfg), index, total)]
+        todo = [name for name in clips if name not in done]
         if todo:
             codec = instantiate(cfg.codec)
-            fit_start = time.perf_counter()
-            codec.fit(datasets.load_training(dataset_cfg))
-            fit_s = time.perf_counter() - fit_start
+            fit = fitted.prepare(codec, dataset_cfg, fitted_dir or output_dir / fitted.FITTED_DIR)
             extra = {
                 "dataset": dataset_cfg.get("name"),
                 "dataset_desc": datasets.describe_dataset(dataset_cfg),
                 "train_set": datasets.describe_training(dataset_cfg),
                 "cmu_data": datasets.cmu_used(dataset_cfg),
-                "fit_s": fit_s,
+                **fit,
                 "job_dir": str(output_dir),
+                "shard_index": index,
+                "shard_count": total,
             }
-            example = cfg.get("save_example", True) and not (output_dir / EXAMPLE_FILE).exists()
-            for motion in tqdm(todo, desc=f"{codec.name} clips", unit="clip", leave=False, disable=None):
+            example = cfg.get("save_example", True) and index == 0 and not (output_dir / EXAMPLE_FILE).exists()
+            motions = datasets.iter_clips(dataset_cfg, todo)
+            for motion in tqdm(motions, total=len(todo), desc=f"{codec.name} clips", unit="clip", leave=False,
+                               disable=None):
                 try:
                     reference = motion.positions()
                     row = evaluate(codec, motion, reference_positions=reference)
-                    if example and motion is motions[0]:
+                    if example and motion.name == clips[0]:
                         _save_example(output_dir, codec, motion, reference)
                 except Exception as error:  # noqa: BLE001 - every failure is recorded and the job goes on
                     fail("evaluate", error, motion.name)
                     continue
                 row.update(extra)
-                row["row_index"] = len(rows)
-                rows.append(row)
-                write_rows_atomic(results_path, rows)
+                row["row_index"] = count
+                append_row(results_path, row)
+                count += 1
         status = "done" if errors == 0 else "failed"
     except Exception as error:  # noqa: BLE001
         fail("setup", error)
-    record = {"status": status, "rows": len(rows), "errors": errors, "seconds": time.perf_counter() - start}
-    (output_dir / JOB_FILE).write_text(json.dumps(record))
+    record = {"status": status, "rows": count, "errors": errors, "seconds": time.perf_counter() - start,
+              "clips": len(clips), "shard": {"index": index, "count": total}}
+    tmp = job_path.with_name(f".{JOB_FILE}.tmp-{os.getpid()}")
+    tmp.write_text(json.dumps(record))
+    os.replace(tmp, job_path)
     return record
 
 
@@ -214,8 +207,18 @@ def _ensure_sweeper_plugin() -> None:
 
 @hydra.main(version_base="1.3", config_path="pkg://mocapbench.configs", config_name="benchmark")
 def main(cfg: DictConfig) -> float:
-    """The Hydra task: one job in ``HydraConfig.get().runtime.output_dir``; returns its rows (NaN if it failed)."""
-    record = run_job(cfg, Path(HydraConfig.get().runtime.output_dir))
+    """The Hydra task: one job in ``HydraConfig.get().runtime.output_dir``; returns its rows (NaN if it failed).
+
+    Learned state is shared through ``<sweep dir>/fitted`` in a multirun, ``<job dir>/fitted`` in a single run.
+    """
+    from hydra.types import RunMode
+
+    from mocapbench.experiments.fitted import FITTED_DIR
+
+    hydra_cfg = HydraConfig.get()
+    output_dir = Path(hydra_cfg.runtime.output_dir)
+    shared = Path(hydra_cfg.sweep.dir) if hydra_cfg.mode == RunMode.MULTIRUN else output_dir
+    record = run_job(cfg, output_dir, shared / FITTED_DIR)
     return math.nan if record["status"] != "done" else float(record["rows"])
 
 

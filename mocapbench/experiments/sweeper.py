@@ -8,8 +8,14 @@ command-line overrides (``dataset=cmu_test``, or a sweep like ``dataset=cmu_test
 
 Each job writes into ``<sweep dir>/<codec>/<its varying overrides>`` instead of ``<sweep dir>/<job number>``,
 so a sweep that is killed and re-run with the same ``hydra.sweep.dir`` finds the folders of the jobs that
-finished (``job.json`` with ``"status": "done"``) and does not launch them again; a half-finished job resumes
-clip by clip (:mod:`mocapbench.experiments.run`).
+finished (``job.json`` with ``"status": "done"`` and a ``results.jsonl`` whose every line parses) and does not
+launch them again; a half-finished job resumes clip by clip (:mod:`mocapbench.experiments.run`).
+
+A job is a shard (:mod:`mocapbench.experiments.shards`): each codec config's clips are cut into the fewest shards
+whose estimated CPU time stays under ``shard.max_cpu_s`` (per-frame costs from
+:mod:`mocapbench.experiments.cost`), each in ``<config folder>/shard-<i>-of-<n>`` (the config folder itself when
+one shard is enough). The number of shards of each config is kept in ``<sweep dir>/shards.json`` and reused on
+resume, so a re-run finds the same folders whatever the cost file says by then.
 
 Selected with ``override hydra/sweeper: mocapbench`` in ``configs/benchmark.yaml``.
 """
@@ -32,11 +38,12 @@ from hydra.plugins.sweeper import Sweeper
 from hydra.types import RunMode
 from omegaconf import OmegaConf
 
-__all__ = ["RdSweeper", "job_folder", "is_job_done", "JOB_FILE"]
+__all__ = ["RdSweeper", "job_folder", "is_job_done", "JOB_FILE", "SHARDS_FILE"]
 
 log = logging.getLogger(__name__)
 
 JOB_FILE = "job.json"
+SHARDS_FILE = "shards.json"
 _MAX_SLUG = 100
 
 
@@ -54,11 +61,17 @@ def job_folder(codec: str, varying: Sequence[str]) -> str:
 
 
 def is_job_done(folder: Path) -> bool:
-    """Whether the job folder holds a finished job (``job.json`` says done)."""
+    """Whether the job folder holds a finished job: ``job.json`` says done and every results line parses."""
+    from mocapbench.experiments.results import RESULTS_FILE, is_intact
+
     try:
-        return json.loads((folder / JOB_FILE).read_text()).get("status") == "done"
+        done = json.loads((folder / JOB_FILE).read_text()).get("status") == "done"
     except (OSError, ValueError):
         return False
+    if done and not is_intact(folder / RESULTS_FILE):
+        log.warning("%s: %s has a line that does not parse: the job runs again", folder, RESULTS_FILE)
+        return False
+    return done
 
 
 def _evenly(items: list[Any], count: int | None) -> list[Any]:
@@ -221,13 +234,64 @@ class RdSweeper(Sweeper):
                 jobs.append((job_folder(name, [*point, *extra]), [selector, *fixed, *point, *extra]))
         return jobs
 
+    # -- shards ----------------------------------------------------------------------------------------
+    _DATASET_KEYS = ("dataset", "data_dir", "shard")
+
+    def _job_config(self, overrides: Sequence[str]) -> Any:
+        """The composed config of a job, from its dataset and shard overrides only (what sizing needs)."""
+        keep = [o for o in overrides
+                if o.split("=", 1)[0].lstrip("+~").split(".", 1)[0] in self._DATASET_KEYS]
+        return self.hydra_context.config_loader.load_configuration(
+            config_name=self.config.hydra.job.config_name, overrides=keep, run_mode=RunMode.MULTIRUN
+        )
+
+    def shard_jobs(self, sweep_dir: Path, jobs: list[tuple[str, list[str]]]) -> list[tuple[str, list[str]]]:
+        """Cut every job into shards (see the module docstring); ``shards.json`` keeps each config's count."""
+        from mocapbench.experiments import cost, datasets, shards
+
+        plan_path = sweep_dir / SHARDS_FILE
+        plan: dict[str, int] = json.loads(plan_path.read_text()) if plan_path.exists() else {}
+        costs = cost.load_costs()
+        catalogues: dict[tuple[str, ...], Any] = {}
+        out: list[tuple[str, list[str]]] = []
+        for folder, overrides in jobs:
+            if folder not in plan:
+                fixed = [o for o in overrides if o.split("=", 1)[0] == "shard.count"]
+                key = tuple(o for o in overrides if o.split("=", 1)[0].split(".", 1)[0] in self._DATASET_KEYS)
+                if key not in catalogues:
+                    cfg = self._job_config(overrides)
+                    spec = OmegaConf.to_container(cfg.dataset, resolve=True)
+                    try:
+                        refs = datasets.catalogue(spec)
+                    except Exception as error:  # noqa: BLE001 - the job itself reports a bad dataset
+                        log.warning("dataset of %s: %s (one shard; the job will say why)", folder, error)
+                        refs = []
+                    catalogues[key] = (refs, cfg.shard)
+                refs, shard_cfg = catalogues[key]
+                if fixed:
+                    plan[folder] = int(shard_cfg.count)
+                else:
+                    per_frame, per_clip = cost.cpu_cost(costs, folder)
+                    plan[folder] = shards.shard_count([r.frames for r in refs], per_frame, shard_cfg.max_cpu_s,
+                                                      per_clip)
+            count = plan[folder]
+            if count == 1:
+                out.append((folder, [o for o in overrides if not o.startswith("shard.count=")]))
+                continue
+            base = [o for o in overrides if o.split("=", 1)[0] not in ("shard.index", "shard.count")]
+            for index in range(count):
+                out.append((shards.shard_folder(folder, index, count),
+                            [*base, f"shard.index={index}", f"shard.count={count}"]))
+        plan_path.write_text(json.dumps(plan, indent=1, sort_keys=True))
+        return out
+
     # -- running ---------------------------------------------------------------------------------------
     def sweep(self, arguments: list[str]) -> Any:
         assert self.config is not None and self.launcher is not None and self.hydra_context is not None
         sweep_dir = Path(self.config.hydra.sweep.dir)
         sweep_dir.mkdir(parents=True, exist_ok=True)
         OmegaConf.save(self.config, sweep_dir / "multirun.yaml")
-        jobs = self.build_jobs(arguments)
+        jobs = self.shard_jobs(sweep_dir, self.build_jobs(arguments))
         seen: OrderedDict[str, list[str]] = OrderedDict()
         for folder, overrides in jobs:
             if folder in seen:

@@ -68,16 +68,20 @@ def test_slurm_launcher_composes(compose_benchmark):
     launcher = cfg.hydra.launcher
     assert launcher._target_ == "hydra_plugins.hydra_submitit_launcher.submitit_launcher.SlurmLauncher"
     assert launcher.partition == "cpu"
-    assert launcher.cpus_per_task == 2 and launcher.timeout_min > 0
+    # One job = one process with threads_per_job BLAS/torch threads: one CPU per thread, none idle.
+    assert launcher.cpus_per_task == cfg.threads_per_job == 1 and launcher.timeout_min > 0
+    assert any("OMP_NUM_THREADS=1" in line for line in launcher.setup)
+    # A shard's CPU budget fits the time limit with room for a slower node.
+    assert cfg.shard.max_cpu_s * 2 <= launcher.timeout_min * 60
     module, cls = launcher._target_.rsplit(".", 1)
     assert getattr(importlib.import_module(module), cls)
 
 
-@pytest.mark.parametrize("dataset", ["synthetic", "cmu_train", "cmu_test", "cmu_all", "cmu_09_06", "folder"])
+@pytest.mark.parametrize("dataset", ["synthetic", "cmu_train", "cmu_test", "cmu_all", "cmu_09_06", "cmu_full", "folder"])
 def test_dataset_configs_compose(compose_benchmark, dataset):
     cfg = compose_benchmark([f"dataset={dataset}"])
     assert cfg.dataset.name == dataset
-    assert cfg.dataset.kind in ("synthetic", "cmu", "folder")
+    assert cfg.dataset.kind in ("synthetic", "cmu", "folder", "cmu_tree")
     if cfg.dataset.kind == "cmu":
         assert cfg.dataset.data_dir == "../shared/data/cmu"
         assert compose_benchmark([f"dataset={dataset}", "data_dir=/elsewhere"]).dataset.data_dir == "/elsewhere"

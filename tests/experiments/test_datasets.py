@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import shutil
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -65,3 +68,57 @@ def test_the_make_run_cmu_clip_loads_from_amc(cmu_full_dir):
     (clip,) = datasets.load_clips(spec)
     assert clip.name == "09_06" and clip.num_frames == 141 and clip.num_joints == 31
     assert [m.name for m in datasets.load_training(spec)] == ["124_01"]
+
+
+def _cmu_tree(root):
+    """A CMU download in miniature: subjects/SS/SS.asf + SS_TT.amc (the chain fixture), two subjects."""
+    fixtures = Path(__file__).resolve().parents[1] / "fixtures"
+    for subject, trials in (("7", ("07_02", "07_10")), ("12", ("12_01",))):
+        folder = root / "subjects" / subject.zfill(2)
+        folder.mkdir(parents=True)
+        shutil.copy(fixtures / "chain.asf", folder / f"{subject.zfill(2)}.asf")
+        for trial in trials:
+            shutil.copy(fixtures / "chain.amc", folder / f"{trial}.amc")
+    (root / "subjects" / "07" / "notes.amc").write_text("not a clip name: ignored")
+    return root
+
+
+def test_a_cmu_tree_is_catalogued_without_parsing_and_read_clip_by_clip(tmp_path):
+    root = _cmu_tree(tmp_path / "all_asfamc")
+    spec = {"name": "cmu_full", "kind": "cmu_tree", "path": str(root), "exclude": ["07_10"],
+            "train": {"kind": "cmu_tree", "path": str(root), "clips": ["07_10"]}}
+    refs = datasets.catalogue(spec)
+    assert [r.name for r in refs] == ["07_02", "12_01"] and all(r.frames >= 1 for r in refs)
+    (clip,) = datasets.iter_clips(spec, ["12_01"])
+    assert clip.name == "12_01" and clip.num_frames > 0
+    assert [m.name for m in datasets.load_training(spec)] == ["07_10"]
+    assert datasets.cmu_used(spec) and "except 1 excluded" in datasets.describe_dataset(spec)
+    with pytest.raises(datasets.DatasetError, match="no clip named"):
+        list(datasets.iter_clips(spec, ["99_99"]))
+    (root / "subjects" / "12" / "12.asf").unlink()
+    with pytest.raises(DataNotFoundError, match="12_01.amc has no skeleton 12.asf"):
+        datasets.catalogue(spec)
+    with pytest.raises(DataNotFoundError, match="is not a folder"):
+        datasets.catalogue({**spec, "path": str(tmp_path / "missing")})
+
+
+def test_catalogue_names_match_the_loaded_clips():
+    refs = datasets.catalogue(SYNTHETIC)
+    assert [r.name for r in refs] == [m.name for m in datasets.load_clips(SYNTHETIC)]
+    assert [r.frames for r in refs] == [30, 30]
+
+
+@pytest.mark.cmu
+def test_cmu_full_reads_the_database_folder(compose_benchmark):
+    """``dataset=cmu_full`` on the 63-clip folder: 58 clips (cmu_train left out), frames as in the manifest."""
+    from omegaconf import OmegaConf
+
+    cfg = compose_benchmark(["dataset=cmu_full", f"data_dir={cmu_data_dir()}"])
+    spec = OmegaConf.to_container(cfg.dataset, resolve=True)
+    refs = datasets.catalogue(spec)
+    assert len(refs) == 58 and "13_17" not in {r.name for r in refs}
+    assert 0.95 < sum(r.frames for r in refs) / (44_779 - 13_063 - 63) < 1.05  # estimated from file sizes
+    clips = list(datasets.iter_clips(spec, [refs[0].name, refs[-1].name]))
+    assert [c.num_joints for c in clips] == [31, 31]
+    assert sorted(m.name for m in datasets.load_training(spec)) == sorted(
+        ["13_17", "13_18", "124_01", "124_02", "135_06"])

@@ -1,0 +1,406 @@
+"""What a sweep costs before it runs: CPU time, wall time on W workers and peak memory per worker.
+
+    python -m mocapbench.experiments.cost --frames 4200000 --clips 2548 --workers 64          # full CMU, sweep=all
+    python -m mocapbench.experiments.cost --dataset cmu_full data_dir=/data/cmu --workers 8   # a folder you have
+    python -m mocapbench.experiments.cost --sweep small --dataset cmu_test --workers 2
+    python -m mocapbench.experiments.cost --calibrate          # measure the per-frame costs on this machine
+
+The estimate multiplies measured per-frame costs by the dataset's frames. Costs live in
+``mocapbench/configs/costs.json`` (written by ``--calibrate``, which runs the sweep on two synthetic clips of
+``--calibration-frames`` frames and reads every row's ``encode_cpu_s + decode_cpu_s``, plus the job's overhead per
+clip (reading, positions, metrics) and a per-frame memory measurement of each codec at 4,000 frames). Each codec
+config's clips are cut into shards the way the sweeper cuts them (:mod:`mocapbench.experiments.shards`), and the
+shards are scheduled on ``--workers`` workers, longest first, for the wall time. The peak memory of a worker is the
+process's resident baseline plus the longest clip's motion and the codec's measured peak per frame times the longest
+clip (a job holds one clip at a time).
+
+``--layout config`` estimates the layout before shards (one job per codec config over the whole dataset, every job
+holding the whole dataset, its results file rewritten after every clip, ``mcb-linf`` refit in every job) from the
+same measured costs plus the measured constants of that layout (``old_layout`` in the costs file), for comparison.
+Estimates are for the machine the costs were measured on; per-frame costs of the neural Fourier codecs depend on
+the clip length (they train a network per clip), so their figure is the least certain.
+"""
+
+from __future__ import annotations
+
+import argparse
+import heapq
+import json
+import math
+import os
+import platform
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import dataclass
+from importlib import resources
+from pathlib import Path
+from typing import Any, Sequence
+
+__all__ = ["COSTS_FILE", "load_costs", "cpu_cost", "Estimate", "estimate", "main"]
+
+COSTS_FILE = "configs/costs.json"
+# Used for a codec the costs file does not know (a codec added after the last calibration): 1 ms per frame.
+_UNKNOWN_CPU_S_PER_FRAME = 1e-3
+_UNKNOWN_PEAK_BYTES_PER_FRAME = 20_000.0
+
+
+def load_costs(path: str | Path | None = None) -> dict[str, Any]:
+    """The costs file (``path``, default the package's ``configs/costs.json``); ``{}`` if there is none."""
+    try:
+        if path is None:
+            text = resources.files("mocapbench").joinpath(COSTS_FILE).read_text()
+        else:
+            text = Path(path).read_text()
+    except (FileNotFoundError, OSError):
+        return {}
+    return json.loads(text)
+
+
+def cpu_cost(costs: dict[str, Any], folder: str) -> tuple[float, float]:
+    """``(CPU s per frame, CPU s per clip)`` of the job folder ``<codec>/<overrides>``.
+
+    The config's own measurement if the costs file has it, else the most expensive config of the same codec, else
+    1 ms per frame.
+    """
+    configs = costs.get("configs", {})
+    if folder in configs:
+        entry = configs[folder]
+        return float(entry["cpu_s_per_frame"]), float(entry.get("cpu_s_per_clip", 0.0))
+    codec = folder.split("/", 1)[0]
+    same = [entry for key, entry in configs.items() if key.split("/", 1)[0] == codec]
+    if same:
+        worst = max(same, key=lambda entry: entry["cpu_s_per_frame"])
+        return float(worst["cpu_s_per_frame"]), float(worst.get("cpu_s_per_clip", 0.0))
+    return _UNKNOWN_CPU_S_PER_FRAME, 0.0
+
+
+def _peak_bytes_per_frame(costs: dict[str, Any], codec: str) -> float:
+    return float(costs.get("memory", {}).get(codec, {}).get("peak_bytes_per_frame", _UNKNOWN_PEAK_BYTES_PER_FRAME))
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """The cost of one sweep on one dataset.
+
+    Attributes
+    ----------
+    rows : list of dict
+        Per codec: ``codec``, ``configs``, ``jobs``, ``cpu_h``, ``longest_job_h``, ``peak_gb``.
+    cpu_h : float
+        Total CPU hours.
+    wall_h : float
+        Wall hours on the given workers (longest-first schedule of the jobs).
+    peak_gb : float
+        The largest peak memory of one worker, GB.
+    jobs : int
+    """
+
+    rows: list[dict[str, Any]]
+    cpu_h: float
+    wall_h: float
+    peak_gb: float
+    jobs: int
+
+
+def _makespan(durations: Sequence[float], workers: int) -> float:
+    """Longest-processing-time-first schedule of ``durations`` on ``workers`` machines: the finish time."""
+    loads = [0.0] * max(1, workers)
+    heapq.heapify(loads)
+    for duration in sorted(durations, reverse=True):
+        heapq.heappush(loads, heapq.heappop(loads) + duration)
+    return max(loads)
+
+
+def estimate(costs: dict[str, Any], folders: Sequence[str], frames: Sequence[int], workers: int,
+             max_cpu_s: float | None = 1800.0, layout: str = "shards") -> Estimate:
+    """Estimate a sweep of the job folders ``folders`` (``<codec>/<overrides>``) over clips of ``frames`` frames.
+
+    Parameters
+    ----------
+    costs : dict
+        :func:`load_costs`.
+    folders : sequence of str
+        One per codec config (as in ``jobs.json`` of a dry run).
+    frames : sequence of int
+        Frames of every clip of the dataset, in order.
+    workers : int
+        Jobs that run at once (SLURM array parallelism, or ``n_jobs`` of the local launcher).
+    max_cpu_s : float or None
+        The shard budget (``shard.max_cpu_s``).
+    layout : {"shards", "config"}
+        ``config``: one job per codec config over every clip, as before shards (see the module docstring).
+    """
+    from mocapbench.experiments.shards import shard_count, split
+
+    old = costs.get("old_layout", {})
+    overhead = costs.get("job", {})
+    per_clip_job = float(overhead.get("cpu_s_per_clip", 0.0))
+    per_frame_job = float(overhead.get("cpu_s_per_frame", 0.0))
+    baseline = float(overhead.get("baseline_rss_bytes", 300e6))
+    motion_bytes = float(overhead.get("motion_bytes_per_frame", 1736.0))
+    longest = max(frames) if frames else 0
+    total_frames = sum(frames)
+    by_codec: dict[str, dict[str, Any]] = {}
+    durations: list[float] = []
+    for folder in folders:
+        codec = folder.split("/", 1)[0]
+        per_frame, per_clip = cpu_cost(costs, folder)
+        per_frame += per_frame_job
+        per_clip += per_clip_job
+        cost = [per_frame * f + per_clip for f in frames]
+        peak = baseline + (motion_bytes + _peak_bytes_per_frame(costs, codec)) * longest
+        if layout == "config":
+            clips = len(frames)
+            extra = float(old.get("rewrite_s_per_clip_squared", 0.0)) * clips * clips
+            if codec == "mcb-linf":
+                extra += float(old.get("mcb_linf_fit_cpu_s", 0.0))
+            jobs = [sum(cost) + extra]
+            peak = baseline + float(old.get("resident_bytes_per_frame", motion_bytes)) * total_frames + \
+                _peak_bytes_per_frame(costs, codec) * longest
+        else:
+            count = shard_count(frames, per_frame, max_cpu_s, per_clip)
+            jobs = [sum(cost[i] for i in r) for r in split(frames, count)]
+        durations.extend(jobs)
+        row = by_codec.setdefault(codec, {"codec": codec, "configs": 0, "jobs": 0, "cpu_h": 0.0,
+                                          "longest_job_h": 0.0, "peak_gb": 0.0})
+        row["configs"] += 1
+        row["jobs"] += len(jobs)
+        row["cpu_h"] += sum(jobs) / 3600
+        row["longest_job_h"] = max(row["longest_job_h"], max(jobs) / 3600)
+        row["peak_gb"] = max(row["peak_gb"], peak / 1e9)
+    rows = sorted(by_codec.values(), key=lambda r: -r["cpu_h"])
+    cpu_h = sum(r["cpu_h"] for r in rows)
+    return Estimate(rows, cpu_h, _makespan(durations, workers) / 3600, max((r["peak_gb"] for r in rows), default=0.0),
+                    len(durations))
+
+
+# -- the configs of a sweep -------------------------------------------------------------------------------
+def sweep_folders(sweep: str, overrides: Sequence[str] = ()) -> list[str]:
+    """The job folders (one per codec config, unsharded) of ``sweep=<sweep>``, from a dry run of the sweeper."""
+    with tempfile.TemporaryDirectory() as folder:
+        command = [sys.executable, "-m", "mocapbench.experiments.run", "-m", f"sweep={sweep}", *overrides,
+                   "hydra.sweeper.dry_run=true", "shard.max_cpu_s=null", f"hydra.sweep.dir={folder}"]
+        done = subprocess.run(command, capture_output=True, text=True)
+        if done.returncode != 0:
+            raise RuntimeError(f"dry run of sweep={sweep} failed: {done.stderr.strip().splitlines()[-1:]}")
+        return [job["folder"] for job in json.loads((Path(folder) / "jobs.json").read_text())]
+
+
+# -- calibration ----------------------------------------------------------------------------------------
+_MEMORY_CHILD = r"""
+import ctypes, gc, json, sys
+from mocapbench.codecs import create
+from mocapbench.synthetic import sinusoidal_motion
+
+def status(key):
+    with open("/proc/self/status") as handle:
+        for line in handle:
+            if line.startswith(key):
+                return int(line.split()[1]) * 1024
+
+frames = int(sys.argv[2])
+motion = sinusoidal_motion(num_frames=frames, seed=5)
+codec = create(sys.argv[1])
+codec.decode(codec.encode(motion.slice(0, 64)))
+gc.collect(); ctypes.CDLL("libc.so.6").malloc_trim(0)
+open("/proc/self/clear_refs", "w").write("5")
+base = status("VmRSS")
+positions = motion.positions()
+codec.decode(codec.encode(motion))
+print(json.dumps({"peak_bytes_per_frame": (status("VmHWM") - base) / frames, "baseline_rss_bytes": base}))
+"""
+
+
+def _measure_memory(codec: str, frames: int) -> dict[str, float] | None:
+    try:
+        done = subprocess.run([sys.executable, "-c", _MEMORY_CHILD, codec, str(frames)], capture_output=True,
+                              text=True, timeout=600, env=dict(os.environ, OMP_NUM_THREADS="1"))
+    except subprocess.TimeoutExpired:
+        return None
+    lines = done.stdout.strip().splitlines()
+    return json.loads(lines[-1]) if done.returncode == 0 and lines else None
+
+
+def calibrate(sweep: str = "all", clip_frames: int = 300, memory_frames: int = 4000,
+              out: Path | None = None, workers: int = 2) -> dict[str, Any]:
+    """Run ``sweep`` on two synthetic clips of ``clip_frames`` frames and measure each config's CPU per frame.
+
+    Writes the costs file (``out``, default the package's ``configs/costs.json``) and returns its content.
+    """
+    from mocapbench.experiments.aggregate import aggregate
+
+    start = time.time()
+    with tempfile.TemporaryDirectory() as folder:
+        command = [sys.executable, "-m", "mocapbench.experiments.run", "-m", f"sweep={sweep}",
+                   "dataset=synthetic", "dataset.clips.seeds=[1,2]", f"dataset.clips.num_frames={clip_frames}",
+                   f"dataset.train.clips.num_frames={clip_frames}", "save_example=false", "shard.max_cpu_s=null",
+                   f"hydra.launcher.n_jobs={workers}", f"hydra.sweep.dir={folder}"]
+        subprocess.run(command, check=True, capture_output=True)
+        data = aggregate([folder])
+        jobs = {}
+        for job in Path(folder).rglob("job.json"):
+            jobs[str(job.parent.relative_to(folder))] = json.loads(job.read_text())
+    configs: dict[str, Any] = {}
+    data["folder"] = [str(Path(d).relative_to(Path(d).parents[1])) for d in data["job_dir"]]
+    overhead_per_clip = []
+    for folder_name, group in data.groupby("folder"):
+        cpu = float((group["encode_cpu_s"] + group["decode_cpu_s"]).sum())
+        frames = int(group["frames"].sum())
+        configs[folder_name] = {"codec": str(group["codec"].iloc[0]), "cpu_s_per_frame": cpu / frames,
+                                "cpu_s_per_clip": 0.0, "frames_measured": frames}
+        job = jobs.get(folder_name)
+        if job:
+            wall_clips = float((group["encode_s"] + group["decode_s"]).sum()) + float(group["fit_s"].iloc[0])
+            overhead_per_clip.append(max(0.0, (job["seconds"] - wall_clips) / len(group)))
+    memory = {}
+    baselines = []
+    for codec in sorted({entry["codec"] for entry in configs.values()}):
+        measured = _measure_memory(codec, memory_frames)
+        if measured:
+            memory[codec] = {"peak_bytes_per_frame": measured["peak_bytes_per_frame"], "frames": memory_frames}
+            baselines.append(measured["baseline_rss_bytes"])
+    overhead_per_clip.sort()
+    costs = {
+        "measured": time.strftime("%Y-%m-%d"),
+        "machine": f"{platform.machine()}, {os.cpu_count()} CPUs, {platform.python_version()}",
+        "command": f"python -m mocapbench.experiments.cost --calibrate --sweep {sweep} "
+                   f"--calibration-frames {clip_frames}",
+        "calibration_s": round(time.time() - start, 1),
+        "clip_frames": clip_frames,
+        "configs": configs,
+        "memory": memory,
+        "job": {
+            # Reading a clip, its reference positions and the metrics, per clip (median over the jobs).
+            "cpu_s_per_clip": overhead_per_clip[len(overhead_per_clip) // 2] if overhead_per_clip else 0.0,
+            "cpu_s_per_frame": _parse_cost_per_frame(),
+            "baseline_rss_bytes": max(baselines) if baselines else 300e6,
+            "motion_bytes_per_frame": 31 * (4 + 3 + 3) * 8.0,
+        },
+        "old_layout": _old_layout_constants(),
+    }
+    target = out or Path(__file__).resolve().parents[1] / COSTS_FILE
+    Path(target).write_text(json.dumps(costs, indent=1, sort_keys=True) + "\n")
+    return costs
+
+
+def _parse_cost_per_frame() -> float:
+    """CPU s per frame to read a clip: a BVH of a 2,000-frame synthetic motion written and read back."""
+    from mocapbench.io.bvh import read_bvh, write_bvh
+    from mocapbench.synthetic import sinusoidal_motion
+
+    motion = sinusoidal_motion(num_frames=2000, seed=3)
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / "clip.bvh"
+        write_bvh(path, motion)
+        cpu = time.process_time()
+        read_bvh(path)
+        return (time.process_time() - cpu) / 2000
+
+
+def _old_layout_constants() -> dict[str, float]:
+    """Measured constants of the layout before shards, for ``--layout config``.
+
+    ``rewrite_s_per_clip_squared``: CPU of rewriting a results file of n rows after each of n clips is about
+    ``c n^2``; measured by writing 400 rows that way (atomic rewrite with fsync, as the old ``run.py`` did).
+    ``mcb_linf_fit_cpu_s``: a fit of ``mcb-linf`` on ``cmu_train`` (only if the CMU data is there).
+    ``resident_bytes_per_frame``: what a whole dataset loaded in memory costs per frame (the motion's arrays).
+    """
+    from mocapbench.experiments.evaluate import evaluate
+    from mocapbench.experiments.results import write_rows_atomic
+    from mocapbench.codecs import create
+    from mocapbench.synthetic import sinusoidal_motion
+
+    row = evaluate(create("raw-zstd"), sinusoidal_motion(num_frames=40, seed=1))
+    rows = []
+    with tempfile.TemporaryDirectory() as folder:
+        cpu = time.process_time()
+        for _ in range(400):
+            rows.append(row)
+            write_rows_atomic(Path(folder) / "results.jsonl", rows)
+        rewrite = (time.process_time() - cpu) / 400**2 * 2
+    constants = {"rewrite_s_per_clip_squared": rewrite, "resident_bytes_per_frame": 31 * (4 + 3) * 8.0 + 3 * 8.0}
+    try:
+        from mocapbench.datasets.cmu import load_split
+
+        motions = load_split("cmu_train")
+        cpu = time.process_time()
+        create("mcb-linf").fit(motions)
+        constants["mcb_linf_fit_cpu_s"] = time.process_time() - cpu
+    except Exception:  # noqa: BLE001 - the CMU data is optional here
+        pass
+    return constants
+
+
+# -- command line -----------------------------------------------------------------------------------------
+def _dataset_frames(name: str, overrides: Sequence[str]) -> list[int]:
+    from hydra import compose, initialize_config_module
+    from hydra.core.global_hydra import GlobalHydra
+    from omegaconf import OmegaConf
+
+    from mocapbench.experiments.datasets import catalogue
+
+    GlobalHydra.instance().clear()
+    with initialize_config_module(version_base="1.3", config_module="mocapbench.configs"):
+        cfg = compose("benchmark", overrides=[f"dataset={name}", *overrides])
+    return [ref.frames for ref in catalogue(OmegaConf.to_container(cfg.dataset, resolve=True))]
+
+
+def _print(result: Estimate, what: str, workers: int, layout: str) -> None:
+    print(f"{what}; {workers} workers; layout: {layout}")
+    print("| codec | configs | jobs | CPU h | longest job h | peak GB per worker |")
+    print("|---|---:|---:|---:|---:|---:|")
+    for row in result.rows:
+        print(f"| {row['codec']} | {row['configs']} | {row['jobs']} | {row['cpu_h']:.1f} | "
+              f"{row['longest_job_h']:.2f} | {row['peak_gb']:.2f} |")
+    print(f"total: {result.cpu_h:.1f} CPU h ({result.cpu_h / 24:.1f} CPU-days), {result.jobs} jobs, "
+          f"wall {result.wall_h:.1f} h on {workers} workers, peak {result.peak_gb:.2f} GB per worker")
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--sweep", default="all", help="the sweep whose configs are estimated (default: all)")
+    parser.add_argument("--dataset", help="a dataset config (its catalogue gives the clips' frames)")
+    parser.add_argument("--frames", type=int, help="total frames, with --clips (clips of equal length)")
+    parser.add_argument("--clips", type=int, help="number of clips, with --frames")
+    parser.add_argument("--longest-clip", type=int, help="frames of the longest clip (memory); with --frames")
+    parser.add_argument("--workers", type=int, default=2, help="jobs at once (default 2)")
+    parser.add_argument("--max-cpu-s", type=float, default=1800.0, help="shard budget, CPU s (shard.max_cpu_s)")
+    parser.add_argument("--layout", choices=("shards", "config"), default="shards")
+    parser.add_argument("--costs", help="costs file (default: the package's configs/costs.json)")
+    parser.add_argument("--calibrate", action="store_true", help="measure the costs on this machine, write them")
+    parser.add_argument("--calibration-frames", type=int, default=300)
+    parser.add_argument("overrides", nargs="*", help="Hydra overrides for the dataset, e.g. data_dir=/data/cmu")
+    args = parser.parse_args(argv)
+    if args.calibrate:
+        costs = calibrate(args.sweep, args.calibration_frames, out=Path(args.costs) if args.costs else None)
+        print(f"measured {len(costs['configs'])} configs in {costs['calibration_s']:.0f} s; wrote "
+              f"{args.costs or COSTS_FILE}")
+        return 0
+    costs = load_costs(args.costs)
+    if not costs:
+        print("no costs file: run python -m mocapbench.experiments.cost --calibrate first", file=sys.stderr)
+        return 2
+    if args.dataset:
+        frames = _dataset_frames(args.dataset, args.overrides)
+        what = f"dataset {args.dataset}: {len(frames)} clips, {sum(frames):,} frames"
+    elif args.frames and args.clips:
+        each = args.frames / args.clips
+        frames = [math.floor(each)] * args.clips
+        if args.longest_clip:
+            frames[0] = args.longest_clip
+            rest = (args.frames - args.longest_clip) / max(1, args.clips - 1)
+            frames[1:] = [max(1, math.floor(rest))] * (args.clips - 1)
+        what = f"{args.clips} clips, {sum(frames):,} frames"
+    else:
+        parser.error("give --dataset NAME or --frames N --clips C")
+    folders = sweep_folders(args.sweep)
+    result = estimate(costs, folders, frames, args.workers, args.max_cpu_s, args.layout)
+    _print(result, f"sweep={args.sweep} ({len(folders)} configs) over {what}", args.workers, args.layout)
+    print(f"per-frame costs measured {costs.get('measured')} on {costs.get('machine')} ({costs.get('command')})")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
