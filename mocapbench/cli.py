@@ -38,19 +38,21 @@ def _parse_settings(pairs: list[str]) -> dict:
     return settings
 
 
-def _load_motion(args) -> "Motion":  # noqa: F821
-    from mocapbench.io import find_asf, read_amc, read_bvh
+def _load_motion(args, path: str | None = None) -> "Motion":  # noqa: F821
+    """Read the input motion with ``--units``/``--up`` (mocapbench.io.formats); warnings go to stderr, one line each."""
+    from mocapbench.io.formats import read_motion
 
-    source = Path(args.input)
-    if not source.exists():
-        raise CliError(f"{source}: no such file")
-    suffix = source.suffix.lower()
-    if suffix == ".bvh":
-        return read_bvh(source, length_unit_cm=args.length_unit_cm, drop_first_frame=args.drop_first_frame)
-    if suffix == ".amc":
-        asf = Path(args.asf) if args.asf else find_asf(source)
-        return read_amc(source, asf)
-    raise CliError(f"{source}: expected a .bvh or .amc file, got {suffix or 'no extension'}")
+    motion, warnings = read_motion(
+        path or args.input,
+        units=args.units,
+        up=args.up,
+        asf=getattr(args, "asf", None),
+        drop_first_frame=getattr(args, "drop_first_frame", False),
+        fps=getattr(args, "fps", None),
+    )
+    for warning in warnings:
+        print(f"mocapbench: warning: {warning}", file=sys.stderr)
+    return motion
 
 
 def _codec_for_stream(data: bytes):
@@ -64,6 +66,7 @@ def _codec_for_stream(data: bytes):
 def _compress(args) -> None:
     from mocapbench.codecs import create
     from mocapbench.io.safe_output import check_output, write_bytes
+    from mocapbench.io.units import unit_label
     from mocapbench.metrics import compression_ratio, raw_position_bytes
 
     output = check_output(args.output, force=args.force)
@@ -74,34 +77,69 @@ def _compress(args) -> None:
     raw = raw_position_bytes(motion.num_joints, motion.num_frames)
     print(
         f"{output}: {len(data)} bytes, {motion.num_frames} frames x {motion.num_joints} joints, "
-        f"{compression_ratio(raw, len(data)):.1f}:1 against float32 positions ({args.codec})"
+        f"{compression_ratio(raw, len(data)):.1f}:1 against float32 positions ({args.codec}); "
+        f"source unit {unit_label(motion.source_unit_cm)}, {motion.up_axis} up"
     )
 
 
 def _decompress(args) -> None:
-    from mocapbench.io import write_bvh
+    import dataclasses
+
+    from mocapbench.io.formats import WRITE_SUFFIXES, write_motion
     from mocapbench.io.safe_output import check_output, save_npy
+    from mocapbench.io.units import canonical_unit_cm, parse_units, unit_label
 
     output = check_output(args.output, force=args.force)
     suffix = output.suffix.lower()
-    if suffix not in (".npy", ".bvh"):
-        raise CliError(f"{output}: expected a .bvh or .npy output, got {suffix or 'no extension'}")
+    if suffix not in (".npy", *WRITE_SUFFIXES):
+        raise CliError(f"{output}: expected a {', '.join(WRITE_SUFFIXES)} or .npy output, got {suffix or 'no extension'}")
     data = Path(args.input).read_bytes()
-    codec, _ = _codec_for_stream(data)
+    codec, header = _codec_for_stream(data)
     decoded = codec.decode(data)
+    # Written in the source unit recorded in the stream unless --units says otherwise.
+    unit_cm = parse_units(args.units) if args.units is not None else canonical_unit_cm(header.source_unit_cm)
     if suffix == ".npy":
-        save_npy(output, decoded.positions, force=args.force)
+        save_npy(output, decoded.positions / unit_cm, force=args.force)
+        unit = unit_label(unit_cm)
     else:
         if decoded.motion is None:
             raise CliError(f"codec {codec.name!r} codes joint positions only; write positions with a .npy output")
-        write_bvh(decoded.motion, output, length_unit_cm=args.length_unit_cm, overwrite=args.force)
-    print(f"{output}: {decoded.positions.shape[0]} frames x {decoded.positions.shape[1]} joints")
+        up_axis = header.up_axis if header.up_axis != "?" else "y"
+        motion = dataclasses.replace(decoded.motion, source_unit_cm=unit_cm, up_axis=up_axis)
+        write_motion(motion, output, units=args.units, force=args.force)
+        unit = "m, Y-up (glTF)" if suffix in (".gltf", ".glb") and args.units is None else unit_label(unit_cm)
+    print(f"{output}: {decoded.positions.shape[0]} frames x {decoded.positions.shape[1]} joints, lengths in {unit}")
+
+
+def _inspect_motion(args) -> None:
+    """``inspect`` of a motion file: size, unit, up axis (and why), rest height."""
+    from mocapbench.io.units import detect_up_axis, rest_height_cm, unit_label
+
+    motion = _load_motion(args)
+    axis, reason = detect_up_axis(motion)
+    given = args.up is not None or Path(args.input).suffix.lower() in (".gltf", ".glb")
+    facts = {
+        "frames": motion.num_frames,
+        "joints": motion.num_joints,
+        "fps": motion.fps,
+        "source unit": unit_label(motion.source_unit_cm) + ("" if args.units else " (default; --units to change)"),
+        "up axis": f"{motion.up_axis} (given)" if given else f"{axis} (detected: {reason})",
+        "rest height": f"{rest_height_cm(motion.skeleton, motion.up_axis):.1f} cm",
+    }
+    width = max(len(key) for key in facts)
+    for key, value in facts.items():
+        print(f"{key:<{width}}  {value}")
 
 
 def _inspect(args) -> None:
     from mocapbench.codecs.container import read_header
+    from mocapbench.io.formats import READ_SUFFIXES
+    from mocapbench.io.units import unit_label
     from mocapbench.metrics import bits_per_joint_frame, compression_ratio, raw_position_bytes
 
+    if Path(args.input).suffix.lower() in READ_SUFFIXES:
+        _inspect_motion(args)
+        return
     data = Path(args.input).read_bytes()
     header, payload = read_header(data)
     codec, _ = _codec_for_stream(data)
@@ -112,6 +150,8 @@ def _inspect(args) -> None:
         "frames": header.num_frames,
         "joints": header.num_joints,
         "fps": header.fps,
+        "source unit": unit_label(header.source_unit_cm) if header.version > 1 else "cm (format version 1)",
+        "up axis": {"?": "unknown"}.get(header.up_axis, header.up_axis),
         "bytes": len(data),
         "header bytes": header.header_bytes,
         "payload bytes": header.payload_bytes,
@@ -135,29 +175,38 @@ def _list_codecs(args) -> None:
 
 
 def _parser() -> argparse.ArgumentParser:
+    from mocapbench.cli_units import add_motion_arguments
+
     parser = argparse.ArgumentParser(prog="mocapbench", description=__doc__.splitlines()[0])
     commands = parser.add_subparsers(dest="command", required=True)
 
-    compress = commands.add_parser("compress", help="encode a BVH or AMC file into a .mcb bitstream")
-    compress.add_argument("input", help="IN.bvh or IN.amc")
+    compress = commands.add_parser("compress", help="encode a BVH, AMC or glTF file into a .mcb bitstream")
+    compress.add_argument("input", help="IN.bvh, IN.amc, IN.gltf or IN.glb")
     compress.add_argument("output", help="OUT.mcb")
     compress.add_argument("--codec", required=True, help="registry name (see `mocapbench codecs`)")
     compress.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="a codec config field")
     compress.add_argument("--asf", help="skeleton of an AMC input (default: the .asf beside it)")
-    compress.add_argument("--length-unit-cm", type=float, default=1.0, help="cm per BVH length unit (CMU: 5.6444)")
+    add_motion_arguments(compress)
+    compress.add_argument("--fps", type=float, help="sampling rate of a glTF animation / frame rate of an AMC file")
     compress.add_argument("--drop-first-frame", action="store_true", help="drop BVH frame 0 (CMU reference pose)")
     compress.add_argument("--force", action="store_true", help="overwrite OUT if it exists")
     compress.set_defaults(run=_compress)
 
-    decompress = commands.add_parser("decompress", help="decode a .mcb into BVH (rotation codecs) or .npy positions")
+    decompress = commands.add_parser(
+        "decompress", help="decode a .mcb into BVH/glTF (rotation codecs) or .npy positions"
+    )
     decompress.add_argument("input", help="IN.mcb")
-    decompress.add_argument("output", help="OUT.bvh or OUT.npy")
-    decompress.add_argument("--length-unit-cm", type=float, default=1.0, help="cm per BVH length unit to write")
+    decompress.add_argument("output", help="OUT.bvh, OUT.gltf, OUT.glb (rotation codecs) or OUT.npy (positions)")
+    add_motion_arguments(decompress, writing=True)
     decompress.add_argument("--force", action="store_true", help="overwrite OUT if it exists")
     decompress.set_defaults(run=_decompress)
 
-    inspect = commands.add_parser("inspect", help="print a bitstream's header, sizes and codec parameters")
-    inspect.add_argument("input", help="IN.mcb")
+    inspect = commands.add_parser(
+        "inspect", help="print a bitstream's header, sizes and codec parameters, or a motion file's unit and up axis"
+    )
+    inspect.add_argument("input", help="IN.mcb, or a motion file (.bvh, .amc, .gltf, .glb)")
+    add_motion_arguments(inspect)
+    inspect.add_argument("--asf", help="skeleton of an AMC input (default: the .asf beside it)")
     inspect.set_defaults(run=_inspect)
 
     listing = commands.add_parser("codecs", help="list the registered codecs and their parameters")

@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from mocapbench.io.units import UNITS_CM, turn_axes
 from mocapbench.motion import Motion, Skeleton
 
 __all__ = [
@@ -48,8 +49,6 @@ __all__ = [
 #: The six Tait-Bryan orders a BVH CHANNELS line can list.
 EULER_ORDERS = ("XYZ", "XZY", "YXZ", "YZX", "ZXY", "ZYX")
 TOPOLOGIES = ("biped", "quadruped", "random")
-#: Centimetres per unit of the unit names users meet (``cmu``: the CMU ASF/BVH unit, 2.54 / 0.45 cm).
-UNITS_CM = {"cm": 1.0, "mm": 0.1, "m": 100.0, "inch": 2.54, "cmu": 2.54 / 0.45}
 MIN_JOINTS, MAX_JOINTS = 15, 70
 
 # A full rig as (name, parent, offset cm (Y up, Z forward, +X left), priority): a rig of J joints keeps the J
@@ -296,25 +295,7 @@ def rotate_to_z_up(motion: Motion) -> Motion:
     Offsets, end sites and root positions are rotated and every local rotation conjugated, so the joint positions
     are the Y-up ones rotated (joint distances unchanged). ``up_axis`` becomes ``"z"``.
     """
-    turn = Rotation.from_euler("X", 90, degrees=True)
-    matrix = turn.as_matrix()
-    skeleton = motion.skeleton
-    turned = Skeleton(
-        names=skeleton.names,
-        parents=skeleton.parents,
-        offsets=skeleton.offsets @ matrix.T,
-        channel_orders=skeleton.channel_orders,
-        end_site_parents=skeleton.end_site_parents,
-        end_site_offsets=skeleton.end_site_offsets @ matrix.T,
-    )
-    rotations = turn * Rotation.from_quat(motion.rotations.reshape(-1, 4)) * turn.inv()
-    return dataclasses.replace(
-        motion,
-        skeleton=turned,
-        root_positions=motion.root_positions @ matrix.T,
-        rotations=rotations.as_quat().reshape(motion.rotations.shape),
-        up_axis="z",
-    )
+    return turn_axes(motion, Rotation.from_euler("X", 90, degrees=True), "z")
 
 
 def rig_motion(config: RigConfig | None = None, **overrides) -> Motion:

@@ -183,7 +183,15 @@ class Codec(abc.ABC):
             raise TypeError(f"{self.name}: encode expects a Motion, got {type(motion).__name__}.")
         self.last_encode_stats = {}
         payload = self.encode_payload(motion)
-        return container.pack(self.name, motion.num_frames, motion.num_joints, motion.fps, payload)
+        return container.pack(
+            self.name,
+            motion.num_frames,
+            motion.num_joints,
+            motion.fps,
+            payload,
+            source_unit_cm=motion.source_unit_cm,
+            up_axis=motion.up_axis,
+        )
 
     def decode(self, data: bytes) -> Decoded:
         """Decode a stream written by this codec from its bytes alone.

@@ -11,8 +11,14 @@ Layout (little-endian; ``len(bytes)`` of the whole thing is the rate, header inc
     10+n    4     F, frame count
     14+n    2     J, joint count
     16+n    8     fps, float64
-    24+n    4     P, payload length in bytes
-    28+n    P     codec payload
+    24+n    4     (version 2) source length unit, cm per unit, float32 (1 cm, 0.1 mm, 100 m, 2.54 inch, ...)
+    28+n    1     (version 2) source up axis, ASCII ``x``, ``y``, ``z`` or ``?`` (unknown)
+    +0      4     P, payload length in bytes
+    +4      P     codec payload
+
+Version 1 streams (no unit, no axis) are still read: their unit is 1 cm and their up axis ``?``. The unit and
+axis are metadata for writing the decoded motion back as the user's file (``decompress``); the payload is in cm
+whatever the source unit.
 
 Every size field is checked against a limit before anything is allocated, and every way a stream can be
 wrong (wrong magic, unknown version, another codec's stream, truncation at any byte, a flipped bit, a payload
@@ -31,16 +37,24 @@ __all__ = ["MAGIC", "FORMAT_VERSION", "FORMAT_VERSIONS", "Header", "pack", "unpa
 
 MAGIC = b"MCB\x00"
 # BE CAREFUL WHEN CHANGING: versions are only ever appended, so that old streams stay readable.
-FORMAT_VERSIONS = {1: "initial layout: magic, version, crc32, codec name, F, J, fps, payload length"}
-FORMAT_VERSION = 1
+FORMAT_VERSIONS = {
+    1: "initial layout: magic, version, crc32, codec name, F, J, fps, payload length",
+    2: "adds the source length unit (cm per unit, float32) and up axis (one ASCII byte) after fps",
+}
+FORMAT_VERSION = 2
 
 MAX_FRAMES = 100_000_000  # ~10 days at 120 fps
 MAX_JOINTS = 4096
 MAX_PAYLOAD_BYTES = 1 << 31
 MAX_NAME_BYTES = 64
+MAX_UNIT_CM = 1e6  # 10 km per unit: anything larger is a corrupt field
+UP_AXES = ("x", "y", "z", "?")
 
 _PREFIX = struct.Struct("<4sBI")  # magic, version, crc32
-_FIELDS = struct.Struct("<IHdI")  # frames, joints, fps, payload length
+_FIELDS = {  # by version: frames, joints, fps, [unit cm, up axis,] payload length
+    1: struct.Struct("<IHdI"),
+    2: struct.Struct("<IHdfcI"),
+}
 
 
 @dataclass(frozen=True)
@@ -59,6 +73,10 @@ class Header:
         Container format version.
     header_bytes, payload_bytes : int
         Sizes of the two parts; their sum is the stream length.
+    source_unit_cm : float
+        Centimetres per length unit of the source file (1 for version 1 streams). float32 precision.
+    up_axis : str
+        Up axis of the source: ``"x"``, ``"y"``, ``"z"`` or ``"?"`` (unknown; every version 1 stream).
     """
 
     codec: str
@@ -68,10 +86,21 @@ class Header:
     version: int = FORMAT_VERSION
     header_bytes: int = 0
     payload_bytes: int = 0
+    source_unit_cm: float = 1.0
+    up_axis: str = "?"
 
 
-def pack(codec: str, num_frames: int, num_joints: int, fps: float, payload: bytes) -> bytes:
-    """Wrap a codec payload in the container.
+def pack(
+    codec: str,
+    num_frames: int,
+    num_joints: int,
+    fps: float,
+    payload: bytes,
+    *,
+    source_unit_cm: float = 1.0,
+    up_axis: str = "?",
+) -> bytes:
+    """Wrap a codec payload in the container (always the newest version, :data:`FORMAT_VERSION`).
 
     Parameters
     ----------
@@ -83,6 +112,10 @@ def pack(codec: str, num_frames: int, num_joints: int, fps: float, payload: byte
         Finite, > 0.
     payload : bytes
         What the codec wrote.
+    source_unit_cm : float, keyword-only
+        Centimetres per length unit of the source file, in (0, 1e6]. Default 1 (cm).
+    up_axis : str, keyword-only
+        ``"x"``, ``"y"``, ``"z"`` or ``"?"`` (unknown, the default).
     """
     name = codec.encode("ascii")
     if not 0 < len(name) <= MAX_NAME_BYTES:
@@ -93,9 +126,16 @@ def pack(codec: str, num_frames: int, num_joints: int, fps: float, payload: byte
         raise ValueError(f"num_joints must be in [1, {MAX_JOINTS}], got {num_joints}.")
     if not (fps > 0 and fps < float("inf")):
         raise ValueError(f"fps must be finite and > 0, got {fps}.")
+    if not 0 < source_unit_cm <= MAX_UNIT_CM:
+        raise ValueError(f"source_unit_cm must be in (0, {MAX_UNIT_CM:g}] cm, got {source_unit_cm}.")
+    if up_axis not in UP_AXES:
+        raise ValueError(f"up_axis must be one of {list(UP_AXES)}, got {up_axis!r}.")
     if len(payload) >= MAX_PAYLOAD_BYTES:
         raise ValueError(f"Payload of {len(payload)} bytes exceeds the container limit of {MAX_PAYLOAD_BYTES}.")
-    body = bytes([len(name)]) + name + _FIELDS.pack(num_frames, num_joints, float(fps), len(payload)) + bytes(payload)
+    fields = _FIELDS[FORMAT_VERSION].pack(
+        num_frames, num_joints, float(fps), float(source_unit_cm), up_axis.encode("ascii"), len(payload)
+    )
+    body = bytes([len(name)]) + name + fields + bytes(payload)
     return _PREFIX.pack(MAGIC, FORMAT_VERSION, zlib.crc32(body)) + body
 
 
@@ -123,14 +163,19 @@ def read_header(data: bytes) -> tuple[Header, memoryview]:
         )
     body = view[_PREFIX.size :]
     name_length = body[0]
-    fixed = 1 + name_length + _FIELDS.size
+    fields = _FIELDS[version]
+    fixed = 1 + name_length + fields.size
     if not 0 < name_length <= MAX_NAME_BYTES:
         raise BitstreamError(f"Corrupt header: codec name length must be 1..{MAX_NAME_BYTES}, found {name_length}.")
     if len(body) < fixed:
         raise BitstreamError(
             f"Bitstream is truncated: expected {_PREFIX.size + fixed} header bytes, found {len(view)}."
         )
-    num_frames, num_joints, fps, payload_length = _FIELDS.unpack_from(body, 1 + name_length)
+    if version == 1:
+        num_frames, num_joints, fps, payload_length = fields.unpack_from(body, 1 + name_length)
+        unit_cm, axis = 1.0, b"?"
+    else:
+        num_frames, num_joints, fps, unit_cm, axis, payload_length = fields.unpack_from(body, 1 + name_length)
     if len(body) - fixed != payload_length:
         what = "truncated" if len(body) - fixed < payload_length else "longer than its header says"
         raise BitstreamError(
@@ -150,6 +195,11 @@ def read_header(data: bytes) -> tuple[Header, memoryview]:
             f"Corrupt header: expected 1 <= F <= {MAX_FRAMES}, 1 <= J <= {MAX_JOINTS}, fps > 0; "
             f"found F={num_frames}, J={num_joints}, fps={fps}."
         )
+    if not 0 < unit_cm <= MAX_UNIT_CM or axis not in b"xyz?":
+        raise BitstreamError(
+            f"Corrupt header: expected a source unit in (0, {MAX_UNIT_CM:g}] cm and an up axis x, y, z or ?; "
+            f"found {unit_cm} cm and {bytes(axis)!r}."
+        )
     header = Header(
         codec=codec,
         num_frames=num_frames,
@@ -158,6 +208,8 @@ def read_header(data: bytes) -> tuple[Header, memoryview]:
         version=version,
         header_bytes=_PREFIX.size + fixed,
         payload_bytes=payload_length,
+        source_unit_cm=float(unit_cm),
+        up_axis=axis.decode("ascii"),
     )
     return header, body[fixed:]
 

@@ -33,7 +33,7 @@ def test_wrong_magic():
 def test_unknown_version():
     data = bytearray(_stream())
     data[4] = 99
-    with pytest.raises(BitstreamError, match=r"expected one of \[1\], found 99"):
+    with pytest.raises(BitstreamError, match=r"expected one of \[1, 2\], found 99"):
         container.read_header(bytes(data))
 
 
@@ -97,3 +97,38 @@ def test_pack_rejects_bad_fields(kwargs, message):
 def test_not_bytes():
     with pytest.raises(BitstreamError, match="as bytes, got str"):
         container.read_header("MCB")
+
+
+def test_source_unit_and_up_axis_round_trip():
+    data = container.pack("c", 5, 2, 30.0, b"xy", source_unit_cm=0.1, up_axis="z")
+    header, payload = container.read_header(data)
+    assert header.version == 2 and header.up_axis == "z" and bytes(payload) == b"xy"
+    assert header.source_unit_cm == pytest.approx(0.1, rel=1e-7)
+    # Defaults: cm, unknown axis; the two fields cost 5 bytes.
+    plain, _ = container.read_header(container.pack("c", 5, 2, 30.0, b"xy"))
+    assert (plain.source_unit_cm, plain.up_axis) == (1.0, "?")
+    assert header.header_bytes == plain.header_bytes == 4 + 1 + 4 + 1 + 1 + 4 + 2 + 8 + 4 + 1 + 4
+
+
+def test_version_1_streams_still_read():
+    name = b"c"
+    body = bytes([len(name)]) + name + struct.pack("<IHdI", 10, 3, 30.0, 2) + b"ab"
+    data = container.MAGIC + bytes([1]) + struct.pack("<I", zlib.crc32(body)) + body
+    header, payload = container.read_header(data)
+    assert (header.version, header.num_frames, header.source_unit_cm, header.up_axis) == (1, 10, 1.0, "?")
+    assert bytes(payload) == b"ab"
+
+
+@pytest.mark.parametrize(("unit", "axis"), [(0.0, b"y"), (-1.0, b"y"), (float("nan"), b"y"), (2e6, b"y"), (1.0, b"w")])
+def test_corrupt_unit_or_axis_rejected(unit, axis):
+    name = b"c"
+    body = bytes([len(name)]) + name + struct.pack("<IHdfcI", 10, 3, 30.0, unit, axis, 0)
+    data = container.MAGIC + bytes([2]) + struct.pack("<I", zlib.crc32(body)) + body
+    with pytest.raises(BitstreamError, match="Corrupt header: expected a source unit"):
+        container.read_header(data)
+
+
+@pytest.mark.parametrize(("kwargs", "message"), [({"source_unit_cm": 0.0}, "source_unit_cm"), ({"up_axis": "up"}, "up_axis")])
+def test_pack_refuses_bad_unit_or_axis(kwargs, message):
+    with pytest.raises(ValueError, match=message):
+        container.pack("c", 5, 2, 30.0, b"", **kwargs)

@@ -1,0 +1,124 @@
+"""Read and write motion files by suffix, with their unit and up axis recorded and checked.
+
+One entry point for every command that reads or writes motion (``compress``, ``decompress``, ``compare``,
+``fit``, ...), so that ``--units``/``--up`` mean the same everywhere:
+
+===========  ===============  ================================  ==========================================
+suffix       read             default unit                      write
+===========  ===============  ================================  ==========================================
+``.bvh``     yes              cm (``--units`` to change)         yes, in the source unit (or ``--units``)
+``.amc``     yes (+ ``.asf``)  the ASF's ``:units length``       no
+``.gltf``    yes              m (the glTF standard)             yes, in m, Y-up (a glTF viewer plays it)
+``.glb``     yes              m                                 yes, binary glTF
+===========  ===============  ================================  ==========================================
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from mocapbench.io import MotionFileNotFoundError
+from mocapbench.io.units import parse_units, rest_height_warning, with_source
+from mocapbench.motion import Motion, MotionFormatError
+
+__all__ = ["READ_SUFFIXES", "WRITE_SUFFIXES", "read_motion", "write_motion"]
+
+READ_SUFFIXES = (".bvh", ".amc", ".gltf", ".glb")
+WRITE_SUFFIXES = (".bvh", ".gltf", ".glb")
+_GLTF_UNIT_CM = 100.0  # glTF 2.0: "the units for all linear distances are meters"
+
+
+def read_motion(
+    path: str | Path,
+    *,
+    units: str | float | None = None,
+    up: str | None = None,
+    asf: str | Path | None = None,
+    drop_first_frame: bool = False,
+    fps: float | None = None,
+) -> tuple[Motion, list[str]]:
+    """Read a BVH, AMC, glTF or GLB file into a Motion in cm, with its source unit and up axis set.
+
+    Parameters
+    ----------
+    path : str or Path
+    units : str or float, optional, keyword-only
+        ``--units``: a unit name or cm per unit (:func:`mocapbench.io.units.parse_units`). Default: cm for BVH, m
+        for glTF/GLB, the ASF's own for AMC.
+    up : str, optional, keyword-only
+        ``"y"`` or ``"z"``; default detected (:func:`mocapbench.io.units.detect_up_axis`; glTF is always Y-up).
+    asf : str or Path, optional, keyword-only
+        Skeleton of an AMC file; default the ``.asf`` beside it.
+    drop_first_frame : bool, keyword-only
+        Drop frame 0 of a BVH file (the CMU reference pose).
+    fps : float, optional, keyword-only
+        Sampling rate of a glTF animation (default: its key spacing); the frame rate of an AMC file (default 120).
+
+    Returns
+    -------
+    motion : Motion
+        ``source_unit_cm`` and ``up_axis`` set.
+    warnings : list of str
+        One line each (a rest height that is not a body's), for the command to print.
+
+    Raises
+    ------
+    MotionFormatError
+        A missing, unknown or malformed file, in one line naming it.
+    ValueError
+        A bad ``units`` or ``up`` value, in one line.
+    """
+    from mocapbench.io.units import parse_up_axis
+
+    path = Path(path)
+    if not path.exists():
+        raise MotionFileNotFoundError(f"{path}: no such file.")
+    unit_cm = None if units is None else parse_units(units)
+    up_axis = None if up is None else parse_up_axis(up)
+    suffix = path.suffix.lower()
+    if suffix == ".bvh":
+        from mocapbench.io.bvh import read_bvh
+
+        motion = read_bvh(path, length_unit_cm=unit_cm or 1.0, drop_first_frame=drop_first_frame)
+        unit_cm = unit_cm or 1.0
+    elif suffix == ".amc":
+        from mocapbench.io.asf_amc import find_asf, read_amc, read_asf
+
+        skeleton = read_asf(Path(asf) if asf else find_asf(path), cm_per_unit=unit_cm)
+        motion = read_amc(path, skeleton, **({"fps": fps} if fps else {}))
+        unit_cm = skeleton.cm_per_unit
+    elif suffix in (".gltf", ".glb"):
+        from mocapbench.io.gltf import read_gltf
+
+        unit_cm = unit_cm or _GLTF_UNIT_CM
+        motion = read_gltf(path, length_unit_cm=unit_cm, fps=fps)
+        up_axis = up_axis or "y"
+    else:
+        raise MotionFormatError(
+            f"{path}: expected a motion file ({', '.join(READ_SUFFIXES)}), got {suffix or 'no extension'}."
+        )
+    motion = with_source(motion, unit_cm=unit_cm, up_axis=up_axis)
+    warning = rest_height_warning(motion)
+    return motion, [f"{path}: {warning}"] if warning else []
+
+
+def write_motion(motion: Motion, path: str | Path, *, units: str | float | None = None, force: bool = False) -> Path:
+    """Write ``motion`` as BVH (in ``motion.source_unit_cm`` unless ``units``) or glTF/GLB (in m, Y-up).
+
+    Raises
+    ------
+    MotionFormatError
+        An unknown suffix, in one line listing the known ones.
+    """
+    path = Path(path)
+    unit_cm = None if units is None else parse_units(units)
+    suffix = path.suffix.lower()
+    if suffix == ".bvh":
+        from mocapbench.io.bvh import write_bvh
+
+        return write_bvh(motion, path, length_unit_cm=unit_cm or motion.source_unit_cm, overwrite=force)
+    if suffix in (".gltf", ".glb"):
+        from mocapbench.io.gltf import write_gltf
+
+        return write_gltf(motion, path, length_unit_cm=unit_cm or _GLTF_UNIT_CM, force=force)
+    raise MotionFormatError(f"{path}: expected a {', '.join(WRITE_SUFFIXES)} output, got {suffix or 'no extension'}.")
