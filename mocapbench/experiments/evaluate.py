@@ -48,7 +48,8 @@ def evaluate(codec: Codec, motion: Motion, *, reference_positions: np.ndarray | 
         ``codec``, ``param_<field>`` for every config field, ``config_hash``, clip facts (``clip``, ``frames``,
         ``joints``, ``fps``, ``height_cm``), rate (``raw_bytes``, ``bitstream_bytes``, ``model_bytes``,
         ``compression_ratio``, ``bits_per_joint_frame``), distortion (``max_err_cm``, ``max_err_percent_height``,
-        ``mean_err_cm``, ``p99_err_cm``, ``kg_percent``, ``worst_joint``, ``worst_frame``), speed
+        ``mean_err_cm``, ``p99_err_cm``, ACL's shell error at 3 cm ``shell_max_err_cm`` and ``shell_p99_err_cm``
+        (NaN for codecs that do not return rotations), ``kg_percent``, ``worst_joint``, ``worst_frame``), speed
         (``encode_s``, ``decode_s`` wall; ``encode_cpu_s``, ``decode_cpu_s`` CPU of the process, which the cost
         estimator of :mod:`mocapbench.experiments.cost` reads; ``encode_fps``, ``decode_fps``) and package versions. KG is NaN for a
         static clip, where it is undefined.
@@ -69,6 +70,12 @@ def evaluate(codec: Codec, motion: Motion, *, reference_positions: np.ndarray | 
     except ValueError:
         kg = float("nan")
     worst_joint, worst_frame = metrics.worst_joint_and_frame(reference, positions)
+    # ACL's own error (virtual vertices 3 cm from each joint) needs rotations: NaN for position-only codecs.
+    shell = (
+        metrics.motion_shell_errors(motion, decoded.motion, metrics.ACL_SHELL_DISTANCE_CM)
+        if decoded.motion is not None
+        else np.full(1, np.nan)
+    )
     row: dict[str, Any] = {"codec": codec.name}
     row.update({f"param_{key}": value for key, value in codec.config.as_dict().items()})
     row.update(
@@ -88,6 +95,8 @@ def evaluate(codec: Codec, motion: Motion, *, reference_positions: np.ndarray | 
             "max_err_percent_height": metrics.max_joint_error_percent(reference, positions, height),
             "mean_err_cm": metrics.mean_joint_error(reference, positions),
             "p99_err_cm": metrics.p99_joint_error(reference, positions),
+            "shell_max_err_cm": float(shell.max()),
+            "shell_p99_err_cm": float(np.percentile(shell, 99)),
             "kg_percent": kg,
             "worst_joint": motion.skeleton.names[worst_joint],
             "worst_frame": worst_frame,

@@ -17,6 +17,7 @@ from mocapbench.metrics.rate import (
     pga_raw_numbers,
     raw_position_bytes,
 )
+from mocapbench.metrics.shell import ACL_SHELL_DISTANCE_CM, motion_shell_errors, shell_errors
 from mocapbench.metrics.timing import time_call
 
 __all__ = [
@@ -34,4 +35,7 @@ __all__ = [
     "pga_raw_numbers",
     "raw_position_bytes",
     "time_call",
+    "ACL_SHELL_DISTANCE_CM",
+    "shell_errors",
+    "motion_shell_errors",
 ]
