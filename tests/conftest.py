@@ -69,3 +69,17 @@ def cmu_full_dir() -> Path:
         if running_in_ci():
             raise
         pytest.skip(f"needs the full CMU data folder (63 clips; CI=true makes this a failure): {error}")
+
+
+@pytest.fixture(scope="session")
+def acl_codec():
+    """``create("acl", **params)``. Where ACL's headers or a C++ compiler are missing the test is skipped with the
+    registry's one-line reason, except under ``CI=true`` (CI has ../shared), where it fails."""
+    from mocapbench.codecs import CODECS, UNAVAILABLE, create
+
+    if "acl" not in CODECS:
+        message = f"acl is unavailable here: {UNAVAILABLE.get('acl')}"
+        if running_in_ci():
+            pytest.fail(message)
+        pytest.skip(message)
+    return lambda **params: create("acl", **params)
