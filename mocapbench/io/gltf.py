@@ -1,0 +1,549 @@
+"""glTF 2.0 / GLB skinned animation in and out (parsed and built with ``pygltflib``).
+
+Reading (:func:`read_gltf`) takes one skin's joints and one animation's ``rotation``/``translation`` channels on
+them, samples the channels at a fixed rate (LINEAR = lerp/slerp, STEP, CUBICSPLINE Hermite, as the glTF 2.0
+specification defines them) and returns a :class:`~mocapbench.motion.Motion` in cm:
+
+* the joint tree is the skin's joints under their nearest joint ancestor; a node between two joints that is not
+  a joint, more than one root joint, a joint with a non-unit scale, or an animated translation on a non-root joint
+  that moves (more than 1e-3 cm from its first value) is refused in one line naming the node (a Motion carries
+  the root translation only);
+* the static transform of the nodes above the root joint (an "Armature" node turning Z-up to Y-up, or scaling
+  cm to m) is baked into the root: it may rotate, translate and scale uniformly;
+* the result has identity rest rotations, as BVH: local rotations are re-expressed relative to the nodes' static
+  rotations (``R'_j = G_parent R_j G_j^-1`` with ``G`` the static global rotations) and offsets are the static
+  translations turned into the parent's rest frame (``o'_j = G_parent t_j``). Joint positions are unchanged,
+  and ``Skeleton.rest_positions`` is the file's rest pose;
+* lengths are metres by the specification (``length_unit_cm`` = 100); ``up_axis`` is ``"y"``.
+
+Writing (:func:`write_gltf`) produces what a glTF viewer plays: one node per joint (no static rotation, so the
+nodes' own pose is the rest pose; translation the offset, the root's the first root position), a skin over them, a line mesh of the bones
+skinned to them (so a viewer shows a stick figure), and one animation with a LINEAR rotation sampler per joint and
+a translation sampler on the root, one key per frame. Lengths in metres, Y-up (a Z-up motion is turned by -90
+degrees about X first). ``.glb`` is binary glTF; ``.gltf`` embeds its buffer as a base64 data URI (one file).
+
+Not read: morph-target weights (ignored), sparse accessors, KHR extensions that change the data (refused), more
+than one skin at a time (``skin=`` chooses), cameras and meshes (ignored).
+"""
+
+from __future__ import annotations
+
+import base64
+import math
+import struct
+from pathlib import Path
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from mocapbench.motion import Motion, MotionFormatError, Skeleton
+
+__all__ = ["read_gltf", "write_gltf"]
+
+# componentType -> numpy dtype, and the divisor of a normalized integer (glTF 2.0, 3.6.2 and 3.11).
+_COMPONENTS = {
+    5120: (np.int8, 127.0),
+    5121: (np.uint8, 255.0),
+    5122: (np.int16, 32767.0),
+    5123: (np.uint16, 65535.0),
+    5125: (np.uint32, None),
+    5126: (np.float32, None),
+}
+_WIDTH = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT4": 16}
+_MAX_FILE_BYTES = 1 << 31
+_MAX_FRAMES = 10_000_000
+_MOVING_TOLERANCE_CM = 1e-3
+_KEY_TIME_TOLERANCE_S = 1e-5
+
+
+class _Reader:
+    """The parsed document, its buffers and accessors, with every failure as a one-line MotionFormatError."""
+
+    def __init__(self, path: Path) -> None:
+        import pygltflib
+
+        self.path = path
+        try:
+            size = path.stat().st_size
+            if size > _MAX_FILE_BYTES:
+                raise self.error(f"file of {size} bytes exceeds the {_MAX_FILE_BYTES}-byte limit")
+            data = path.read_bytes()
+        except OSError as error:
+            raise self.error(f"cannot read the file: {error.strerror or error}") from None
+        if not data.strip():
+            raise self.error("the file is empty")
+        try:
+            if data[:4] == b"glTF":
+                self.gltf = pygltflib.GLTF2.load_from_bytes(data)
+                self.blob = self.gltf.binary_blob()
+            else:
+                if path.suffix.lower() == ".glb":
+                    raise self.error(f"expected a binary glTF (magic b'glTF'), found {data[:4]!r}")
+                self.gltf = pygltflib.GLTF2.from_json(data.decode("utf-8"))
+                self.blob = None
+        except MotionFormatError:
+            raise
+        except (ValueError, KeyError, TypeError, AttributeError, struct.error, OSError, UnicodeDecodeError) as error:
+            # pygltflib raises whatever the JSON or dataclass layer raises on a malformed document.
+            raise self.error(f"not a readable glTF 2.0 document ({type(error).__name__}: {error})") from None
+        version = str(getattr(self.gltf.asset, "version", "") or "")
+        if not version.startswith("2."):
+            raise self.error(f"expected glTF version 2.x in asset.version, found {version!r}")
+        self.buffers: dict[int, bytes] = {}
+
+    def error(self, message: str) -> MotionFormatError:
+        return MotionFormatError(f"{self.path}: {message}.")
+
+    def item(self, kind: str, index, what: str):
+        items = getattr(self.gltf, kind) or []
+        if not isinstance(index, int) or not 0 <= index < len(items):
+            raise self.error(f"{what} refers to {kind}[{index}], but the file has {len(items)} {kind}")
+        return items[index]
+
+    def buffer(self, index: int) -> bytes:
+        if index in self.buffers:
+            return self.buffers[index]
+        buffer = self.item("buffers", index, "a bufferView")
+        uri = buffer.uri
+        if uri is None:
+            if self.blob is None:
+                raise self.error(f"buffers[{index}] has no uri and the file has no binary chunk")
+            data = self.blob
+        elif uri.startswith("data:"):
+            head, _, encoded = uri.partition(",")
+            if not head.endswith(";base64"):
+                raise self.error(f"buffers[{index}]: expected a base64 data URI, found {head!r}")
+            try:
+                data = base64.b64decode(encoded, validate=True)
+            except ValueError:
+                raise self.error(f"buffers[{index}]: the data URI is not valid base64") from None
+        else:
+            target = self.path.parent / uri
+            try:
+                data = target.read_bytes()
+            except OSError as error:
+                raise self.error(f"buffers[{index}]: cannot read {target}: {error.strerror or error}") from None
+        if buffer.byteLength is None or len(data) < buffer.byteLength:
+            raise self.error(f"buffers[{index}] declares {buffer.byteLength} bytes, found {len(data)}")
+        self.buffers[index] = data
+        return data
+
+    def accessor(self, index: int, what: str) -> np.ndarray:
+        """Accessor ``index`` as a float64 array of shape (count, width), normalized integers scaled to [-1, 1]."""
+        accessor = self.item("accessors", index, what)
+        where = f"accessors[{index}] ({what})"
+        if accessor.sparse is not None:
+            raise self.error(f"{where} is sparse; mocapbench reads dense accessors only")
+        if accessor.componentType not in _COMPONENTS or accessor.type not in _WIDTH:
+            raise self.error(f"{where} has componentType {accessor.componentType} and type {accessor.type!r}")
+        dtype, scale = _COMPONENTS[accessor.componentType]
+        width, count = _WIDTH[accessor.type], accessor.count
+        if not isinstance(count, int) or not 1 <= count <= _MAX_FRAMES * 4:
+            raise self.error(f"{where} has count {count}; expected 1..{_MAX_FRAMES * 4}")
+        if accessor.bufferView is None:
+            raise self.error(f"{where} has no bufferView (an all-zero accessor); expected data")
+        view = self.item("bufferViews", accessor.bufferView, where)
+        data = self.buffer(view.buffer)
+        item_size = np.dtype(dtype).itemsize * width
+        stride = view.byteStride or item_size
+        start = (view.byteOffset or 0) + (accessor.byteOffset or 0)
+        needed = start + stride * (count - 1) + item_size
+        view_end = (view.byteOffset or 0) + (view.byteLength or 0)
+        if stride < item_size or needed > view_end or view_end > len(data):
+            raise self.error(
+                f"{where} needs bytes {start}..{needed} of bufferViews[{accessor.bufferView}], which ends at "
+                f"{view_end} in a {len(data)}-byte buffer"
+            )
+        rows = np.ndarray((count, width), dtype=np.dtype(dtype).newbyteorder("<"), buffer=data, offset=start,
+                          strides=(stride, np.dtype(dtype).itemsize))
+        values = rows.astype(np.float64)
+        if accessor.normalized and scale is not None:
+            values = np.maximum(values / scale, -1.0)
+        if not np.all(np.isfinite(values)):
+            raise self.error(f"{where} holds a non-finite value")
+        return values
+
+
+def _trs_matrix(node) -> np.ndarray:
+    """The 4x4 local matrix of a node (``matrix`` or T * R * S)."""
+    if node.matrix is not None and len(node.matrix) == 16:
+        return np.array(node.matrix, dtype=np.float64).reshape(4, 4).T  # column-major in the file
+    matrix = np.eye(4)
+    scale = np.array(node.scale if node.scale is not None else [1.0, 1.0, 1.0])
+    rotation = node.rotation if node.rotation is not None else [0.0, 0.0, 0.0, 1.0]
+    matrix[:3, :3] = Rotation.from_quat(rotation).as_matrix() * scale
+    matrix[:3, 3] = node.translation if node.translation is not None else [0.0, 0.0, 0.0]
+    return matrix
+
+
+def _static_trs(reader: _Reader, index: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Translation (3,), quaternion (4,) xyzw and scale (3,) of node ``index`` (decomposing ``matrix``)."""
+    node = reader.gltf.nodes[index]
+    matrix = _trs_matrix(node)
+    scale = np.linalg.norm(matrix[:3, :3], axis=0)
+    if np.any(scale < 1e-12) or np.linalg.det(matrix[:3, :3]) < 0:
+        raise reader.error(f"node {index} ({node.name!r}) has a degenerate or mirroring transform")
+    quat = Rotation.from_matrix(matrix[:3, :3] / scale).as_quat()
+    return matrix[:3, 3].copy(), quat, scale
+
+
+def _sample(times: np.ndarray, values: np.ndarray, interpolation: str, at: np.ndarray, rotation: bool) -> np.ndarray:
+    """Evaluate a sampler at times ``at`` (s): values (K, W) or, for CUBICSPLINE, (3K, W) in-tangent/value/out."""
+    cubic = interpolation == "CUBICSPLINE"
+    keys = values.reshape(len(times), 3, -1)[:, 1] if cubic else values
+    if len(times) == 1:
+        return np.broadcast_to(keys[0], (len(at), keys.shape[1])).copy()
+    index = np.clip(np.searchsorted(times, at, side="right") - 1, 0, len(times) - 2)
+    span = times[index + 1] - times[index]
+    u = np.clip((at - times[index]) / span, 0.0, 1.0)[:, None]
+    if interpolation == "STEP":
+        # Key times are float32 in the file: a sample time within 10 us of a key takes that key.
+        result = keys[np.clip(np.searchsorted(times, at + _KEY_TIME_TOLERANCE_S, side="right") - 1, 0, len(times) - 1)]
+    elif cubic:
+        tangents = values.reshape(len(times), 3, -1)
+        out_tangent, in_tangent = tangents[index, 2], tangents[index + 1, 0]
+        u2, u3 = u * u, u * u * u
+        result = ((2 * u3 - 3 * u2 + 1) * keys[index] + (u3 - 2 * u2 + u) * span[:, None] * out_tangent
+                  + (-2 * u3 + 3 * u2) * keys[index + 1] + (u3 - u2) * span[:, None] * in_tangent)
+    elif rotation:
+        q0, q1 = keys[index], keys[index + 1].copy()
+        q1[np.sum(q0 * q1, axis=1) < 0] *= -1
+        dot = np.clip(np.sum(q0 * q1, axis=1, keepdims=True), -1.0, 1.0)
+        angle = np.arccos(dot)
+        small = angle[:, 0] < 1e-6
+        sin = np.where(small[:, None], 1.0, np.sin(angle))
+        w0 = np.where(small[:, None], 1 - u, np.sin((1 - u) * angle) / sin)
+        w1 = np.where(small[:, None], u, np.sin(u * angle) / sin)
+        result = w0 * q0 + w1 * q1
+    else:
+        result = (1 - u) * keys[index] + u * keys[index + 1]
+    if rotation:
+        norms = np.linalg.norm(result, axis=1, keepdims=True)
+        result = result / np.where(norms < 1e-12, 1.0, norms)
+    return result
+
+
+def _frames_per_second(key_times: list[np.ndarray]) -> float:
+    """The key rate of the animation: 1 / the median key spacing, snapped to an integer rate within 0.1 %."""
+    spacings = np.concatenate([np.diff(t) for t in key_times if len(t) > 1] or [np.zeros(0)])
+    spacings = spacings[spacings > 1e-6]
+    if spacings.size == 0:
+        return 30.0
+    fps = 1.0 / float(np.median(spacings))
+    return float(round(fps)) if abs(fps - round(fps)) < 1e-3 * fps else fps
+
+
+def read_gltf(
+    path: str | Path,
+    *,
+    length_unit_cm: float = 100.0,
+    fps: float | None = None,
+    skin: int = 0,
+    animation: int = 0,
+    name: str | None = None,
+) -> Motion:
+    """Read a skin's animation from a ``.gltf`` or ``.glb`` file (see the module docstring for the rules).
+
+    Parameters
+    ----------
+    path : str or Path
+    length_unit_cm : float, keyword-only
+        cm per file unit, > 0. Default 100 (glTF lengths are metres).
+    fps : float, optional, keyword-only
+        Sampling rate in Hz; default the key rate (1 / median key spacing, snapped to an integer rate).
+    skin, animation : int, keyword-only
+        Which skin and which animation. Default the first of each.
+    name : str, optional, keyword-only
+        ``Motion.name``; default the file name without suffix.
+
+    Returns
+    -------
+    Motion
+        F = ``floor((t_last - t_first) * fps + 1e-6) + 1`` frames starting at the first key, J = the skin's joints
+        (depth-first), lengths in cm, identity rest rotations, ``source_unit_cm`` = ``length_unit_cm``,
+        ``up_axis`` = ``"y"``.
+
+    Raises
+    ------
+    MotionFormatError
+        One line naming the file and what is wrong (no skin, no animation, a moving non-root joint, ...).
+    """
+    if not (math.isfinite(length_unit_cm) and length_unit_cm > 0):
+        raise ValueError(f"`length_unit_cm` must be a finite number > 0, got {length_unit_cm}.")
+    if fps is not None and not (math.isfinite(fps) and fps > 0):
+        raise ValueError(f"`fps` must be a finite number > 0, got {fps}.")
+    path = Path(path)
+    reader = _Reader(path)
+    gltf = reader.gltf
+    nodes = gltf.nodes or []
+    if not gltf.skins:
+        raise reader.error("has no skin; mocapbench reads skinned animation (a skin lists the skeleton's joints)")
+    joints = list(reader.item("skins", skin, "skin=").joints or [])
+    if not joints or len(set(joints)) != len(joints) or any(not 0 <= j < len(nodes) for j in joints):
+        raise reader.error(f"skins[{skin}].joints must list distinct node indices below {len(nodes)}, got {joints}")
+    parent_of: dict[int, int] = {}
+    for index, node in enumerate(nodes):
+        for child in node.children or []:
+            if not isinstance(child, int) or not 0 <= child < len(nodes) or child in parent_of:
+                raise reader.error(f"node {index} ({node.name!r}) lists child {child}, which is missing or shared")
+            parent_of[child] = index
+    joint_set = set(joints)
+    roots = [j for j in joints if parent_of.get(j) not in joint_set]
+    if len(roots) != 1:
+        names = [nodes[j].name for j in roots]
+        raise reader.error(f"skins[{skin}] has {len(roots)} root joints {names}; expected one joint tree")
+    root = roots[0]
+    # Joints in depth-first order following each node's children list.
+    order, stack = [], [root]
+    while stack:
+        node = stack.pop()
+        order.append(node)
+        stack.extend(reversed([c for c in nodes[node].children or [] if c in joint_set]))
+    missing = joint_set.difference(order)
+    if missing:
+        first = min(missing)
+        raise reader.error(
+            f"joint node {first} ({nodes[first].name!r}) hangs from node {parent_of.get(first)}, which is not a joint "
+            f"of skins[{skin}]; expected joints directly under joints"
+        )
+    position = {node: i for i, node in enumerate(order)}
+    parents = np.array([-1] + [position[parent_of[node]] for node in order[1:]])
+
+    # Static transform above the root: a similarity (rotation, uniform scale, translation).
+    above = np.eye(4)
+    ancestor = parent_of.get(root)
+    ancestors = []
+    while ancestor is not None:
+        ancestors.append(ancestor)
+        above = _trs_matrix(nodes[ancestor]) @ above
+        ancestor = parent_of.get(ancestor)
+    scales = np.linalg.norm(above[:3, :3], axis=0)
+    if np.ptp(scales) > 1e-6 * scales.max() or np.linalg.det(above[:3, :3]) <= 0:
+        raise reader.error(f"the nodes above the root joint ({nodes[root].name!r}) scale unevenly or mirror")
+    above_scale = float(scales[0])
+    above_rotation = Rotation.from_matrix(above[:3, :3] / above_scale)
+
+    statics = [_static_trs(reader, node) for node in order]
+    for node, (_, _, scale) in zip(order, statics):
+        if np.abs(scale - 1.0).max() > 1e-4:
+            raise reader.error(f"joint node {node} ({nodes[node].name!r}) has scale {scale.tolist()}; expected 1")
+
+    # Channels of the chosen animation on the joints.
+    if not gltf.animations:
+        raise reader.error("has no animation; nothing to read")
+    anim = reader.item("animations", animation, "animation=")
+    tracks: dict[tuple[int, str], tuple[np.ndarray, np.ndarray, str]] = {}
+    for c, channel in enumerate(anim.channels or []):
+        target = channel.target
+        node, kind = getattr(target, "node", None), getattr(target, "path", None)
+        if node in ancestors:
+            raise reader.error(f"animations[{animation}] animates node {node} ({nodes[node].name!r}) above the root joint")
+        if node not in joint_set or kind == "weights":
+            continue
+        samplers = anim.samplers or []
+        if not isinstance(channel.sampler, int) or not 0 <= channel.sampler < len(samplers):
+            raise reader.error(f"animations[{animation}].channels[{c}] refers to a missing sampler {channel.sampler}")
+        sampler = samplers[channel.sampler]
+        what = f"animations[{animation}].channels[{c}] ({nodes[node].name!r} {kind})"
+        interpolation = sampler.interpolation or "LINEAR"
+        if interpolation not in ("LINEAR", "STEP", "CUBICSPLINE"):
+            raise reader.error(f"{what}: unknown interpolation {interpolation!r}")
+        times = reader.accessor(sampler.input, what + " input")[:, 0]
+        values = reader.accessor(sampler.output, what + " output")
+        width = {"rotation": 4, "translation": 3, "scale": 3}.get(kind)
+        per_key = 3 if interpolation == "CUBICSPLINE" else 1
+        if width is None or values.shape != (len(times) * per_key, width):
+            raise reader.error(f"{what}: expected {len(times) * per_key} values of width {width}, got {values.shape}")
+        if np.any(np.diff(times) <= 0):
+            raise reader.error(f"{what}: key times must increase strictly")
+        if kind == "scale":
+            keys = values.reshape(len(times), per_key, 3)[:, per_key // 2]
+            if np.abs(keys - 1.0).max() > 1e-4:
+                raise reader.error(f"{what}: animated scale {keys[np.abs(keys - 1).max(axis=1).argmax()].tolist()}; "
+                                   "a Motion has no scale")
+            continue
+        tracks[(node, kind)] = (times, values, interpolation)
+    if not tracks:
+        raise reader.error(f"animations[{animation}] has no rotation or translation channel on the joints of skins[{skin}]")
+    start = min(t[0] for t, _, _ in tracks.values())
+    stop = max(t[-1] for t, _, _ in tracks.values())
+    rate = fps or _frames_per_second([t for t, _, _ in tracks.values()])
+    num_frames = int(math.floor((stop - start) * rate + 1e-6)) + 1
+    if num_frames > _MAX_FRAMES:
+        raise reader.error(f"{num_frames} frames at {rate} fps exceed the limit of {_MAX_FRAMES}")
+    at = start + np.arange(num_frames) / rate
+
+    num_joints = len(order)
+    local = np.empty((num_frames, num_joints, 4))
+    translations = np.empty((num_frames, num_joints, 3))
+    for i, node in enumerate(order):
+        translation, quat, _ = statics[i]
+        track = tracks.get((node, "rotation"))
+        local[:, i] = _sample(track[0], track[1], track[2], at, True) if track else quat
+        track = tracks.get((node, "translation"))
+        translations[:, i] = _sample(track[0], track[1], track[2], at, False) if track else translation
+    moved = np.abs(translations[:, 1:] - translations[:1, 1:]).max(axis=(0, 2)) * above_scale * length_unit_cm
+    if moved.size and moved.max() > _MOVING_TOLERANCE_CM:
+        j = int(moved.argmax()) + 1
+        raise reader.error(
+            f"joint {nodes[order[j]].name!r} has an animated translation that moves {moved[j - 1]:.3g} cm; "
+            "a Motion carries the root translation only"
+        )
+
+    # Identity rest rotations: R'_j = G_parent R_j G_j^-1, offsets o'_j = G_parent t_j (module docstring).
+    rest_global = [None] * num_joints
+    for i in range(num_joints):
+        rest_local = Rotation.from_quat(statics[i][1])
+        rest_global[i] = (above_rotation * rest_local) if i == 0 else rest_global[parents[i]] * rest_local
+    rest_quats = np.array([g.as_quat() for g in rest_global])
+    rest_inverse = Rotation.from_quat(rest_quats).inv()
+    parent_rest = np.concatenate([above_rotation.as_quat()[None], rest_quats[parents[1:]]])
+    rotations = (
+        Rotation.from_quat(np.broadcast_to(parent_rest, local.shape).reshape(-1, 4))
+        * Rotation.from_quat(local.reshape(-1, 4))
+        * Rotation.from_quat(np.broadcast_to(rest_inverse.as_quat(), local.shape).reshape(-1, 4))
+    ).as_quat().reshape(local.shape)
+    cm = above_scale * length_unit_cm
+    offsets = np.zeros((num_joints, 3))
+    offsets[1:] = Rotation.from_quat(parent_rest[1:]).apply(translations[0, 1:]) * cm
+    root_positions = (above_rotation.apply(translations[:, 0]) * above_scale + above[:3, 3]) * length_unit_cm
+    names = [nodes[node].name or f"node{node}" for node in order]
+    if len(set(names)) != len(names):
+        names = [f"{n}_{node}" for n, node in zip(names, order)]
+    skeleton = Skeleton(names=tuple(names), parents=parents, offsets=offsets)
+    return Motion(
+        skeleton=skeleton,
+        fps=rate,
+        root_positions=root_positions,
+        rotations=rotations,
+        name=path.stem if name is None else name,
+        source_unit_cm=length_unit_cm,
+        up_axis="y",
+    )
+
+
+def _pack(chunks: list[bytes], array: np.ndarray) -> tuple[int, int]:
+    """Append a little-endian array to the blob (4-byte aligned); return (byte offset, byte length)."""
+    offset = sum(len(c) for c in chunks)
+    data = np.ascontiguousarray(array).astype(array.dtype.newbyteorder("<")).tobytes()
+    chunks.append(data + b"\x00" * (-len(data) % 4))
+    return offset, len(data)
+
+
+def write_gltf(motion: Motion, path: str | Path, *, length_unit_cm: float = 100.0, force: bool = False) -> Path:
+    """Write ``motion`` as a glTF 2.0 skinned animation (``.glb`` binary or ``.gltf`` with an embedded buffer).
+
+    Parameters
+    ----------
+    motion : Motion
+        Any skeleton; a Z-up motion is turned to Y-up.
+    path : str or Path
+        Ends in ``.glb`` or ``.gltf``.
+    length_unit_cm : float, keyword-only
+        cm per written unit; default 100 (metres, as glTF requires).
+    force : bool, keyword-only
+        Replace an existing file (through :mod:`mocapbench.io.safe_output`, atomically).
+
+    Returns
+    -------
+    Path
+    """
+    import pygltflib as g
+
+    from mocapbench.io.safe_output import check_output, write_bytes
+    from mocapbench.io.units import turn_axes
+
+    if not (math.isfinite(length_unit_cm) and length_unit_cm > 0):
+        raise ValueError(f"`length_unit_cm` must be a finite number > 0, got {length_unit_cm}.")
+    path = Path(path)
+    binary = path.suffix.lower() == ".glb"
+    if not binary and path.suffix.lower() != ".gltf":
+        raise MotionFormatError(f"{path}: expected a .gltf or .glb output, got {path.suffix or 'no extension'}.")
+    path = check_output(path, force=force)
+    if motion.up_axis == "z":
+        motion = turn_axes(motion, Rotation.from_euler("X", -90, degrees=True), "y")
+    elif motion.up_axis == "x":
+        motion = turn_axes(motion, Rotation.from_euler("Z", 90, degrees=True), "y")
+    skeleton = motion.skeleton
+    scale = 1.0 / length_unit_cm
+    num_frames, num_joints = motion.num_frames, motion.num_joints
+    # Hemisphere-continuous quaternions so that LINEAR (slerp) keys interpolate the short way.
+    quats = motion.rotations.copy()
+    flips = np.cumsum(np.sum(quats[1:] * quats[:-1], axis=2) < 0, axis=0) % 2 == 1
+    quats[1:][flips] *= -1
+
+    chunks: list[bytes] = []
+    views, accessors = [], []
+
+    def add(array: np.ndarray, kind: str, component: int, *, bounds: bool = False, target: int | None = None) -> int:
+        offset, length = _pack(chunks, array)
+        views.append(g.BufferView(buffer=0, byteOffset=offset, byteLength=length, target=target))
+        flat = array.reshape(array.shape[0], -1)
+        accessors.append(g.Accessor(
+            bufferView=len(views) - 1, componentType=component, count=array.shape[0], type=kind,
+            min=flat.min(axis=0).tolist() if bounds else None, max=flat.max(axis=0).tolist() if bounds else None,
+        ))
+        return len(accessors) - 1
+
+    rest = skeleton.rest_positions() * scale
+    nodes = []
+    for j in range(num_joints):
+        translation = (motion.root_positions[0] if j == 0 else skeleton.offsets[j]) * scale
+        # No static rotation: the nodes' own pose is the rest pose (a T-pose for most rigs); the animation moves them.
+        nodes.append(g.Node(name=skeleton.names[j], translation=translation.tolist(),
+                            children=skeleton.children(j) or None))
+    inverse_bind = np.tile(np.eye(4, dtype=np.float32), (num_joints, 1, 1))
+    inverse_bind[:, 3, :3] = -rest  # column-major: the translation sits in the last column's first 3 entries
+    skin = g.Skin(joints=list(range(num_joints)), skeleton=0,
+                  inverseBindMatrices=add(inverse_bind.reshape(num_joints, 16).astype(np.float32), "MAT4", 5126))
+    meshes = []
+    scene_nodes = [0]
+    if num_joints > 1:
+        bones = np.arange(1, num_joints)
+        ends = np.stack([skeleton.parents[bones], bones], axis=1).reshape(-1)
+        positions = rest[ends].astype(np.float32)
+        weights = np.zeros((len(ends), 4), np.float32)
+        weights[:, 0] = 1.0
+        joints_attr = np.zeros((len(ends), 4), np.uint16)
+        joints_attr[:, 0] = ends
+        attributes = g.Attributes(
+            POSITION=add(positions, "VEC3", 5126, bounds=True, target=34962),
+            JOINTS_0=add(joints_attr, "VEC4", 5123, target=34962),
+            WEIGHTS_0=add(weights, "VEC4", 5126, target=34962),
+        )
+        meshes.append(g.Mesh(name="bones", primitives=[g.Primitive(attributes=attributes, mode=1)]))
+        nodes.append(g.Node(name="bones", mesh=0, skin=0))
+        scene_nodes.append(len(nodes) - 1)
+
+    times = add((np.arange(num_frames) / motion.fps).astype(np.float32)[:, None], "SCALAR", 5126, bounds=True)
+    samplers, channels = [], []
+    for j in range(num_joints):
+        samplers.append(g.AnimationSampler(input=times, output=add(quats[:, j].astype(np.float32), "VEC4", 5126),
+                                           interpolation="LINEAR"))
+        channels.append(g.AnimationChannel(sampler=len(samplers) - 1,
+                                           target=g.AnimationChannelTarget(node=j, path="rotation")))
+    samplers.append(g.AnimationSampler(
+        input=times, output=add((motion.root_positions * scale).astype(np.float32), "VEC3", 5126), interpolation="LINEAR"))
+    channels.append(g.AnimationChannel(sampler=len(samplers) - 1,
+                                       target=g.AnimationChannelTarget(node=0, path="translation")))
+
+    blob = b"".join(chunks)
+    gltf = g.GLTF2(
+        asset=g.Asset(version="2.0", generator="mocapbench"),
+        scene=0,
+        scenes=[g.Scene(nodes=scene_nodes)],
+        nodes=nodes,
+        meshes=meshes,
+        skins=[skin],
+        animations=[g.Animation(name=motion.name or "motion", samplers=samplers, channels=channels)],
+        accessors=accessors,
+        bufferViews=views,
+        buffers=[g.Buffer(byteLength=len(blob))],
+    )
+    if binary:
+        gltf.set_binary_blob(blob)
+        data = b"".join(gltf.save_to_bytes())
+    else:
+        gltf.buffers[0].uri = "data:application/octet-stream;base64," + base64.b64encode(blob).decode("ascii")
+        data = gltf.gltf_to_json(separators=(",", ":"), indent=None).encode("utf-8")
+    return write_bytes(path, data, force=force)
