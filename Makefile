@@ -8,7 +8,7 @@ STAMP := $(VENV)/.installed-stamp
 # Extra pip arguments for torch, e.g. a CPU-only wheel index on a machine without a local CPU wheel.
 TORCH_PIP_ARGS ?=
 
-.PHONY: run test bench test-cmu clean-venv
+.PHONY: run test bench test-cmu test-fuzz clean-venv
 
 $(STAMP): pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -24,6 +24,9 @@ test: $(STAMP)
 
 test-cmu: $(STAMP)
 	$(PY) -m pytest -q -m cmu
+
+test-fuzz: $(STAMP)
+	$(PY) -m pytest -q -m fuzz -s
 
 bench: $(STAMP)
 	$(PY) -m mocapbench.experiments.main --cmu

@@ -86,6 +86,7 @@ def _decompress(args) -> None:
     import dataclasses
 
     from mocapbench.io.formats import WRITE_SUFFIXES, write_motion
+    from mocapbench.codecs import DecodeLimits
     from mocapbench.io.safe_output import check_output, save_npy
     from mocapbench.io.units import canonical_unit_cm, parse_units, unit_label
 
@@ -93,9 +94,10 @@ def _decompress(args) -> None:
     suffix = output.suffix.lower()
     if suffix not in (".npy", *WRITE_SUFFIXES):
         raise CliError(f"{output}: expected a {', '.join(WRITE_SUFFIXES)} or .npy output, got {suffix or 'no extension'}")
+    limits = DecodeLimits.from_settings(args.limit)
     data = Path(args.input).read_bytes()
     codec, header = _codec_for_stream(data)
-    decoded = codec.decode(data)
+    decoded = codec.decode(data, limits=limits)
     # Written in the source unit recorded in the stream unless --units says otherwise.
     unit_cm = parse_units(args.units) if args.units is not None else canonical_unit_cm(header.source_unit_cm)
     if suffix == ".npy":
@@ -199,6 +201,13 @@ def _parser() -> argparse.ArgumentParser:
     decompress.add_argument("output", help="OUT.bvh, OUT.gltf, OUT.glb (rotation codecs) or OUT.npy (positions)")
     add_motion_arguments(decompress, writing=True)
     decompress.add_argument("--force", action="store_true", help="overwrite OUT if it exists")
+    decompress.add_argument(
+        "--limit",
+        action="append",
+        default=[],
+        metavar="NAME=N",
+        help="raise or lower a decode limit: frames, joints, output_bytes (default 2 GiB), ik_iterations",
+    )
     decompress.set_defaults(run=_decompress)
 
     inspect = commands.add_parser(
@@ -229,6 +238,9 @@ def main(argv: list[str] | None = None) -> int:
         # OSError: the safe-output refusals (an existing path or link, a missing folder) and the system's own
         # (a full disk, no permission), whose str() is one line naming the file.
         print(f"mocapbench: error: {error}", file=sys.stderr)
+        return 2
+    except MemoryError:
+        print("mocapbench: error: out of memory; lower the decode limits (--limit output_bytes=N)", file=sys.stderr)
         return 2
     except (KeyError, TypeError, ValueError) as error:
         message = error.args[0] if isinstance(error, KeyError) and error.args else error

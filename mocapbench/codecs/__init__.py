@@ -9,6 +9,7 @@ import importlib
 import pkgutil
 
 from mocapbench.codecs.base import BitstreamError, Codec, CodecConfig, Decoded, NotFittedError, param
+from mocapbench.codecs.limits import DEFAULT_LIMITS, DecodeLimitError, DecodeLimits, using_limits
 from mocapbench.codecs.registry import (
     CODECS,
     UNAVAILABLE,
@@ -19,13 +20,17 @@ from mocapbench.codecs.registry import (
     register_unavailable,
 )
 
-_INFRASTRUCTURE = {"base", "registry", "container", "skeleton_blob"}
+_INFRASTRUCTURE = {"base", "registry", "container", "skeleton_blob", "limits"}
 for _module in pkgutil.iter_modules(__path__):
     if _module.name not in _INFRASTRUCTURE and not _module.name.startswith("_"):
         importlib.import_module(f"{__name__}.{_module.name}")
 
 __all__ = [
     "BitstreamError",
+    "DecodeLimits",
+    "DecodeLimitError",
+    "DEFAULT_LIMITS",
+    "using_limits",
     "Codec",
     "CodecConfig",
     "Decoded",

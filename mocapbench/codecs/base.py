@@ -27,6 +27,7 @@ import numpy as np
 
 from mocapbench.codecs import container
 from mocapbench.codecs.container import BitstreamError, Header
+from mocapbench.codecs.limits import DecodeLimits, using_limits
 from mocapbench.motion import Motion
 
 __all__ = ["Codec", "CodecConfig", "Decoded", "param", "BitstreamError", "Header", "NotFittedError"]
@@ -193,15 +194,30 @@ class Codec(abc.ABC):
             up_axis=motion.up_axis,
         )
 
-    def decode(self, data: bytes) -> Decoded:
+    def decode(self, data: bytes, *, limits: DecodeLimits | None = None) -> Decoded:
         """Decode a stream written by this codec from its bytes alone.
+
+        Parameters
+        ----------
+        data : bytes
+            The whole stream.
+        limits : DecodeLimits, optional, keyword-only
+            Bounds on frames, joints, decoded bytes and CPU work (default: the current limits,
+            :data:`~mocapbench.codecs.limits.DEFAULT_LIMITS` unless a caller set others with
+            :func:`~mocapbench.codecs.limits.using_limits`). Checked before anything F- or J-sized is allocated.
 
         Raises
         ------
         BitstreamError
-            If the stream is malformed, truncated, corrupted or written by another codec.
+            If the stream is malformed, truncated, corrupted or written by another codec;
+            :class:`~mocapbench.codecs.limits.DecodeLimitError` (a subclass) if it asks for more than ``limits``.
         """
         header, payload = container.unpack(data, self.name)
+        with using_limits(limits) as active:
+            active.check_header(header.num_frames, header.num_joints, self.codes_rotations)
+            return self._decode_checked(header, payload)
+
+    def _decode_checked(self, header: Header, payload: memoryview) -> Decoded:
         try:
             positions, motion = self.decode_payload(header, payload)
         except BitstreamError:

@@ -33,7 +33,7 @@ from dataclasses import dataclass
 
 from mocapbench.entropy.errors import BitstreamError
 
-__all__ = ["MAGIC", "FORMAT_VERSION", "FORMAT_VERSIONS", "Header", "pack", "unpack", "read_header", "BitstreamError"]
+__all__ = ["MAGIC", "MIN_FPS", "MAX_FPS", "FORMAT_VERSION", "FORMAT_VERSIONS", "Header", "pack", "unpack", "read_header", "BitstreamError"]
 
 MAGIC = b"MCB\x00"
 # BE CAREFUL WHEN CHANGING: versions are only ever appended, so that old streams stay readable.
@@ -49,6 +49,10 @@ MAX_PAYLOAD_BYTES = 1 << 31
 MAX_NAME_BYTES = 64
 MAX_UNIT_CM = 1e6  # 10 km per unit: anything larger is a corrupt field
 UP_AXES = ("x", "y", "z", "?")
+# Frame rates a stream may carry, frames per second: one frame per 1000 s to 100,000 per second. Outside this
+# range a rate is a corrupt field (fps = 5e-324 or 1e308 would write "Frame Time: inf" to a BVH file).
+MIN_FPS = 1e-3
+MAX_FPS = 1e5
 
 _PREFIX = struct.Struct("<4sBI")  # magic, version, crc32
 _FIELDS = {  # by version: frames, joints, fps, [unit cm, up axis,] payload length
@@ -109,7 +113,7 @@ def pack(
     num_frames, num_joints : int
         F in [1, 1e8], J in [1, 4096].
     fps : float
-        Finite, > 0.
+        In [MIN_FPS, MAX_FPS] = [0.001, 100000].
     payload : bytes
         What the codec wrote.
     source_unit_cm : float, keyword-only
@@ -124,8 +128,8 @@ def pack(
         raise ValueError(f"num_frames must be in [1, {MAX_FRAMES}], got {num_frames}.")
     if not 1 <= num_joints <= MAX_JOINTS:
         raise ValueError(f"num_joints must be in [1, {MAX_JOINTS}], got {num_joints}.")
-    if not (fps > 0 and fps < float("inf")):
-        raise ValueError(f"fps must be finite and > 0, got {fps}.")
+    if not MIN_FPS <= fps <= MAX_FPS:
+        raise ValueError(f"fps must be in [{MIN_FPS:g}, {MAX_FPS:g}], got {fps}.")
     if not 0 < source_unit_cm <= MAX_UNIT_CM:
         raise ValueError(f"source_unit_cm must be in (0, {MAX_UNIT_CM:g}] cm, got {source_unit_cm}.")
     if up_axis not in UP_AXES:
@@ -190,9 +194,9 @@ def read_header(data: bytes) -> tuple[Header, memoryview]:
         codec = bytes(body[1 : 1 + name_length]).decode("ascii")
     except UnicodeDecodeError:
         raise BitstreamError("Corrupt header: the codec name is not ASCII.") from None
-    if not 1 <= num_frames <= MAX_FRAMES or not 1 <= num_joints <= MAX_JOINTS or not 0 < fps < float("inf"):
+    if not 1 <= num_frames <= MAX_FRAMES or not 1 <= num_joints <= MAX_JOINTS or not MIN_FPS <= fps <= MAX_FPS:
         raise BitstreamError(
-            f"Corrupt header: expected 1 <= F <= {MAX_FRAMES}, 1 <= J <= {MAX_JOINTS}, fps > 0; "
+            f"Corrupt header: expected 1 <= F <= {MAX_FRAMES}, 1 <= J <= {MAX_JOINTS}, {MIN_FPS:g} <= fps <= {MAX_FPS:g}; "
             f"found F={num_frames}, J={num_joints}, fps={fps}."
         )
     if not 0 < unit_cm <= MAX_UNIT_CM or axis not in b"xyz?":

@@ -88,6 +88,9 @@ __all__ = [
 
 #: The committed LSDT bases (package data), made by ``python -m mocapbench.benchmarks.train_lsdt``.
 BASES_FILE = "models/lsdt_bases_v1.npz"
+#: Largest J of the spatial-transform codecs: a J x J basis (8 MiB at 1024) is built from the header's J, so it
+#: is bounded before anything is built (real skeletons have 15-150 joints).
+MAX_TRANSFORM_JOINTS = 1024
 #: Sparsities P for which the committed file holds bases (§5.1, Fig. 4).
 COMMITTED_SPARSITIES = (2, 5, 8, 11)
 
@@ -468,8 +471,16 @@ class _SpatialTransformCodec(Codec):
         raise NotImplementedError
 
     def _fingerprint(self, num_joints: int) -> bytes:
-        """Bytes written in the stream to name the bases (empty for fixed transforms)."""
-        return b""
+        """Bytes written in the stream to name the bases (8 bytes of SHA-1 of the bases)."""
+        raise NotImplementedError
+
+    def _check_joint_count(self, num_joints: int, error: type[Exception]) -> None:
+        """Refuse J above :data:`MAX_TRANSFORM_JOINTS` before any J x J basis is built."""
+        if num_joints > MAX_TRANSFORM_JOINTS:
+            raise error(
+                f"{self.name}: {num_joints} joints; the spatial transforms take at most {MAX_TRANSFORM_JOINTS} "
+                f"(a J x J basis per coordinate)."
+            )
 
     # -- payload ---------------------------------------------------------------------------------------
     def encode_positions(self, positions: np.ndarray, fps: float = 120.0) -> bytes:
@@ -500,6 +511,7 @@ class _SpatialTransformCodec(Codec):
 
     def _encode_positions(self, positions: np.ndarray) -> bytes:
         num_frames, num_joints = positions.shape[:2]
+        self._check_joint_count(num_joints, ValueError)
         bases = self._bases(num_joints)
         _check_joints(self.name, bases, num_joints)
         step = self.config.step_cm
@@ -540,6 +552,7 @@ class _SpatialTransformCodec(Codec):
 
     def decode_payload(self, header: Header, payload: memoryview):
         num_frames, num_joints = header.num_frames, header.num_joints
+        self._check_joint_count(num_joints, BitstreamError)
         reader = ByteReader(payload)
         expected = self._fingerprint(num_joints)
         if expected:
@@ -547,7 +560,7 @@ class _SpatialTransformCodec(Codec):
             if found != expected:
                 raise BitstreamError(
                     f"{self.name}: the stream was coded with bases {found.hex()}, this codec holds {expected.hex()} "
-                    f"(another sparsity P, another training set, or another basis file)"
+                    f"(another transform, another sparsity P, another training set, or another basis file)"
                 )
         bases = self._bases(num_joints)
         if bases.shape[-1] != num_joints:
@@ -752,12 +765,20 @@ class _FixedBases:
     transform: ClassVar[str]
 
     def _bases(self, num_joints: int) -> np.ndarray:
-        return _fixed_bases(self.transform, num_joints)
+        return _fixed_bases(self.transform, num_joints)[0]
+
+    def _fingerprint(self, num_joints: int) -> bytes:
+        # As the LSDT streams do: a DCT stream relabelled as a DWT one (CRC recomputed) is refused, not decoded
+        # to another motion.
+        return _fixed_bases(self.transform, num_joints)[1]
 
 
 @lru_cache(maxsize=16)
-def _fixed_bases(kind: str, num_joints: int) -> np.ndarray:
-    return spatial_basis(kind, num_joints)
+def _fixed_bases(kind: str, num_joints: int) -> tuple[np.ndarray, bytes]:
+    """The fixed bases for J joints and their fingerprint (callers check J <= MAX_TRANSFORM_JOINTS first)."""
+    bases = spatial_basis(kind, num_joints)
+    bases.flags.writeable = False
+    return bases, basis_fingerprint(bases)
 
 
 @register_codec

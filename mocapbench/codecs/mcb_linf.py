@@ -446,6 +446,9 @@ class McbLinfCodec(Codec):
         writer.write_varint(config.clip_frames)
         writer.write_u8(REPRESENTATIONS.index(stream.representation))
         writer.write_u8(_ENTROPY_CODERS.index(stream.entropy) | (_CUTS_FLAG if len(cuts) else 0))
+        # F again: the ANS coder can code a long run of near-certain zeros in almost no bytes, so the payload
+        # alone does not pin F; a header F edited to 1e6 would otherwise build a 1e6-frame layout.
+        writer.write_varint(num_frames)
         if len(cuts):
             write_cuts(writer, cuts)
         if stream.representation == "bone":
@@ -482,6 +485,8 @@ class McbLinfCodec(Codec):
         reader = ByteReader(payload)
         eps, step, slope, root_step_rel, clip_frames, representation, entropy, has_cuts = _read_settings(reader)
         num_frames, num_joints = header.num_frames, header.num_joints
+        if reader.read_varint("frame count") != num_frames:
+            raise BitstreamError(f"mcb-linf: the payload was written for another frame count than the header's {num_frames}.")
         cuts = read_cuts(reader, num_frames, "mcb-linf") if has_cuts else np.zeros(0, dtype=np.int64)
         parents = np.full(num_joints, -1)
         if representation == "bone":

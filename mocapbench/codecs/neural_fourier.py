@@ -170,6 +170,9 @@ def dct_index_to_omega(index: int, num_frames: int) -> float:
     return index * (num_frames - 1) / (2.0 * num_frames)
 
 
+_DECODE_CHUNK_FRAMES = 8192  # frames per network evaluation in the decoder (bounds its working memory)
+
+
 def _time_grid(num_frames: int) -> np.ndarray:
     """``t_i = i / (F − 1)``; a single frame sits at t = 0."""
     if num_frames == 1:
@@ -358,6 +361,9 @@ class _FourierMlpCodec(Codec):
         config = self.config
         writer = ByteWriter()
         writer.write_bytes(pack_skeleton(motion.skeleton))
+        # F again: the network is a function of time, so nothing else in the payload pins the frame count, and a
+        # header F edited to 1e7 would make the decoder evaluate the network 1e7 times.
+        writer.write_varint(motion.num_frames)
         writer.write_varint(len(omegas))
         writer.write_array(np.asarray(omegas, dtype=np.float32), np.float32)
         writer.write_u8(_FORMAT_CODES[config.weight_format])
@@ -397,6 +403,9 @@ class _FourierMlpCodec(Codec):
                 f"{self.name}: the header says {header.num_joints} joints, the skeleton in the stream has "
                 f"{skeleton.num_joints}."
             )
+        num_frames = reader.read_varint("frame count")
+        if num_frames != header.num_frames:
+            raise BitstreamError(f"{self.name}: the header says {header.num_frames} frames, the payload {num_frames}.")
         num_frequencies = reader.read_varint("frequency count")
         if num_frequencies > MAX_FREQUENCIES:
             raise BitstreamError(f"{self.name}: expected at most {MAX_FREQUENCIES} frequencies, found {num_frequencies}.")
@@ -425,12 +434,18 @@ class _FourierMlpCodec(Codec):
 
     def decode_payload(self, header: Header, payload: memoryview):
         parts = self._read(header, payload)
-        features = fourier_features(_time_grid(header.num_frames), parts["omegas"])
+        times = _time_grid(header.num_frames)
+        y_hat = np.empty((header.num_frames, len(parts["mean"])))
+        # In chunks of frames: the hidden layers (2 x 2(2K+1) per frame) never exist for the whole clip at once.
         with np.errstate(over="raise", invalid="raise"):
             try:
-                y_hat = parts["mean"] + parts["std"] * mlp_forward(features, parts["weights"])
+                for start in range(0, header.num_frames, _DECODE_CHUNK_FRAMES):
+                    features = fourier_features(times[start : start + _DECODE_CHUNK_FRAMES], parts["omegas"])
+                    y_hat[start : start + len(features)] = mlp_forward(features, parts["weights"])
             except FloatingPointError as error:
                 raise BitstreamError(f"{self.name}: the network overflows on this stream: {error}") from error
+        y_hat *= parts["std"]
+        y_hat += parts["mean"]
         motion = motion_from_pose_matrix(y_hat, parts["skeleton"], header.fps)
         return motion.positions(), motion
 

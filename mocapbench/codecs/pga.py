@@ -57,6 +57,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from mocapbench.codecs.base import Codec, CodecConfig, Header, param
+from mocapbench.codecs.limits import current_limits
 from mocapbench.codecs.registry import register_codec
 from mocapbench.codecs.skeleton_blob import pack_skeleton, unpack_skeleton
 from mocapbench.entropy.bitio import ByteReader, ByteWriter
@@ -89,7 +90,9 @@ END_JOINT_NAMES: tuple[tuple[str, ...], ...] = (
     ("head", "Head"),
 )
 
-_MAX_LM_ITERATIONS = 1000
+# Part of the stream format: a decoder runs F x iterations LM steps (~0.5 ms each on 31 joints), so the stream may
+# not ask for more than 20 per frame (1-5 give the same errors on cmu_test); DecodeLimits.max_ik_iterations bounds F x it.
+_MAX_LM_ITERATIONS = 20
 
 
 def select_end_joints(skeleton: Skeleton) -> list[int]:
@@ -277,6 +280,7 @@ class PgaIkCodec(Codec):
             )
         if root_dropped > 40 or end_dropped > 40:
             raise BitstreamError(f"pga-ik: at most 40 dropped levels, found {root_dropped} and {end_dropped}.")
+        current_limits().check("max_ik_iterations", num_frames * iterations, f"{num_frames} frames x {iterations}")
         lam = reader.read_f32("IK lambda")
         if not (np.isfinite(lam) and 0.0 <= lam <= 1e12):
             raise BitstreamError(f"pga-ik: expected an IK lambda in [0, 1e12] cm^2, found {lam}.")

@@ -40,6 +40,7 @@ from mocapbench.codecs.pose_params import (
     read_tensor,
     write_tensor,
 )
+from mocapbench.codecs.limits import check_payload_holds
 from mocapbench.codecs.registry import register_codec
 from mocapbench.codecs.skeleton_blob import pack_skeleton, unpack_skeleton
 from mocapbench.entropy.bitio import ByteReader, ByteWriter
@@ -152,6 +153,13 @@ class SvdCodec(Codec):
         mean = reader.read_array(m, np.float32, "column means").astype(np.float64)
         if not np.all(np.isfinite(mean)):
             raise BitstreamError("svd: the column means hold non-finite values.")
+        # The factors' bytes are fixed by F, m, r and the format: refuse a payload too short for them before
+        # allocating A (F x r), so that a header F edited to 1e8 costs nothing.
+        if fmt == "float16":
+            needed = 2 * rank * (header.num_frames + m)
+        else:
+            needed = rank * (header.num_frames * bits + 7) // 8 + m * (rank * bits + 7) // 8
+        check_payload_holds(reader.remaining, needed, f"factors of rank {rank}", self.name)
         a = np.empty((header.num_frames, rank))
         b = np.empty((m, rank))
         for column in range(rank):

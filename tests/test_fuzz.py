@@ -1,0 +1,56 @@
+"""Fuzzing the decoders: the saved findings (default run) and a bounded campaign (``pytest -m fuzz``).
+
+The long campaign is one command: ``python -m mocapbench.fuzz --per-codec 8000`` (see :mod:`mocapbench.fuzz`).
+"""
+
+from __future__ import annotations
+
+import os
+import time
+
+import pytest
+
+from mocapbench.codecs import CODECS, BitstreamError, DecodeLimits, create
+from mocapbench.fuzz import REGRESSION_DIR, mutations, restamp, run_campaign, seed_streams
+from mocapbench.codecs.container import read_header
+
+REGRESSIONS = sorted(REGRESSION_DIR.glob("*.mcb"))
+# Streams per codec in the bounded run (CI); the long run is `python -m mocapbench.fuzz`.
+PER_CODEC = int(os.environ.get("MOCAPBENCH_FUZZ_PER_CODEC", "400"))
+
+
+def test_every_saved_finding_is_a_bitstream_error_within_seconds():
+    """Each file of tests/fuzz_regressions (the issue's reproducers and every campaign finding since)."""
+    assert REGRESSIONS, f"no regression inputs in {REGRESSION_DIR}"
+    for path in REGRESSIONS:
+        data = path.read_bytes()
+        name = path.name.rsplit("-", 1)[0]
+        started = time.perf_counter()
+        with pytest.raises(BitstreamError):
+            create(name, **CODECS[name].smoke_params).decode(data)
+        assert time.perf_counter() - started < 5.0, path.name
+
+
+def test_mutations_keep_the_container_valid_and_are_deterministic():
+    stream = seed_streams(["quant-delta-zstd"])["quant-delta-zstd"][0]
+    first = list(mutations(stream, 40, seed=7))
+    assert first == list(mutations(stream, 40, seed=7))
+    assert {kind for kind, _ in first} == {"header", "field", "zstd", "random"}
+    reached = 0
+    for kind, data in first:
+        assert data != stream
+        if kind in ("field", "zstd"):
+            read_header(data)  # CRC and length recomputed: the payload parser is reached
+            reached += 1
+    assert reached == 20
+    assert restamp(stream) == stream
+
+
+@pytest.mark.fuzz
+def test_bounded_fuzz_campaign_has_no_findings():
+    result = run_campaign(sorted(CODECS), PER_CODEC, seed=1, workers=2, timeout_s=5.0)
+    print(result.table())
+    assert result.total == PER_CODEC * len(CODECS)
+    described = [f"{n} [{k}] {r['outcome']} {r.get('wall_s', 0):.2f} s: {r.get('error', '')}" for n, k, _, r in
+                 result.findings]
+    assert not described, "\n".join(described)
