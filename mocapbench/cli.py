@@ -119,13 +119,14 @@ def _inspect_motion(args) -> None:
 
     motion = _load_motion(args)
     axis, reason = detect_up_axis(motion)
-    given = args.up is not None or Path(args.input).suffix.lower() in (".gltf", ".glb")
+    from_file = Path(args.input).suffix.lower() in (".gltf", ".glb", ".fbx")  # these formats say their up axis
     facts = {
         "frames": motion.num_frames,
         "joints": motion.num_joints,
         "fps": motion.fps,
         "source unit": unit_label(motion.source_unit_cm) + ("" if args.units else " (default; --units to change)"),
-        "up axis": f"{motion.up_axis} (given)" if given else f"{axis} (detected: {reason})",
+        "up axis": f"{motion.up_axis} (given)" if args.up else f"{motion.up_axis} (from the file)" if from_file
+        else f"{axis} (detected: {reason})",
         "rest height": f"{rest_height_cm(motion.skeleton, motion.up_axis):.1f} cm",
     }
     width = max(len(key) for key in facts)
@@ -182,8 +183,8 @@ def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="mocapbench", description=__doc__.splitlines()[0])
     commands = parser.add_subparsers(dest="command", required=True)
 
-    compress = commands.add_parser("compress", help="encode a BVH, AMC or glTF file into a .mcb bitstream")
-    compress.add_argument("input", help="IN.bvh, IN.amc, IN.gltf or IN.glb")
+    compress = commands.add_parser("compress", help="encode a BVH, AMC, glTF or FBX file into a .mcb bitstream")
+    compress.add_argument("input", help="IN.bvh, IN.amc, IN.gltf, IN.glb or IN.fbx")
     compress.add_argument("output", help="OUT.mcb")
     compress.add_argument("--codec", required=True, help="registry name (see `mocapbench codecs`)")
     compress.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="a codec config field")
@@ -213,7 +214,7 @@ def _parser() -> argparse.ArgumentParser:
     inspect = commands.add_parser(
         "inspect", help="print a bitstream's header, sizes and codec parameters, or a motion file's unit and up axis"
     )
-    inspect.add_argument("input", help="IN.mcb, or a motion file (.bvh, .amc, .gltf, .glb)")
+    inspect.add_argument("input", help="IN.mcb, or a motion file (.bvh, .amc, .gltf, .glb, .fbx)")
     add_motion_arguments(inspect)
     inspect.add_argument("--asf", help="skeleton of an AMC input (default: the .asf beside it)")
     inspect.set_defaults(run=_inspect)

@@ -20,7 +20,7 @@ def add_motion_arguments(parser: argparse.ArgumentParser, *, writing: bool = Fal
         The command writes motion (``decompress``): ``--units`` is the unit to write, default the stream's.
     """
     what = "to write (default: the source unit recorded in the stream)" if writing else (
-        "of the input (default: cm for BVH, m for glTF, the ASF's own for AMC)"
+        "of the input (default: cm for BVH, m for glTF, the file's own for AMC and FBX)"
     )
     parser.add_argument(
         "--units",

@@ -10,6 +10,7 @@ suffix       read             default unit                      write
 ``.amc``     yes (+ ``.asf``)  the ASF's ``:units length``       no
 ``.gltf``    yes              m (the glTF standard)             yes, in m, Y-up (a glTF viewer plays it)
 ``.glb``     yes              m                                 yes, binary glTF
+``.fbx``     yes (ufbx)       the file's UnitScaleFactor        no
 ===========  ===============  ================================  ==========================================
 """
 
@@ -23,7 +24,7 @@ from mocapbench.motion import Motion, MotionFormatError
 
 __all__ = ["READ_SUFFIXES", "WRITE_SUFFIXES", "read_motion", "write_motion"]
 
-READ_SUFFIXES = (".bvh", ".amc", ".gltf", ".glb")
+READ_SUFFIXES = (".bvh", ".amc", ".gltf", ".glb", ".fbx")
 WRITE_SUFFIXES = (".bvh", ".gltf", ".glb")
 _GLTF_UNIT_CM = 100.0  # glTF 2.0: "the units for all linear distances are meters"
 
@@ -37,16 +38,17 @@ def read_motion(
     drop_first_frame: bool = False,
     fps: float | None = None,
 ) -> tuple[Motion, list[str]]:
-    """Read a BVH, AMC, glTF or GLB file into a Motion in cm, with its source unit and up axis set.
+    """Read a BVH, AMC, glTF, GLB or FBX file into a Motion in cm, with its source unit and up axis set.
 
     Parameters
     ----------
     path : str or Path
     units : str or float, optional, keyword-only
         ``--units``: a unit name or cm per unit (:func:`mocapbench.io.units.parse_units`). Default: cm for BVH, m
-        for glTF/GLB, the ASF's own for AMC.
+        for glTF/GLB, the ASF's own for AMC, the file's own for FBX.
     up : str, optional, keyword-only
-        ``"y"`` or ``"z"``; default detected (:func:`mocapbench.io.units.detect_up_axis`; glTF is always Y-up).
+        ``"y"`` or ``"z"``; default detected (:func:`mocapbench.io.units.detect_up_axis`; glTF is always Y-up,
+        FBX says its own).
     asf : str or Path, optional, keyword-only
         Skeleton of an AMC file; default the ``.asf`` beside it.
     drop_first_frame : bool, keyword-only
@@ -93,6 +95,11 @@ def read_motion(
         unit_cm = unit_cm or _GLTF_UNIT_CM
         motion = read_gltf(path, length_unit_cm=unit_cm, fps=fps)
         up_axis = up_axis or "y"
+    elif suffix == ".fbx":
+        from mocapbench.io.fbx import read_fbx
+
+        motion = read_fbx(path, length_unit_cm=unit_cm, fps=fps)
+        unit_cm, up_axis = motion.source_unit_cm, up_axis or motion.up_axis
     else:
         raise MotionFormatError(
             f"{path}: expected a motion file ({', '.join(READ_SUFFIXES)}), got {suffix or 'no extension'}."

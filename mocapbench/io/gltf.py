@@ -36,7 +36,8 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from mocapbench.motion import Motion, MotionFormatError, Skeleton
+from mocapbench.io.node_motion import motion_from_nodes
+from mocapbench.motion import Motion, MotionFormatError
 
 __all__ = ["read_gltf", "write_gltf"]
 
@@ -52,7 +53,6 @@ _COMPONENTS = {
 _WIDTH = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT4": 16}
 _MAX_FILE_BYTES = 1 << 31
 _MAX_FRAMES = 10_000_000
-_MOVING_TOLERANCE_CM = 1e-3
 _KEY_TIME_TOLERANCE_S = 1e-5
 
 
@@ -317,11 +317,6 @@ def read_gltf(
         ancestors.append(ancestor)
         above = _trs_matrix(nodes[ancestor]) @ above
         ancestor = parent_of.get(ancestor)
-    scales = np.linalg.norm(above[:3, :3], axis=0)
-    if np.ptp(scales) > 1e-6 * scales.max() or np.linalg.det(above[:3, :3]) <= 0:
-        raise reader.error(f"the nodes above the root joint ({nodes[root].name!r}) scale unevenly or mirror")
-    above_scale = float(scales[0])
-    above_rotation = Rotation.from_matrix(above[:3, :3] / above_scale)
 
     statics = [_static_trs(reader, node) for node in order]
     for node, (_, _, scale) in zip(order, statics):
@@ -382,43 +377,11 @@ def read_gltf(
         local[:, i] = _sample(track[0], track[1], track[2], at, True) if track else quat
         track = tracks.get((node, "translation"))
         translations[:, i] = _sample(track[0], track[1], track[2], at, False) if track else translation
-    moved = np.abs(translations[:, 1:] - translations[:1, 1:]).max(axis=(0, 2)) * above_scale * length_unit_cm
-    if moved.size and moved.max() > _MOVING_TOLERANCE_CM:
-        j = int(moved.argmax()) + 1
-        raise reader.error(
-            f"joint {nodes[order[j]].name!r} has an animated translation that moves {moved[j - 1]:.3g} cm; "
-            "a Motion carries the root translation only"
-        )
-
-    # Identity rest rotations: R'_j = G_parent R_j G_j^-1, offsets o'_j = G_parent t_j (module docstring).
-    rest_global = [None] * num_joints
-    for i in range(num_joints):
-        rest_local = Rotation.from_quat(statics[i][1])
-        rest_global[i] = (above_rotation * rest_local) if i == 0 else rest_global[parents[i]] * rest_local
-    rest_quats = np.array([g.as_quat() for g in rest_global])
-    rest_inverse = Rotation.from_quat(rest_quats).inv()
-    parent_rest = np.concatenate([above_rotation.as_quat()[None], rest_quats[parents[1:]]])
-    rotations = (
-        Rotation.from_quat(np.broadcast_to(parent_rest, local.shape).reshape(-1, 4))
-        * Rotation.from_quat(local.reshape(-1, 4))
-        * Rotation.from_quat(np.broadcast_to(rest_inverse.as_quat(), local.shape).reshape(-1, 4))
-    ).as_quat().reshape(local.shape)
-    cm = above_scale * length_unit_cm
-    offsets = np.zeros((num_joints, 3))
-    offsets[1:] = Rotation.from_quat(parent_rest[1:]).apply(translations[0, 1:]) * cm
-    root_positions = (above_rotation.apply(translations[:, 0]) * above_scale + above[:3, 3]) * length_unit_cm
     names = [nodes[node].name or f"node{node}" for node in order]
-    if len(set(names)) != len(names):
-        names = [f"{n}_{node}" for n, node in zip(names, order)]
-    skeleton = Skeleton(names=tuple(names), parents=parents, offsets=offsets)
-    return Motion(
-        skeleton=skeleton,
-        fps=rate,
-        root_positions=root_positions,
-        rotations=rotations,
-        name=path.stem if name is None else name,
-        source_unit_cm=length_unit_cm,
-        up_axis="y",
+    rest_rotations = np.array([quat for _, quat, _ in statics])
+    return motion_from_nodes(
+        names, parents, translations, local, rest_rotations, above, length_unit_cm=length_unit_cm, fps=rate,
+        name=path.stem if name is None else name, up_axis="y", error=reader.error,
     )
 
 

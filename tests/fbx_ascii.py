@@ -1,0 +1,107 @@
+"""A minimal ASCII FBX 7.4 writer: the FBX test files (no FBX writer installs here; ufbx only reads).
+
+Writes a skeleton as ``LimbNode`` models with ``Lcl Translation`` = the offsets and one animation stack with
+``Lcl Rotation`` curves (Euler XYZ degrees, the FBX default ``RotationOrder`` 0) on every joint and ``Lcl
+Translation`` curves on the root, one key per frame. Units: ``UnitScaleFactor`` = cm per file unit; axes from
+``up_axis``. A test fixture builder, not a product format writer.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from mocapbench.motion import Motion
+
+_TICKS_PER_SECOND = 46_186_158_000
+
+
+def _array(values) -> str:
+    values = list(values)
+    return f"*{len(values)} {{\n\t\t\ta: " + ",".join(f"{v:.9g}" if isinstance(v, float) else str(v) for v in values) + "\n\t\t}"
+
+
+def write_fbx_ascii(motion: Motion, path: str | Path, *, unit_cm: float = 1.0, moving_joint: int | None = None) -> Path:
+    """Write ``motion`` (cm) as an ASCII FBX in ``unit_cm`` cm per unit; ``moving_joint`` also animates that
+    joint's translation (a joint that moves, for the error test)."""
+    skeleton = motion.skeleton
+    num_frames, num_joints = motion.num_frames, motion.num_joints
+    up = {"y": (1, 2), "z": (2, -1)}[motion.up_axis]  # (UpAxis, FrontAxisSign-ish) as Maya/Max export
+    times = [int(round(f * _TICKS_PER_SECOND / motion.fps)) for f in range(num_frames)]
+    euler = Rotation.from_quat(motion.rotations.reshape(-1, 4)).as_euler("xyz", degrees=True)  # extrinsic XYZ
+    euler = np.unwrap(np.radians(euler.reshape(num_frames, num_joints, 3)), axis=0)
+    euler = np.degrees(euler)
+    objects, connections = [], []
+    next_id = [1000]
+
+    def new_id() -> int:
+        next_id[0] += 1
+        return next_id[0]
+
+    def curve_node(owner: int, prop: str, name: str, values: np.ndarray) -> None:
+        node = new_id()
+        objects.append(
+            f'\tAnimationCurveNode: {node}, "AnimCurveNode::{name}", "" {{\n\t\tProperties70:  {{\n'
+            + "".join(f'\t\t\tP: "d|{a}", "Number", "", "A",{values[0, i]:.9g}\n' for i, a in enumerate("XYZ"))
+            + "\t\t}\n\t}\n"
+        )
+        connections.append(f'\tC: "OO",{node},{layer}\n\tC: "OP",{node},{owner}, "{prop}"\n')
+        for i, axis in enumerate("XYZ"):
+            curve = new_id()
+            objects.append(
+                f'\tAnimationCurve: {curve}, "AnimCurve::", "" {{\n\t\tDefault: {values[0, i]:.9g}\n\t\tKeyVer: 4009\n'
+                f"\t\tKeyTime: {_array(times)}\n\t\tKeyValueFloat: {_array(values[:, i].astype(float).tolist())}\n"
+                f"\t\tKeyAttrFlags: *1 {{\n\t\t\ta: 8452\n\t\t}}\n"  # linear interpolation
+                f"\t\tKeyAttrDataFloat: *4 {{\n\t\t\ta: 0,0,0,0\n\t\t}}\n"
+                f"\t\tKeyAttrRefCount: *1 {{\n\t\t\ta: {num_frames}\n\t\t}}\n\t}}\n"
+            )
+            connections.append(f'\tC: "OP",{curve},{node}, "d|{axis}"\n')
+
+    stack, layer = new_id(), new_id()
+    stop = times[-1]
+    objects.append(
+        f'\tAnimationStack: {stack}, "AnimStack::Take 001", "" {{\n\t\tProperties70:  {{\n'
+        f'\t\t\tP: "LocalStop", "KTime", "Time", "",{stop}\n\t\t\tP: "ReferenceStop", "KTime", "Time", "",{stop}\n'
+        "\t\t}\n\t}\n"
+    )
+    objects.append(f'\tAnimationLayer: {layer}, "AnimLayer::BaseLayer", "" {{\n\t}}\n')
+    connections.append(f'\tC: "OO",{layer},{stack}\n')
+    model_ids = []
+    for j in range(num_joints):
+        model, attribute = new_id(), new_id()
+        model_ids.append(model)
+        offset = (motion.root_positions[0] if j == 0 else skeleton.offsets[j]) / unit_cm
+        objects.append(
+            f'\tNodeAttribute: {attribute}, "NodeAttribute::", "LimbNode" {{\n\t\tTypeFlags: "Skeleton"\n\t}}\n'
+            f'\tModel: {model}, "Model::{skeleton.names[j]}", "LimbNode" {{\n\t\tVersion: 232\n\t\tProperties70:  {{\n'
+            f'\t\t\tP: "Lcl Translation", "Lcl Translation", "", "A",{offset[0]:.9g},{offset[1]:.9g},{offset[2]:.9g}\n'
+            "\t\t}\n\t}\n"
+        )
+        parent = 0 if j == 0 else model_ids[skeleton.parents[j]]
+        connections.append(f'\tC: "OO",{attribute},{model}\n\tC: "OO",{model},{parent}\n')
+        curve_node(model, "Lcl Rotation", "R", euler[:, j])
+        if j == 0:
+            curve_node(model, "Lcl Translation", "T", motion.root_positions / unit_cm)
+        elif j == moving_joint:
+            moving = skeleton.offsets[j] / unit_cm + np.linspace(0, 5.0, num_frames)[:, None] * np.array([1.0, 0, 0])
+            curve_node(model, "Lcl Translation", "T", moving)
+    header = (
+        "; FBX 7.4.0 project file\n"
+        "FBXHeaderExtension:  {\n\tFBXHeaderVersion: 1003\n\tFBXVersion: 7400\n\tCreator: \"mocapbench tests\"\n}\n"
+        "GlobalSettings:  {\n\tVersion: 1000\n\tProperties70:  {\n"
+        f'\t\tP: "UpAxis", "int", "Integer", "",{up[0]}\n\t\tP: "UpAxisSign", "int", "Integer", "",1\n'
+        f'\t\tP: "FrontAxis", "int", "Integer", "",{2 if motion.up_axis == "y" else 1}\n'
+        f'\t\tP: "FrontAxisSign", "int", "Integer", "",{1 if motion.up_axis == "y" else -1}\n'
+        '\t\tP: "CoordAxis", "int", "Integer", "",0\n\t\tP: "CoordAxisSign", "int", "Integer", "",1\n'
+        f'\t\tP: "UnitScaleFactor", "double", "Number", "",{unit_cm:.9g}\n'
+        f'\t\tP: "OriginalUnitScaleFactor", "double", "Number", "",{unit_cm:.9g}\n'
+        '\t\tP: "TimeMode", "enum", "", "",14\n'
+        f'\t\tP: "CustomFrameRate", "double", "Number", "",{motion.fps:.9g}\n'
+        "\t}\n}\n"
+    )
+    text = header + "Objects:  {\n" + "".join(objects) + "}\nConnections:  {\n" + "".join(connections) + "}\n"
+    path = Path(path)
+    path.write_text(text, encoding="utf-8")
+    return path
