@@ -221,6 +221,10 @@ def _parser() -> argparse.ArgumentParser:
 
     listing = commands.add_parser("codecs", help="list the registered codecs and their parameters")
     listing.set_defaults(run=_list_codecs)
+
+    from mocapbench.experiments.plot_command import add_parser as add_plot_parser  # argparse only; plots load later
+
+    add_plot_parser(commands)
     return parser
 
 

@@ -55,6 +55,7 @@ class RawZstdCodec(Codec):
     """Lossless float32 joint positions through zstd (the floor every lossy codec must beat)."""
 
     name = "raw-zstd"
+    family = "generic"
     smoke_max_error_cm = 1e-3  # float32 rounding only
 
     @dataclass(frozen=True)
@@ -79,6 +80,7 @@ class QuantDeltaZstdCodec(Codec):
     """Uniformly quantized positions, delta-coded along time, zstd: the generic lossy baseline."""
 
     name = "quant-delta-zstd"
+    family = "generic"
     smoke_params = {"step_cm": 0.1}
     smoke_max_error_cm = 0.1 * 3**0.5 / 2 + 1e-9  # step/2 per coordinate
 
@@ -114,6 +116,7 @@ class QuantRotZstdCodec(Codec):
     """Quantized local rotations (drop-W quaternions) and root translation, zstd, decoded through FK."""
 
     name = "quant-rot-zstd"
+    family = "generic"
     codes_rotations = True
     smoke_params = {"rotation_bits": 12, "translation_step_cm": 0.05}
     smoke_max_error_cm = 0.5

@@ -461,11 +461,17 @@ class _SpatialTransformCodec(Codec):
     """The pipeline shared by the six codecs; subclasses choose the scheme and the spatial transform."""
 
     scheme: ClassVar[str]  # "frame" or "clip"
+    random_access = False  # the coefficient vectors are entropy-coded as one sequence
     smoke_params = {"step_cm": 0.05}
     # Per-coordinate error <= ||c - ĉ||_2 <= sqrt(J) Δ/2 in the worst case; in practice a few Δ at most.
     smoke_max_error_cm = 0.5
 
     # -- the spatial transform -------------------------------------------------------------------------
+    @property
+    def latency_frames(self) -> int:
+        """Frame-based: 0 (closed-loop prediction, frame by frame); clip-based: the clip length L."""
+        return 0 if self.scheme == "frame" else int(self.config.clip_length)
+
     def _bases(self, num_joints: int) -> np.ndarray:
         """``(3, J, J)`` bases for J joints."""
         raise NotImplementedError
@@ -543,7 +549,6 @@ class _SpatialTransformCodec(Codec):
         writer.write_bytes(code_vectors(vectors, self.config.count_coding))
         nonzero = int(np.count_nonzero(vectors))
         self.last_encode_stats = {
-            "latency_frames": 0 if self.scheme == "frame" else self.config.clip_length,
             "nonzero_coefficients": nonzero,
             "nonzero_percent": 100.0 * nonzero / vectors.size,
             "cuts": len(cuts),
@@ -688,6 +693,8 @@ class _LsdtClipConfig(_LsdtFrameConfig):
 class _LsdtBases:
     """Mixin: the learned bases (committed, or trained in :meth:`fit`)."""
 
+    # The bases are learned for one skeleton (31 CMU joints committed; basis='fit' for another).
+    needs_model = True
     _trained: np.ndarray | None = None
 
     def fit(self, motions: Sequence[Motion]):

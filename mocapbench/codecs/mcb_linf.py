@@ -288,6 +288,7 @@ class McbLinfCodec(Codec):
     """
 
     name = "mcb-linf"
+    family = "mocapbench"
     smoke_params = {"eps_cm": 0.5}
     smoke_max_error_cm = 0.5
 
@@ -370,6 +371,16 @@ class McbLinfCodec(Codec):
             )
         self._untrained_reason = problem
         return _UNTRAINED_REPRESENTATION, _UNTRAINED_ENTROPY, None
+
+    @property
+    def needs_model(self) -> bool:  # type: ignore[override]
+        """The PCA representation and the trained entropy coder need learned state fit for the skeleton."""
+        return _needs_model(self.config.representation, self.config.entropy)
+
+    @property
+    def latency_frames(self) -> int:
+        """The DCT clip length L: a frame is emitted once its clip of ``clip_frames`` frames is complete."""
+        return int(self.config.clip_frames)
 
     @property
     def model_bytes(self) -> int:

@@ -72,14 +72,44 @@ def aggregate(folders: Iterable[str | Path]) -> pd.DataFrame:
     return data.drop_duplicates(subset=key, keep="last").reset_index(drop=True)
 
 
+def _job_dataset(job_dir: Path) -> str | None:
+    """The dataset name of a job folder, from Hydra's saved ``.hydra/config.yaml`` (None if unreadable)."""
+    saved = job_dir / ".hydra" / "config.yaml"
+    if not saved.exists():
+        return None
+    try:
+        from omegaconf import OmegaConf
+
+        name = OmegaConf.load(saved).get("dataset", {}).get("name")
+    except Exception:  # noqa: BLE001 - a damaged config only loses the dataset column
+        return None
+    return None if name is None else str(name)
+
+
 def read_errors(folders: Iterable[str | Path]) -> pd.DataFrame:
-    """Every ``errors.jsonl`` record below ``folders`` (empty DataFrame if there is none)."""
+    """Every ``errors.jsonl`` record below ``folders`` (empty DataFrame if there is none).
+
+    A record without a ``dataset`` gets the one of its job (Hydra's saved config), so a failed job can be shown
+    in the right dataset's headline.
+    """
     records = []
     for path in _result_files(folders, ERRORS_FILE):
+        dataset = None
         for record in scan_rows(path)[0]:  # an error log's torn last line does not hide the other errors
             record["job_dir"] = str(path.parent)
+            if not record.get("dataset"):
+                dataset = dataset or _job_dataset(path.parent)
+                record["dataset"] = dataset
             records.append(record)
     return pd.DataFrame(records)
+
+
+# Per-config columns carried into the curve points when the rows hold them: codec traits, timing facts.
+_FIRST = ("codes_rotations", "family", "needs_model", "random_access", "latency_frames", "dataset_desc", "cmu_data")
+_SUMS = ("encode_cpu_s", "decode_cpu_s")
+_MAXES = ("encode_wall_spread_s", "decode_wall_spread_s", "encode_load_after", "decode_load_after",
+          "encode_threads", "decode_threads")
+_MINS = ("encode_repeats", "decode_repeats")
 
 
 def curve_points(data: pd.DataFrame) -> pd.DataFrame:
@@ -87,7 +117,8 @@ def curve_points(data: pd.DataFrame) -> pd.DataFrame:
 
     Rate is pooled (total bytes over total joint-frames, so long clips weigh more, as a whole dataset would be
     stored); ``max_err_cm`` is the worst clip's L-inf, ``p99_err_cm`` the worst clip's p99, ``mean_err_cm`` and
-    ``kg_percent`` frame-weighted means; speeds are total frames over total seconds. ``clips`` counts the clips;
+    ``kg_percent`` frame-weighted means; speeds are total frames over total CPU seconds (``encode_fps``,
+    ``decode_fps``; wall seconds for rows without CPU times) and over wall seconds (``*_wall_fps``). ``clips`` counts the clips;
     a config that failed on some clip of the dataset has fewer clips than the others and is flagged in
     ``complete``.
     """
@@ -115,13 +146,20 @@ def curve_points(data: pd.DataFrame) -> pd.DataFrame:
         encode_s=("encode_s", "sum"),
         decode_s=("decode_s", "sum"),
         **{c: (c, "first") for c in params},
+        **{c: (c, "first") for c in _FIRST if c in frame},
+        **{c: (c, "sum") for c in _SUMS if c in frame},
+        **{c: (c, "max") for c in _MAXES if c in frame},
+        **{c: (c, "min") for c in _MINS if c in frame},
     ).reset_index()
     out["compression_ratio"] = out["raw_bytes"] / out["bitstream_bytes"]
     out["bits_per_joint_frame"] = 8 * out["bitstream_bytes"] / out["joint_frames"]
     out["mean_err_cm"] = out["w_mean"] / out["frames"]
     out["kg_percent"] = out["w_kg"] / out["frames"]
-    out["encode_fps"] = out["frames"] / out["encode_s"].replace(0, np.nan)
-    out["decode_fps"] = out["frames"] / out["decode_s"].replace(0, np.nan)
+    for step in ("encode", "decode"):
+        # Frames per CPU second of the process where the rows have it (shared machines), else per wall second.
+        seconds = f"{step}_cpu_s" if f"{step}_cpu_s" in out and out[f"{step}_cpu_s"].notna().all() else f"{step}_s"
+        out[f"{step}_fps"] = out["frames"] / out[seconds].replace(0, np.nan)
+        out[f"{step}_wall_fps"] = out["frames"] / out[f"{step}_s"].replace(0, np.nan)
     most = out.groupby("dataset")["clips"].transform("max")
     out["complete"] = out["clips"] == most
     return out.drop(columns=["w_mean", "w_kg"])

@@ -1,80 +1,123 @@
-"""A tiny document model rendered twice, as Markdown and as HTML, so ``report.md`` and ``index.html`` hold the same
-content: headings, paragraphs, bullet lists, tables (from DataFrames) and images (PNG paths relative to the report)."""
+"""A tiny document model rendered twice, as Markdown and as HTML (a jinja2 template), so ``report.md`` and
+``index.html`` hold the same content: headings (with anchors and a table of contents), paragraphs, bullet lists,
+tables (from DataFrames), images (PNG with an SVG beside it, paths relative to the report) and code.
+
+Numbers are formatted per column (:func:`format_column`): 3 significant digits in plain positional notation
+with thousands separators (``97,800``, ``4.85``, ``0.0127``), integers in full (``23,064``), so a column never
+mixes ``1.32e+05`` with ``3877.2``.
+"""
 
 from __future__ import annotations
 
-import html
 import math
+import re
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import pandas as pd
 
-__all__ = ["Document", "format_value", "markdown_table"]
+__all__ = ["Document", "format_value", "format_column", "markdown_table", "slug"]
+
+SIGNIFICANT = 3
+
+
+def _number(value: float, significant: int = SIGNIFICANT) -> str:
+    """``value`` rounded to ``significant`` digits, positional, thousands separators; ``0`` for 0."""
+    if value == 0:
+        return "0"
+    magnitude = math.floor(math.log10(abs(value)))
+    decimals = significant - 1 - magnitude
+    rounded = round(value, decimals)  # negative decimals round to tens, hundreds...: 185,123 -> 185,000
+    if decimals <= 0:
+        return f"{rounded:,.0f}"
+    return f"{rounded:,.{min(decimals, 12)}f}"
 
 
 def format_value(value: Any) -> str:
-    """A table cell: floats with 4 significant digits (large ones without exponent), NaN/None as an empty cell."""
+    """A table cell: floats with 3 significant digits (positional), integers in full, NaN/None empty, bools yes/no."""
     if value is None:
         return ""
     if isinstance(value, bool):
         return "yes" if value else "no"
+    if isinstance(value, int):
+        return f"{value:,}"
     if isinstance(value, float):
         if math.isnan(value):
             return ""
         if math.isinf(value):
             return "inf" if value > 0 else "-inf"
-        if value != 0 and (abs(value) >= 1e5 or abs(value) < 1e-3):
-            return f"{value:.3g}"
-        if abs(value) >= 100:
-            return f"{value:,.0f}" if abs(value) >= 1e4 else f"{value:.1f}"
-        return f"{value:.4g}"
+        return _number(value)
     try:
         if pd.isna(value):
             return ""
     except (TypeError, ValueError):
         pass
+    if hasattr(value, "item") and callable(value.item):  # numpy scalars
+        try:
+            return format_value(value.item())
+        except (TypeError, ValueError):
+            pass
     return str(value)
 
 
-def _cell_md(value: Any) -> str:
-    return format_value(value).replace("|", "\\|").replace("\n", " ")
+def format_column(column: pd.Series) -> list[str]:
+    """Every cell of one column formatted the same way (:func:`format_value` with the column's dtype)."""
+    if pd.api.types.is_bool_dtype(column):
+        return [format_value(bool(v)) if not pd.isna(v) else "" for v in column]
+    if pd.api.types.is_integer_dtype(column):
+        return [f"{int(v):,}" for v in column]
+    if pd.api.types.is_float_dtype(column):
+        return [format_value(float(v)) for v in column]
+    return [format_value(v) for v in column]
+
+
+def _numeric(column: pd.Series) -> bool:
+    return pd.api.types.is_numeric_dtype(column) and not pd.api.types.is_bool_dtype(column)
+
+
+def _cell_md(text: str) -> str:
+    return text.replace("|", "\\|").replace("\n", " ")
 
 
 def markdown_table(frame: pd.DataFrame) -> str:
-    """A GitHub-flavoured Markdown table of ``frame`` (index dropped); numbers right-aligned."""
+    """A GitHub-flavoured Markdown table of ``frame`` (index dropped); numbers right-aligned, formatted per column."""
     if frame.empty:
         return "_(no rows)_"
     columns = [str(c) for c in frame.columns]
-    numeric = [pd.api.types.is_numeric_dtype(frame[c]) and not pd.api.types.is_bool_dtype(frame[c]) for c in frame]
+    numeric = [_numeric(frame[c]) for c in frame.columns]
+    cells = [format_column(frame[c]) for c in frame.columns]
     lines = ["| " + " | ".join(columns) + " |", "|" + "|".join("---:" if n else "---" for n in numeric) + "|"]
-    for row in frame.itertuples(index=False):
-        lines.append("| " + " | ".join(_cell_md(v) for v in row) + " |")
+    for i in range(len(frame)):
+        lines.append("| " + " | ".join(_cell_md(cells[j][i]) for j in range(len(columns))) + " |")
     return "\n".join(lines)
 
 
-def _html_table(frame: pd.DataFrame) -> str:
-    if frame.empty:
-        return "<p><em>(no rows)</em></p>"
-    head = "".join(f"<th>{html.escape(str(c))}</th>" for c in frame.columns)
-    body = []
-    for row in frame.itertuples(index=False):
-        cells = "".join(
-            f"<td class='num'>{html.escape(format_value(v))}</td>"
-            if isinstance(v, (int, float)) and not isinstance(v, bool)
-            else f"<td>{html.escape(format_value(v))}</td>"
-            for v in row
-        )
-        body.append(f"<tr>{cells}</tr>")
-    return f"<table><thead><tr>{head}</tr></thead><tbody>{''.join(body)}</tbody></table>"
+def slug(text: str, taken: set[str] | None = None) -> str:
+    """An HTML id for a heading: lower-case words joined by ``-``, unique within ``taken``."""
+    base = re.sub(r"[^a-z0-9]+", "-", text.lower()).strip("-") or "section"
+    name, n = base, 2
+    while taken is not None and name in taken:
+        name, n = f"{base}-{n}", n + 1
+    if taken is not None:
+        taken.add(name)
+    return name
 
 
-_STYLE = (
-    "body{font-family:sans-serif;max-width:1200px;margin:2em auto;padding:0 1em;color:#222}"
-    "table{border-collapse:collapse;margin:1em 0;font-size:90%}th,td{border:1px solid #ccc;padding:3px 6px}"
-    "th{background:#f0f0f0}td.num{text-align:right;font-variant-numeric:tabular-nums}img{max-width:100%}"
-    "code{background:#f4f4f4;padding:1px 3px}"
-)
+def _html_table(frame: pd.DataFrame) -> dict:
+    """Header and rows of a table for the template: cells as ``(text, is_number)``."""
+    columns = [str(c) for c in frame.columns]
+    numeric = [_numeric(frame[c]) for c in frame.columns]
+    cells = [format_column(frame[c]) for c in frame.columns]
+    rows = []
+    for i in range(len(frame)):
+        row = []
+        for j in range(len(columns)):
+            value = frame.iloc[i, j]
+            number = numeric[j] or (isinstance(value, (int, float)) and not isinstance(value, bool))
+            row.append((cells[j][i], number))
+        rows.append(row)
+    return {"columns": columns, "rows": rows}
 
 
 @dataclass
@@ -87,8 +130,8 @@ class Document:
     def heading(self, text: str, level: int = 2) -> None:
         self.blocks.append(("heading", (level, text)))
 
-    def paragraph(self, text: str) -> None:
-        self.blocks.append(("paragraph", text))
+    def paragraph(self, text: str, *, strong: bool = False) -> None:
+        self.blocks.append(("paragraph", (text, strong)))
 
     def bullets(self, items: list[str]) -> None:
         self.blocks.append(("bullets", list(items)))
@@ -97,6 +140,7 @@ class Document:
         self.blocks.append(("table", (frame.reset_index(drop=True), caption)))
 
     def image(self, path: str, caption: str) -> None:
+        """A figure (PNG path relative to the report); an SVG with the same stem beside it is linked."""
         self.blocks.append(("image", (path, caption)))
 
     def code(self, text: str) -> None:
@@ -108,7 +152,7 @@ class Document:
             if kind == "heading":
                 out += ["#" * value[0] + " " + value[1], ""]
             elif kind == "paragraph":
-                out += [value, ""]
+                out += [f"**{value[0]}**" if value[1] else value[0], ""]
             elif kind == "bullets":
                 out += [f"- {item}" for item in value] + [""]
             elif kind == "table":
@@ -117,31 +161,35 @@ class Document:
                     out += [f"*{caption}*", ""]
                 out += [markdown_table(frame), ""]
             elif kind == "image":
-                out += [f"![{value[1]}]({value[0]})", "", f"*{value[1]}*", ""]
+                svg = str(Path(value[0]).with_suffix(".svg"))
+                out += [f"![{value[1]}]({value[0]})", "", f"*{value[1]}* ([SVG]({svg}))", ""]
             elif kind == "code":
                 out += ["```", value, "```", ""]
         return "\n".join(out)
 
     def html(self) -> str:
-        esc = html.escape
-        out = [f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{esc(self.title)}</title>",
-               f"<style>{_STYLE}</style></head><body><h1>{esc(self.title)}</h1>"]
+        """The document through ``templates/report.html.j2`` (autoescaped), with a table of contents."""
+        from jinja2 import Environment, PackageLoader, select_autoescape
+
+        env = Environment(loader=PackageLoader("mocapbench.experiments", "templates"),
+                          autoescape=select_autoescape(["html", "j2"]), trim_blocks=True, lstrip_blocks=True)
+        taken: set[str] = set()
+        blocks, toc = [], []
         for kind, value in self.blocks:
             if kind == "heading":
-                out.append(f"<h{value[0]}>{esc(value[1])}</h{value[0]}>")
+                anchor = slug(value[1], taken)
+                toc.append({"level": value[0], "text": value[1], "anchor": anchor})
+                blocks.append({"kind": kind, "level": value[0], "text": value[1], "anchor": anchor})
             elif kind == "paragraph":
-                out.append(f"<p>{esc(value)}</p>")
+                blocks.append({"kind": kind, "text": value[0], "strong": value[1]})
             elif kind == "bullets":
-                out.append("<ul>" + "".join(f"<li>{esc(item)}</li>" for item in value) + "</ul>")
+                blocks.append({"kind": kind, "items": value})
             elif kind == "table":
                 frame, caption = value
-                if caption:
-                    out.append(f"<p><em>{esc(caption)}</em></p>")
-                out.append(_html_table(frame))
+                blocks.append({"kind": kind, "caption": caption, "empty": frame.empty, **_html_table(frame)})
             elif kind == "image":
-                out.append(f"<figure><img src='{esc(value[0])}' alt='{esc(value[1])}'>"
-                           f"<figcaption>{esc(value[1])}</figcaption></figure>")
+                blocks.append({"kind": kind, "src": value[0], "svg": str(Path(value[0]).with_suffix(".svg")),
+                               "caption": value[1]})
             elif kind == "code":
-                out.append(f"<pre><code>{esc(value)}</code></pre>")
-        out.append("</body></html>")
-        return "\n".join(out)
+                blocks.append({"kind": kind, "text": value})
+        return env.get_template("report.html.j2").render(title=self.title, toc=toc, blocks=blocks)

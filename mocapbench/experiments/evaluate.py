@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import platform
-import time
+from dataclasses import dataclass
 from functools import lru_cache
 from importlib import metadata
 from typing import Any
@@ -12,9 +12,10 @@ import numpy as np
 
 from mocapbench import metrics
 from mocapbench.codecs.base import Codec
+from mocapbench.metrics.timing import measure
 from mocapbench.motion import Motion
 
-__all__ = ["evaluate", "package_versions"]
+__all__ = ["evaluate", "package_versions", "codec_traits", "TimingSettings"]
 
 _PACKAGES = ("mocapbench", "numpy", "scipy", "torch", "PyWavelets", "zstandard", "bitarray")
 
@@ -31,8 +32,43 @@ def package_versions() -> dict[str, str]:
     return versions
 
 
-def evaluate(codec: Codec, motion: Motion, *, reference_positions: np.ndarray | None = None) -> dict[str, Any]:
-    """Encode and decode ``motion`` once and measure it.
+@dataclass(frozen=True)
+class TimingSettings:
+    """How :func:`evaluate` times encode and decode (see :mod:`mocapbench.metrics.timing`).
+
+    repeats: timed calls (median); warmup: untimed calls before them; threads: BLAS/torch threads;
+    budget_s: wall seconds after which no further repeat starts (a slower warm-up is itself the one timed call).
+    """
+
+    repeats: int = 3
+    warmup: int = 1
+    threads: int = 1
+    budget_s: float = 10.0
+
+    def __post_init__(self) -> None:
+        if self.repeats < 1 or self.warmup < 0 or self.threads < 1 or not self.budget_s > 0:
+            raise ValueError(f"TimingSettings: repeats >= 1, warmup >= 0, threads >= 1, budget_s > 0; got {self}.")
+
+
+def codec_traits(codec: Codec) -> dict[str, Any]:
+    """What a user choosing a codec needs beside rate and error, from the codec instance (its config included)."""
+    return {
+        "codes_rotations": bool(codec.codes_rotations),
+        "family": str(codec.family),
+        "needs_model": bool(codec.needs_model),
+        "random_access": bool(codec.random_access),
+        "latency_frames": int(codec.latency_frames),
+    }
+
+
+def evaluate(
+    codec: Codec,
+    motion: Motion,
+    *,
+    reference_positions: np.ndarray | None = None,
+    timing: TimingSettings | None = None,
+) -> dict[str, Any]:
+    """Encode and decode ``motion``, timed as :class:`TimingSettings` says, and measure the result.
 
     Parameters
     ----------
@@ -41,6 +77,8 @@ def evaluate(codec: Codec, motion: Motion, *, reference_positions: np.ndarray | 
     motion : Motion
     reference_positions : ndarray, shape (F, J, 3), float, cm, optional
         ``motion.positions()``, if the caller already has it.
+    timing : TimingSettings, optional
+        Default: 3 timed repeats after 1 warm-up, one thread, 10 s budget.
 
     Returns
     -------
@@ -50,17 +88,20 @@ def evaluate(codec: Codec, motion: Motion, *, reference_positions: np.ndarray | 
         ``compression_ratio``, ``bits_per_joint_frame``), distortion (``max_err_cm``, ``max_err_percent_height``,
         ``mean_err_cm``, ``p99_err_cm``, ACL's shell error at 3 cm ``shell_max_err_cm`` and ``shell_p99_err_cm``
         (NaN for codecs that do not return rotations), ``kg_percent``, ``worst_joint``, ``worst_frame``), speed
-        (``encode_s``, ``decode_s`` wall; ``encode_cpu_s``, ``decode_cpu_s`` CPU of the process, which the cost
-        estimator of :mod:`mocapbench.experiments.cost` reads; ``encode_fps``, ``decode_fps``) and package versions. KG is NaN for a
-        static clip, where it is undefined.
+        (``encode_s``, ``decode_s``: median wall seconds; ``encode_cpu_s``, ``decode_cpu_s``: median CPU seconds
+        of the process, which the cost estimator of :mod:`mocapbench.experiments.cost` reads; ``encode_fps``,
+        ``decode_fps``: frames per CPU second; ``encode_wall_spread_s``, ``encode_repeats``, ``encode_warmup``,
+        ``encode_threads``, ``encode_load_before``, ``encode_load_after`` and the same for decode), the codec's
+        traits (:func:`codec_traits`) and package versions. KG is NaN for a static clip, where it is undefined.
     """
+    timing = timing or TimingSettings()
     reference = motion.positions() if reference_positions is None else reference_positions
-    start, cpu = time.perf_counter(), time.process_time()
-    data = codec.encode(motion)
-    encode_s, encode_cpu_s = time.perf_counter() - start, time.process_time() - cpu
-    start, cpu = time.perf_counter(), time.process_time()
-    decoded = codec.decode(data)
-    decode_s, decode_cpu_s = time.perf_counter() - start, time.process_time() - cpu
+    knobs = {"repeats": timing.repeats, "warmup": timing.warmup, "threads": timing.threads,
+             "budget_s": timing.budget_s}
+    encode_timing, data = measure(lambda: codec.encode(motion), **knobs)
+    stats = dict(codec.last_encode_stats)
+    decode_timing, decoded = measure(lambda: codec.decode(data), **knobs)
+    encode_s, decode_s = encode_timing.wall_s, decode_timing.wall_s
     positions = decoded.positions
     frames, joints = motion.num_frames, motion.num_joints
     raw = metrics.raw_position_bytes(joints, frames)
@@ -98,16 +139,21 @@ def evaluate(codec: Codec, motion: Motion, *, reference_positions: np.ndarray | 
             "shell_max_err_cm": float(shell.max()),
             "shell_p99_err_cm": float(np.percentile(shell, 99)),
             "kg_percent": kg,
+            # Quantiles 0, 1, ..., 100 % of the per-joint, per-frame errors: the share of samples under any
+            # bound, for the report's distributions over clips (ACL's "% below threshold").
+            "error_quantiles_cm": np.percentile(metrics.joint_errors(reference, positions),
+                                                np.arange(101)).round(6).tolist(),
             "worst_joint": motion.skeleton.names[worst_joint],
             "worst_frame": worst_frame,
             "encode_s": encode_s,
             "decode_s": decode_s,
-            "encode_cpu_s": encode_cpu_s,
-            "decode_cpu_s": decode_cpu_s,
-            "encode_fps": frames / encode_s if encode_s > 0 else float("inf"),
-            "decode_fps": frames / decode_s if decode_s > 0 else float("inf"),
+            "encode_fps": encode_timing.per_second(frames),
+            "decode_fps": decode_timing.per_second(frames),
+            **encode_timing.as_columns("encode"),
+            **decode_timing.as_columns("decode"),
+            **codec_traits(codec),
         }
     )
-    row.update(codec.last_encode_stats)
+    row.update(stats)
     row.update(package_versions())
     return row

@@ -8,8 +8,11 @@
     The CMU benchmark (``make bench``): ``sweep=all`` over ``cmu_test`` (learned state fit on ``cmu_train``),
     then the LSDT claim sweeps (``sweep=lsdt_sparsity``, ``sweep=lsdt_clip_length``) when the LSDT codecs exist.
 
-Each sweep runs as its own ``python -m mocapbench.experiments.run -m ...`` process (Hydra owns its process);
-``--resume DIR`` re-runs into an existing sweep root, skipping the finished jobs.
+Each sweep runs as its own ``python -m mocapbench.experiments.run -m ...`` process (Hydra owns its process), which
+prints a line per finished job with an ETA and a summary at the end; ``--resume DIR`` re-runs into an existing
+sweep root, skipping the finished jobs. Then the report is written and its headline printed: per dataset and L∞
+bound (1 cm, 3 cm and ``--bounds``), the codecs ranked by ratio with the winner in a sentence. The exit status is
+1 when any job failed, unless ``--allow-failures``.
 """
 
 from __future__ import annotations
@@ -51,8 +54,18 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--resume", help="an existing sweep root to continue (skips finished jobs)")
     parser.add_argument("--reports-root", default="reports")
     parser.add_argument("--max-points", type=int, default=None, help="RD points per codec (make run: 3)")
+    parser.add_argument("--bounds", type=float, action="append", default=[], metavar="CM",
+                        help="an L∞ bound (cm) for the headline beside 1 and 3 cm (repeatable)")
+    parser.add_argument("--allow-failures", action="store_true",
+                        help="exit 0 even if some job failed (the summary and the report still list them)")
     parser.add_argument("extra", nargs="*", help="more Hydra overrides for every sweep")
     args = parser.parse_args(argv)
+    from mocapbench.experiments.headline import bounds_with
+
+    try:
+        bounds = bounds_with(args.bounds)
+    except ValueError as error:
+        parser.error(str(error))
     start = time.perf_counter()
     stamp = f"{_dt.datetime.now():%Y-%m-%d-%H%M%S}"
     kind = "bench" if args.cmu else "run"
@@ -62,6 +75,8 @@ def main(argv: list[str] | None = None) -> int:
         common.append(f"data_dir={args.data_dir}")
     if args.max_points:
         common.append(f"hydra.sweeper.max_points={args.max_points}")
+    if args.allow_failures:
+        common.append("hydra.sweeper.allow_failures=true")
     folders, failures = [], 0
     if args.cmu:
         ok, where = cmu_available(args.data_dir)
@@ -91,9 +106,8 @@ def main(argv: list[str] | None = None) -> int:
         folders.append(folder)
         failures += code != 0
     sweep_s = time.perf_counter() - start
-    from mocapbench.experiments.aggregate import aggregate, curve_points
-    from mocapbench.experiments.document import markdown_table
-    from mocapbench.experiments.report import build_report, headline_table
+    from mocapbench.experiments.aggregate import aggregate, curve_points, read_errors
+    from mocapbench.experiments.report import build_report, headline_text
 
     present = [f for f in folders if any(f.rglob("results.jsonl"))]
     if not present:
@@ -101,16 +115,21 @@ def main(argv: list[str] | None = None) -> int:
         return 1
     command = "make bench" if args.cmu else "make run"
     arguments = " ".join(argv if argv is not None else sys.argv[1:])
-    report = build_report(present, name=kind, reports_root=args.reports_root,
+    report = build_report(present, name=kind, reports_root=args.reports_root, bounds=bounds,
                           command=f"{command}  # = python -m mocapbench.experiments.main {arguments}".rstrip())
-    headline = headline_table(curve_points(aggregate(present)))
+    rows = aggregate(present)
     print()
-    print(markdown_table(headline))
+    print(headline_text(rows, curve_points(rows), read_errors(present), bounds))
     print()
     total = time.perf_counter() - start
     print(f"sweeps {sweep_s:.0f} s, total {total:.0f} s on {os.cpu_count()} cores; results in {root}")
-    print(f"report: {report / 'index.html'} (and {report / 'report.md'})")
-    return 1 if failures else 0
+    print(f"report: {report / 'index.html'} (and {report / 'report.md'}); machine-readable results in "
+          f"{report / 'results'}")
+    if failures and not args.allow_failures:
+        print("some jobs failed (see the sweep summary above and the report's Failed jobs section); exit status 1 "
+              "(--allow-failures accepts them)", file=sys.stderr)
+        return 1
+    return 0
 
 
 if __name__ == "__main__":

@@ -1,11 +1,13 @@
-"""The benchmark report: ``python -m mocapbench.experiments.report SWEEP_DIR... [--name NAME] [--anchor CODEC]``.
+"""The benchmark report: ``python -m mocapbench.experiments.report SWEEP_DIR... [--name NAME] [--bounds CM]``.
 
-Writes ``reports/<date>-<time>-<name>/`` with ``report.md`` and ``index.html`` (the same content) and the figures
-as PNG; an existing report folder is never overwritten (a suffix ``-2``, ``-3``... is added). Contents: the
-headline table (ACL's style: each codec at its best point under 1 cm and under 3 cm L∞, with published reference
-points quoted in their own rows), rate-distortion figures per dataset and per clip, the BD-rate table against an
-anchor codec, the reproduction tables of the three papers, an error heat map and a skeleton overlay per codec, the
-full RD table, the failed jobs, and "Data and method".
+Writes ``reports/<date>-<time>-<name>/`` with ``index.html`` (from a jinja2 template, with a table of contents)
+and ``report.md`` (the same content), the figures as PNG and SVG, and the machine-readable results
+(``results/<dataset>/<codec>.json`` and ``results/rows.csv``, :mod:`mocapbench.experiments.results_files`); an
+existing report folder is never overwritten (a suffix ``-2``, ``-3``... is added). Contents: the headline that
+decides (:mod:`mocapbench.experiments.headline`: per dataset and bound, codecs ranked by ratio, the winner in a
+sentence), rate-distortion figures (one metric per figure) per dataset and per clip, distributions over clips,
+the BD-rate table against an anchor codec, the reproduction tables of the three papers, per-codec error heat maps
+and skeleton overlays, the full RD table, the failed jobs grouped by reason, and "Data and method".
 """
 
 from __future__ import annotations
@@ -26,13 +28,15 @@ from mocapbench.experiments import plots
 from mocapbench.experiments.aggregate import aggregate, curve_points, read_errors
 from mocapbench.experiments.bdrate import DEFAULT_ANCHOR, bd_rate_table
 from mocapbench.experiments.document import Document, markdown_table
+from mocapbench.experiments.headline import (DEFAULT_BOUNDS_CM, bounds_with, headline_table, synthetic_only_note,
+                                             winner_sentences)
 from mocapbench.experiments.reproduction import reproduction_sections
 from mocapbench.experiments.run import EXAMPLE_FILE
 from mocapbench.io.safe_output import check_name, write_text
 
-__all__ = ["build_report", "headline_table", "QUOTED_REFERENCES", "CMU_ACKNOWLEDGEMENT", "unique_report_folder"]
+__all__ = ["build_report", "headline_table", "headline_tables", "headline_text", "QUOTED_REFERENCES", "CMU_ACKNOWLEDGEMENT", "unique_report_folder"]
 
-BOUNDS_CM = (1.0, 3.0)
+BOUNDS_CM = DEFAULT_BOUNDS_CM
 
 CMU_ACKNOWLEDGEMENT = (
     "The data used in this project was obtained from mocap.cs.cmu.edu. The database was created with funding "
@@ -51,13 +55,6 @@ QUOTED_REFERENCES = (
     {"codec": "PGA [quoted]", "dataset": "CMU 09_06 (Tournier et al., Table 2)", "compression_ratio": 18.0,
      "max_err_cm": "distortion rate 0.36 %", "note": "raw = 3(m+1) numbers per frame; KG-style distortion rate"},
 )
-
-_HEADLINE_COLUMNS = {
-    "compression_ratio": "CR", "bits_per_joint_frame": "bits/joint/frame", "max_err_cm": "L∞ cm",
-    "p99_err_cm": "p99 cm", "mean_err_cm": "mean cm", "kg_percent": "KG %", "encode_fps": "encode frames/s",
-    "decode_fps": "decode frames/s", "model_bytes": "model bytes",
-}
-
 
 def unique_report_folder(root: Path, name: str, now: _dt.datetime | None = None) -> Path:
     """``root/<date>-<time>-<name>``, created; never an existing folder (``-2``, ``-3``... appended).
@@ -107,25 +104,28 @@ def _present(value) -> bool:
         return True
 
 
-def headline_table(points: pd.DataFrame) -> pd.DataFrame:
-    """Per dataset and codec, the highest-ratio complete config with L∞ under each bound (1 cm, 3 cm)."""
-    out = []
-    swept = _swept_params(points)
-    for (dataset, codec), group in points.groupby(["dataset", "codec"], sort=True):
-        group = group[group["complete"]]
-        for bound in BOUNDS_CM:
-            ok = group[group["max_err_cm"] < bound]
-            row = {"dataset": dataset, "codec": codec, "L∞ bound": f"< {bound:g} cm"}
-            if ok.empty:
-                row.update({"config": "no config under the bound"})
-                out.append(row)
-                continue
-            best = ok.loc[ok["compression_ratio"].idxmax()]
-            row["config"] = _config_text(best, swept[codec])
-            row.update({label: best[column] for column, label in _HEADLINE_COLUMNS.items()})
-            row["clips"] = int(best["clips"])
-            out.append(row)
-    return pd.DataFrame(out)
+def headline_tables(points: pd.DataFrame, errors: pd.DataFrame | None = None,
+                    bounds: Sequence[float] = BOUNDS_CM) -> pd.DataFrame:
+    """:func:`mocapbench.experiments.headline.headline_table` with each config written as its swept parameters."""
+    swept = _swept_params(points) if not points.empty else {}
+    return headline_table(points, bounds, errors=errors,
+                          config_text=lambda row: _config_text(row, swept.get(row["codec"])))
+
+
+def headline_text(rows: pd.DataFrame, points: pd.DataFrame, errors: pd.DataFrame | None = None,
+                  bounds: Sequence[float] = BOUNDS_CM) -> str:
+    """The headline as a user sees it in the terminal: synthetic-only note, winners, one ranked table per bound."""
+    table = headline_tables(points, errors, bounds)
+    lines = []
+    note = synthetic_only_note(rows)
+    if note:
+        lines += [note, ""]
+    lines += [f"- {sentence}" for sentence in winner_sentences(table)]
+    shown = ["rank", "codec", "config", "CR", "bits/joint/frame", "L∞ cm", "decode frames/s", "rotations (BVH/glTF)",
+             "needs model", "latency frames", "note"]
+    for (dataset, bound), group in table.groupby(["dataset", "L∞ bound"], sort=False):
+        lines += ["", f"{dataset}, L∞ {bound}:", "", markdown_table(group[shown])]
+    return "\n".join(lines)
 
 
 def _quoted_table() -> pd.DataFrame:
@@ -189,6 +189,67 @@ def _machine() -> list[str]:
             f"Python {platform.python_version()}"]
 
 
+def _per_clip_at_bound(rows: pd.DataFrame, headline: pd.DataFrame, dataset: str, bound: float,
+                       points: pd.DataFrame) -> pd.DataFrame:
+    """Per (codec, clip): ratio, max error and share of samples under ``bound`` of the codec's headline config."""
+    picks = headline[(headline["dataset"] == dataset) & (headline["L∞ bound"] == f"< {bound:g} cm")
+                     & (headline["rank"] != "–")]
+    out = []
+    ds_points = points[points["dataset"] == dataset]
+    for _, pick in picks.iterrows():
+        candidates = ds_points[(ds_points["codec"] == pick["codec"]) & ds_points["complete"]
+                               & (ds_points["max_err_cm"] < bound)]
+        if candidates.empty:
+            continue
+        best = candidates.loc[candidates["compression_ratio"].idxmax()]
+        clip_rows = rows[(rows["dataset"] == dataset) & (rows["codec"] == pick["codec"])
+                         & (rows["config_hash"] == best["config_hash"])]
+        for _, row in clip_rows.drop_duplicates("clip").iterrows():
+            quantiles = row.get("error_quantiles_cm")
+            share = float("nan")
+            if isinstance(quantiles, list) and len(quantiles) == 101:
+                share = float(np.interp(bound, np.asarray(quantiles, float), np.linspace(0, 1, 101),
+                                        left=0.0, right=1.0))
+            out.append({"codec": pick["codec"], "clip": row["clip"], "compression_ratio": row["compression_ratio"],
+                        "max_err_cm": row["max_err_cm"], "share_under_bound": share})
+    return pd.DataFrame(out)
+
+
+def _timing_note(rows: pd.DataFrame) -> str:
+    """How the speeds were taken, from the rows' own timing columns."""
+    from mocapbench.metrics.timing import METHOD
+
+    if "encode_repeats" not in rows:
+        return ("Speeds: one encode and one decode per clip, wall clock (rows written before repeated timing "
+                "existed): indicative only.")
+    repeats = int(rows["encode_repeats"].max())
+    fewer = rows[(rows["encode_repeats"] < 3) | (rows["decode_repeats"] < 3)]
+    load = pd.concat([rows.get("encode_load_after"), rows.get("decode_load_after")]).dropna()
+    threads = int(rows["encode_threads"].max()) if "encode_threads" in rows else 1
+    text = ("Speeds (frames per CPU second of the process, total frames over the summed per-clip medians): "
+            + METHOD.format(repeats=repeats, warmup=int(rows["encode_warmup"].max()), threads=threads) + ". ")
+    if len(load):
+        text += f"Load average during the runs: {load.min():.2f} to {load.max():.2f} on {os.cpu_count()} cores. "
+    if not fewer.empty:
+        slow = ", ".join(sorted(fewer["codec"].unique()))
+        text += (f"Slower calls were timed fewer times to bound the run time ({slow}: a call over the budget is "
+                 "timed once); the encode_repeats / decode_repeats columns of results/rows.csv say how many.")
+    return text
+
+
+def _failure_summary(errors: pd.DataFrame) -> pd.DataFrame:
+    """Failed jobs grouped by (dataset, codec, stage, first line of the error) with a count and example clips."""
+    frame = errors.copy()
+    for column in ("dataset", "codec", "stage", "clip"):
+        if column not in frame:
+            frame[column] = ""
+    frame["reason"] = frame["error"].astype(str).str.split("\n").str[0].str.slice(0, 200)
+    grouped = frame.groupby(["dataset", "codec", "stage", "reason"], dropna=False, sort=True)
+    out = grouped.agg(count=("reason", "size"),
+                      clips=("clip", lambda c: ", ".join(sorted({str(x) for x in c if x})[:5]))).reset_index()
+    return out.sort_values(["count"], ascending=False)
+
+
 def build_report(
     folders: Iterable[str | Path],
     *,
@@ -196,6 +257,7 @@ def build_report(
     reports_root: str | Path = "reports",
     anchor: str = DEFAULT_ANCHOR,
     command: str | None = None,
+    bounds: Sequence[float] | None = None,
 ) -> Path:
     """Aggregate the sweep folders and write the report; returns the new report folder.
 
@@ -210,7 +272,13 @@ def build_report(
         Anchor codec of the BD-rate table.
     command : str, optional
         The command that produced everything (e.g. ``make run``), quoted in "Data and method".
+    bounds : floats, cm, optional
+        L∞ bounds of the headline beside 1 cm and 3 cm.
     """
+    from mocapbench.experiments.published import points_for
+    from mocapbench.experiments.results_files import write_results
+
+    bounds = bounds_with(bounds)
     folders = [Path(f) for f in folders]
     name = check_name(name or folders[0].resolve().name, "report name")
     rows = aggregate(folders)
@@ -221,33 +289,67 @@ def build_report(
     figures.mkdir()
     datasets = sorted(rows["dataset"].unique())
     codecs = sorted(rows["codec"].unique())
+    headline = headline_tables(points, errors, bounds)
 
     doc = Document(f"mocapbench report: {name}")
-    doc.paragraph(f"{len(rows)} result rows, {len(points)} codec configurations, {len(codecs)} codecs "
-                  f"({', '.join(codecs)}), datasets {', '.join(datasets)}. "
-                  f"Generated {_dt.datetime.now():%Y-%m-%d %H:%M}.")
+    note = synthetic_only_note(rows)
+    if note:
+        doc.paragraph(note, strong=True)
+    doc.paragraph(f"{len(rows)} result rows, {len(points)} codec configurations, {len(codecs)} codecs, "
+                  f"datasets {', '.join(datasets)}. Generated {_dt.datetime.now():%Y-%m-%d %H:%M}.")
 
-    doc.heading("Headline: best compression under 1 cm and 3 cm L∞")
-    doc.paragraph("Per codec, the configuration with the highest compression ratio whose worst joint error over every "
-                  "clip of the dataset stays under the bound. Rate pooled over the dataset (total bytes, container "
-                  "header included); CR = raw float32 positions / bitstream; speeds = frames / wall-clock seconds.")
-    headline = headline_table(points)
-    doc.table(headline)
+    doc.heading("Headline: which codec to pick")
+    doc.bullets(winner_sentences(headline))
+    doc.paragraph("Per dataset and L∞ bound, every codec at the configuration with the highest compression ratio "
+                  "whose worst joint error over every clip stays under the bound, ranked by ratio. Rate pooled over "
+                  "the dataset (total bytes, container header included); CR = raw float32 positions / bitstream. "
+                  "Speeds in frames per CPU second (see Data and method). Rotations: the decoder returns joint "
+                  "rotations, so the clip can be written as BVH/glTF; needs model: decoding needs learned state fit "
+                  "for this skeleton (model bytes, not in the rate); latency: frames the encoder must see before it "
+                  "emits a frame. Codecs without a rank keep their row with the reason.")
+    shown = [c for c in headline.columns if c not in ("dataset", "L∞ bound")]
+    for (dataset, bound), group in headline.groupby(["dataset", "L∞ bound"], sort=False):
+        doc.heading(f"{dataset}, L∞ {bound}", 3)
+        doc.table(group[shown])
     doc.paragraph("Published reference points, quoted and not measured here (their raw-size definitions differ "
-                  "from ours, so their ratios are not directly comparable):")
+                  "from ours, so their ratios are not directly comparable; the figures convert them to bits per "
+                  "joint per frame):")
     doc.table(_quoted_table())
 
     doc.heading("Rate-distortion")
+    doc.paragraph("One metric per figure; rate in bits per joint per frame (lower is better) against each error. "
+                  "Colours and markers are fixed per codec across reports; line style by family: solid = paper, "
+                  "dashed = generic baseline, dash-dot = production reference, thick = mocapbench. Lossless points "
+                  "are kept off the log axes and marked at the left edge with their rate. Black stars: published "
+                  "points (converted as stated in the quoted table).")
     for dataset in datasets:
         slug = dataset.replace("/", "_")
         ds_points = points[points["dataset"] == dataset]
         ds_rows = rows[rows["dataset"] == dataset]
-        path = plots.rd_figure(ds_points, dataset, figures / f"rd_{slug}.png")
-        doc.image(path.relative_to(out).as_posix(), f"{dataset}: compression ratio vs L∞, mean error and KG")
-        path = plots.rd_figure(ds_points, dataset, figures / f"rd_bits_{slug}.png", rate="bits_per_joint_frame")
-        doc.image(path.relative_to(out).as_posix(), f"{dataset}: bits per joint per frame vs L∞, mean error and KG")
+        cmu = bool(ds_rows["cmu_data"].fillna(False).astype(bool).any()) if "cmu_data" in ds_rows else False
+        published = points_for(set(map(str, ds_rows["clip"])), cmu=cmu)
+        for metric, label in plots.DISTORTIONS:
+            path = plots.rd_metric_figure(ds_points, dataset, metric, figures / f"rd_{metric}_{slug}.png",
+                                          bounds=bounds, published=published)
+            if path is not None:
+                doc.image(path.relative_to(out).as_posix(), f"{dataset}: bits/joint/frame vs {label}")
         path = plots.rd_per_clip_figure(ds_rows, dataset, figures / f"rd_per_clip_{slug}.png")
-        doc.image(path.relative_to(out).as_posix(), f"{dataset}: per clip, compression ratio vs L∞")
+        doc.image(path.relative_to(out).as_posix(), f"{dataset}: per clip, bits/joint/frame vs L∞")
+
+    doc.heading("Distributions over clips")
+    doc.paragraph("For each bound, every ranked codec at its headline configuration: the compression ratio of each "
+                  "clip, the max error of each clip and the share of joint samples (every joint of every frame) "
+                  "under the bound, as ACL's CMU report shows them. The bar is the median over clips.")
+    for dataset in datasets:
+        slug = dataset.replace("/", "_")
+        for bound in bounds:
+            per_clip = _per_clip_at_bound(rows, headline, dataset, bound, points)
+            path = plots.clip_distribution_figure(per_clip, dataset, bound,
+                                                  figures / f"clips_{slug}_{bound:g}cm.png")
+            if path is None:
+                doc.paragraph(f"{dataset}, {bound:g} cm: no codec under the bound.")
+                continue
+            doc.image(path.relative_to(out).as_posix(), f"{dataset}: over clips at L∞ < {bound:g} cm")
 
     doc.heading(f"BD-rate against {anchor}")
     doc.paragraph("Bjontegaard-delta rate (bjontegaard package, pchip): average extra rate (%) a codec needs for the "
@@ -257,10 +359,10 @@ def build_report(
         doc.table(bd_rate_table(points, anchor=anchor, error=error), caption=f"quality = -log({error})")
 
     doc.heading("Reproduction of the papers' claims")
-    for title, note, table in reproduction_sections(rows):
+    for title, note_text, table in reproduction_sections(rows):
         doc.heading(title, 3)
-        if note:
-            doc.paragraph(note)
+        if note_text:
+            doc.paragraph(note_text)
         doc.table(table)
 
     doc.heading("Pictures")
@@ -272,13 +374,17 @@ def build_report(
         slug = dataset.replace("/", "_")
         path = plots.error_heatmap_figure(examples, figures / f"heatmap_{slug}.png")
         doc.image(path.relative_to(out).as_posix(), f"{dataset}: per-joint × time error of one clip, each codec at "
-                                                    "its headline point under 3 cm (else its most accurate config)")
+                                                    "its headline point under 3 cm (else its most accurate config), "
+                                                    "each on its own colour scale")
         path = plots.skeleton_overlay_figure(examples, figures / f"overlay_{slug}.png")
-        doc.image(path.relative_to(out).as_posix(), f"{dataset}: original vs decoded skeleton, a few frames")
+        doc.image(path.relative_to(out).as_posix(), f"{dataset}: original vs decoded at each codec's worst joint, "
+                                                    "whole body and zoomed")
 
     doc.heading("All rate-distortion points")
     doc.paragraph("Config shows the parameters swept for each codec; every other parameter is at its default "
-                  "(configs/codec/<name>.yaml) and every row of results.jsonl holds all of them.")
+                  "(configs/codec/<name>.yaml). The same numbers are in results/<dataset>/<codec>.json (one file per "
+                  "codec and dataset) and every per-clip row in results/rows.csv; overlay any of them with "
+                  "`mocapbench plot FILE_OR_REPORT_FOLDER... -o OUT`.")
     columns = ["dataset", "codec", "clips", "compression_ratio", "bits_per_joint_frame", "max_err_cm", "p99_err_cm",
                "mean_err_cm", "kg_percent", "encode_fps", "decode_fps", "model_bytes"]
     table = points.sort_values(["dataset", "codec", "bits_per_joint_frame"]).copy()
@@ -288,11 +394,9 @@ def build_report(
 
     if not errors.empty:
         doc.heading("Failed jobs and clips")
-        keep = [c for c in ("codec", "clip", "stage", "error", "config", "job_dir") if c in errors]
-        shown = errors[keep].copy()
-        if "config" in shown:
-            shown["config"] = shown["config"].astype(str)
-        doc.table(shown)
+        doc.paragraph(f"{len(errors)} failure record(s), grouped by reason; errors.jsonl in each job folder holds "
+                      "the tracebacks.")
+        doc.table(_failure_summary(errors))
 
     doc.heading("Data and method")
     clips = rows.groupby(["dataset", "clip"], sort=True).agg(frames=("frames", "first"), fps=("fps", "first"),
@@ -311,8 +415,9 @@ def build_report(
         "% of height: L∞ / rest-pose height of the skeleton.",
         "Dataset figures pool the clips: rate = total bytes / total joint-frames, L∞ and p99 = worst clip, mean "
         "and KG frame-weighted.",
-        "Timing: one encode and one decode per clip with time.perf_counter, jobs run 2 at a time on this machine "
-        "with 1 BLAS/torch thread each: indicative, not a benchmark of peak speed.",
+        _timing_note(rows),
+        "Verdicts on the papers' claims are given only on at least 5 real (non-synthetic) clips; otherwise the "
+        "verdict reads \"too few clips\".",
     ]
     for _, r in train.iterrows():
         bullets.append(f"Learned state for {r['dataset']}: fit on {r['train_set']}.")
@@ -327,12 +432,14 @@ def build_report(
     doc.paragraph("Commands that reproduce this report:")
     lines = ([command] if command else []) + _sweep_commands(folders)
     lines.append(shlex.join(["python", "-m", "mocapbench.experiments.report", *map(str, folders),
-                             "--name", name, "--anchor", anchor]))
+                             "--name", name, "--anchor", anchor,
+                             *[a for b in bounds if b not in BOUNDS_CM for a in ("--bounds", f"{b:g}")]]))
     doc.code("\n".join(lines))
     if "cmu_data" in rows and rows["cmu_data"].fillna(False).astype(bool).any():
         doc.heading("Acknowledgement")
         doc.paragraph(CMU_ACKNOWLEDGEMENT)
 
+    write_results(out, rows, points)
     write_text(out / "report.md", doc.markdown())
     write_text(out / "index.html", doc.html())
     return out
@@ -352,6 +459,8 @@ def _main(argv: list[str] | None = None) -> None:
     parser.add_argument("--name", type=_report_name, help="report folder suffix (default: first sweep folder name)")
     parser.add_argument("--reports-root", default="reports")
     parser.add_argument("--anchor", default=DEFAULT_ANCHOR, help="anchor codec of the BD-rate table")
+    parser.add_argument("--bounds", type=float, action="append", default=[], metavar="CM",
+                        help="an L∞ bound (cm) for the headline beside 1 and 3 cm (repeatable)")
     parser.add_argument("--command", help="the command that produced the sweeps, quoted in the report")
     parser.add_argument("--quiet", action="store_true", help="print only the report path")
     args = parser.parse_args(argv)
@@ -359,12 +468,13 @@ def _main(argv: list[str] | None = None) -> None:
 
     try:
         folder = build_report(args.folders, name=args.name, reports_root=args.reports_root, anchor=args.anchor,
-                              command=args.command)
+                              command=args.command, bounds=args.bounds)
     except CorruptResultsError as error:  # a dropped row would change the headline silently
         print(f"report: {error}", file=sys.stderr)
         raise SystemExit(2) from None
     if not args.quiet:
-        print(markdown_table(headline_table(curve_points(aggregate(args.folders)))))
+        rows = aggregate(args.folders)
+        print(headline_text(rows, curve_points(rows), read_errors(args.folders), bounds_with(args.bounds)))
     print(f"report: {folder / 'index.html'}")
     sys.stdout.flush()
 

@@ -20,9 +20,35 @@ import pandas as pd
 
 from mocapbench.experiments.bdrate import pareto_front
 
-__all__ = ["compare_at_equal_rate", "neural_fourier_tables", "lsdt_tables", "pga_tables", "reproduction_sections"]
+__all__ = ["compare_at_equal_rate", "neural_fourier_tables", "lsdt_tables", "pga_tables", "reproduction_sections",
+           "MIN_REAL_CLIPS", "guard_verdicts"]
 
 NOT_RUN = "not run"
+# A claim about a database ("most of 116 CMU clips", "better at high CR") is judged on at least this many real
+# clips; on fewer, or on synthetic data, the verdict is "too few clips" and the measurement is still shown.
+MIN_REAL_CLIPS = 5
+_JUDGED = re.compile(r"^(yes|no|partly)\b")
+
+
+def guard_verdicts(claims: pd.DataFrame, rows: pd.DataFrame, column: str = "holds?") -> pd.DataFrame:
+    """Replace yes/no/partly verdicts by "too few clips" where the dataset has fewer than MIN_REAL_CLIPS real clips.
+
+    ``rows`` are the results rows of the same dataset(s); clips of the embedded synthetic dataset are not real.
+    """
+    if claims.empty or column not in claims:
+        return claims
+    from mocapbench.experiments.headline import is_synthetic
+
+    claims = claims.copy()
+    datasets = claims["dataset"] if "dataset" in claims else pd.Series([None] * len(claims), index=claims.index)
+    for index, dataset in datasets.items():
+        subset = rows if dataset is None else rows[rows["dataset"] == dataset]
+        real = subset.loc[~is_synthetic(subset), "clip"].nunique() if not subset.empty else 0
+        verdict = str(claims.at[index, column])
+        if real < MIN_REAL_CLIPS and _JUDGED.match(verdict):
+            kind = "real clip" if real == 1 else "real clips"
+            claims.at[index, column] = f"too few clips ({real} {kind}; a verdict needs {MIN_REAL_CLIPS})"
+    return claims
 
 
 def _codecs(rows: pd.DataFrame, prefix: str) -> list[str]:
@@ -297,21 +323,24 @@ def reproduction_sections(rows: pd.DataFrame) -> list[tuple[str, str, pd.DataFra
     if "dataset" not in rows:
         rows["dataset"] = "unknown"
     datasets = sorted(rows["dataset"].unique())
-    nf_claims = _per_dataset(rows, lambda r: neural_fourier_tables(r)[1], datasets)
+    nf_claims = guard_verdicts(_per_dataset(rows, lambda r: neural_fourier_tables(r)[1], datasets), rows)
     nf_detail = _per_dataset(rows, lambda r: neural_fourier_tables(r)[0], datasets)
     sections = [
         ("Neural Fourier (Tojo et al.): claims", "Published: 2-15x smaller at L∞ below 2 % of the character's "
          "height (about 3 cm) in most of 116 random CMU clips; their ratio = pose numbers / network parameters. "
-         "Only CMU datasets are comparable; synthetic rows are shown as a sanity check.", nf_claims),
+         "Only CMU datasets are comparable; synthetic rows are shown as a sanity check. A verdict needs at least "
+         "5 real clips; on fewer it reads \"too few clips\".", nf_claims),
     ]
     if not nf_detail.empty:
         sections.append(("Neural Fourier: best ratio per clip under 2 % of height", "", nf_detail))
     sections.append(("LSDT (Hou et al., CAGD 2016): Figs. 4-7", "Published curves are on CMU clips that are not "
                      "available here; the claims are checked on the clips of this run. Distortion = mean joint "
                      "error (cm), as the paper's D. Fig. 4 and Fig. 7 (2) need the sweeps lsdt_sparsity and "
-                     "lsdt_clip_length (run by make bench).", _per_dataset(rows, lsdt_tables, datasets)))
+                     "lsdt_clip_length (run by make bench). Verdicts need at least 5 real clips.",
+                     guard_verdicts(_per_dataset(rows, lsdt_tables, datasets), rows)))
     with_pga_clip = [d for d in datasets if "09_06" in set(rows.loc[rows["dataset"] == d, "clip"])]
     pga = _per_dataset(rows, pga_tables, with_pga_clip) if with_pga_clip else pga_tables(rows.iloc[:0])
     sections.append(("PGA (Tournier et al.): Table 2", "Only 09_06 of Table 2 is available here. The paper's "
-                     "distortion rate is the KG measure (our kg_percent).", pga))
+                     "distortion rate is the KG measure (our kg_percent). Each row is the paper's claim about that "
+                     "one clip, so it is judged on that clip.", pga))
     return sections

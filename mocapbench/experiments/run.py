@@ -128,6 +128,9 @@ def run_job(cfg: Any, output_dir: Path, fitted_dir: Path | None = None) -> dict[
                   context["config"], record["error"])
         append_row(output_dir / ERRORS_FILE, record)
 
+    from mocapbench.experiments.evaluate import TimingSettings
+
+    timing = TimingSettings(**OmegaConf.to_container(cfg.timing, resolve=True)) if cfg.get("timing") else None
     status, clips = "failed", []
     try:
         clips = [ref.name for ref in shards.shard_clips(datasets.catalogue(dataset_cfg), index, total)]
@@ -151,7 +154,7 @@ def run_job(cfg: Any, output_dir: Path, fitted_dir: Path | None = None) -> dict[
                                disable=None):
                 try:
                     reference = motion.positions()
-                    row = evaluate(codec, motion, reference_positions=reference)
+                    row = evaluate(codec, motion, reference_positions=reference, timing=timing)
                     if example and motion.name == clips[0]:
                         _save_example(output_dir, codec, motion, reference)
                 except Exception as error:  # noqa: BLE001 - every failure is recorded and the job goes on

@@ -27,6 +27,7 @@ import itertools
 import json
 import logging
 import re
+import sys
 import time
 from collections import OrderedDict
 from pathlib import Path
@@ -124,6 +125,8 @@ class RdSweeper(Sweeper):
         Do not launch jobs whose folder already holds a finished job.
     dry_run : bool
         Write ``jobs.json`` (every job's folder and overrides) and launch nothing.
+    allow_failures : bool
+        Exit 0 even when a job failed (default: the sweep process exits 1 after its summary).
     """
 
     def __init__(
@@ -137,6 +140,7 @@ class RdSweeper(Sweeper):
         max_points_for: dict[str, int] | None = None,
         skip_done: bool = True,
         dry_run: bool = False,
+        allow_failures: bool = False,
     ) -> None:
         super().__init__()
         self.max_batch_size = max_batch_size
@@ -151,6 +155,7 @@ class RdSweeper(Sweeper):
         self.max_points_for = dict(max_points_for or {})
         self.skip_done = skip_done
         self.dry_run = dry_run
+        self.allow_failures = bool(allow_failures)
         self.skipped: list[str] = []
 
     def setup(self, *, hydra_context, task_function, config) -> None:
@@ -297,23 +302,29 @@ class RdSweeper(Sweeper):
             if folder in seen:
                 raise ValueError(f"two jobs map to the same folder {folder!r}: {seen[folder]} and {overrides}")
             seen[folder] = overrides
-        todo = []
+        todo, launched = [], []
         for folder, overrides in jobs:
             if self.skip_done and is_job_done(sweep_dir / folder):
                 self.skipped.append(folder)
                 continue
             todo.append([*overrides, f"hydra.sweep.subdir='{folder}'"])
+            launched.append(folder)
+            # A stale job.json of an earlier failed run would read as finished to the progress monitor.
+            (sweep_dir / folder / JOB_FILE).unlink(missing_ok=True)
         (sweep_dir / "jobs.json").write_text(json.dumps([{"folder": f, "overrides": o} for f, o in jobs], indent=1))
-        log.info("sweep %s: %d jobs, %d already done, %d to run", sweep_dir, len(jobs), len(self.skipped), len(todo))
         if self.dry_run:
             return []
-        from tqdm import tqdm
+        from mocapbench.experiments.sweep_progress import JobMonitor, format_summary, summarize
 
         size = self.max_batch_size or len(todo) or 1
         batches = [todo[i : i + size] for i in range(0, len(todo), size)]
         returns = []
         index = 0
-        with tqdm(total=len(todo), desc="jobs", unit="job", disable=None) as progress:
+        start = time.perf_counter()
+        print(f"sweep {sweep_dir}: {len(jobs)} jobs, {len(self.skipped)} already done, {len(todo)} to run",
+              flush=True)
+        # One line per finished job with an ETA (the launcher only returns when a whole batch is done).
+        with JobMonitor(sweep_dir, launched):
             for batch in batches:
                 tic = time.perf_counter()
                 self.validate_batch_is_legal(batch)
@@ -322,6 +333,13 @@ class RdSweeper(Sweeper):
                 for result in results:
                     _ = result.return_value  # re-raises a job's exception (jobs catch their own errors)
                 index += len(batch)
-                progress.update(len(batch))
                 returns.append(results)
+        summary = summarize(sweep_dir, launched, self.skipped, time.perf_counter() - start)
+        print(format_summary(summary, self.allow_failures), flush=True)
+        (sweep_dir / "summary.json").write_text(json.dumps(
+            {"done": summary.done, "failed": summary.failed, "missing": summary.missing, "skipped": summary.skipped,
+             "reasons": dict(summary.reasons), "seconds": summary.seconds}, indent=1))
+        if not summary.ok and not self.allow_failures:
+            # Hydra has no exit code for a sweep whose jobs failed: end the process with one after the summary.
+            sys.exit(1)
         return returns

@@ -77,11 +77,11 @@ def test_curve_points_pool_clips(sweep_dir):
 
 def test_headline_picks_the_highest_ratio_under_each_bound(sweep_dir):
     points = curve_points(aggregate([sweep_dir]))
-    table = headline_table(points)
+    table = headline_table(points, unavailable={})
     assert set(table["L∞ bound"]) == {"< 1 cm", "< 3 cm"}
     assert len(table) == 2 * 2  # 2 codecs x 2 bounds
     for _, row in table.iterrows():
-        if row["config"] == "no config under the bound":
+        if row["rank"] == "–":
             continue
         bound = float(row["L∞ bound"].split()[1])
         assert row["L∞ cm"] < bound
@@ -102,11 +102,17 @@ def test_report_writes_tables_and_figures_and_never_overwrites(sweep_dir, tmp_pa
     assert "not run" in markdown  # the paper codecs are absent from this fixture
     assert CMU_ACKNOWLEDGEMENT not in markdown  # no CMU clip was used
     figures = sorted(p.name for p in (first / "figures").glob("*.png"))
-    assert figures == ["heatmap_synthetic.png", "overlay_synthetic.png", "rd_bits_synthetic.png",
-                       "rd_per_clip_synthetic.png", "rd_synthetic.png"]
+    assert figures == ["clips_synthetic_1cm.png", "clips_synthetic_3cm.png", "heatmap_synthetic.png",
+                       "overlay_synthetic.png", "rd_kg_percent_synthetic.png", "rd_max_err_cm_synthetic.png",
+                       "rd_mean_err_cm_synthetic.png", "rd_per_clip_synthetic.png"]
     for name in figures:
         assert f"figures/{name}" in markdown and f"figures/{name}" in html
         assert (first / "figures" / name).stat().st_size > 5000
+        svg = (first / "figures" / name).with_suffix(".svg")
+        assert svg.read_text().lstrip().startswith("<?xml") and f"figures/{svg.name}" in html
+    assert markdown.startswith("# mocapbench report: fixture\n\n**Synthetic data only")
+    assert 'id="headline-which-codec-to-pick"' in html and 'href="#headline-which-codec-to-pick"' in html
+    assert html.count("<table>") == html.count('<div class="table-scroll"><table>')
 
 
 def test_report_carries_the_cmu_acknowledgement_when_cmu_was_used(tmp_path):

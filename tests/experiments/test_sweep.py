@@ -67,24 +67,35 @@ def test_tiny_sweep_then_report(tmp_path):
     report = build_report([sweep], name="tiny", reports_root=tmp_path / "reports")
     assert report.name.endswith("-tiny")
     markdown = (report / "report.md").read_text()
-    headline = markdown.split("## Headline")[1].split("##")[0]
+    headline = markdown.split("## Headline")[1].split("\n## ")[0]
+    assert headline.count("### synthetic, L∞ < 1 cm") == 1 and headline.count("### synthetic, L∞ < 3 cm") == 1
     for codec in ("quant-delta-zstd", "quant-rot-zstd", "raw-zstd"):
-        assert headline.count(f"| synthetic | {codec} |") == 2  # one row per bound
+        assert headline.count(f" | {codec} | ") == 2, codec  # one row per bound
     assert "| synthetic | quant-delta-zstd | quant-delta-zstd | 0 | anchor |" in markdown
     assert "python -m mocapbench.experiments.run -m sweep=small" in markdown
-    for figure in ("rd_synthetic", "rd_bits_synthetic", "rd_per_clip_synthetic", "heatmap_synthetic",
-                   "overlay_synthetic"):
+    for figure in ("rd_max_err_cm_synthetic", "rd_mean_err_cm_synthetic", "rd_kg_percent_synthetic",
+                   "rd_per_clip_synthetic", "heatmap_synthetic", "overlay_synthetic"):
         assert (report / "figures" / f"{figure}.png").stat().st_size > 5000
     assert (report / "index.html").read_text().count("<table>") >= 6
+    for codec in ("quant-delta-zstd", "quant-rot-zstd", "raw-zstd"):
+        assert (report / "results" / "synthetic" / f"{codec}.json").exists()
+    assert len((report / "results" / "rows.csv").read_text().splitlines()) == 1 + len(data)
 
 
 @pytest.mark.slow
 def test_a_failing_job_is_logged_and_the_sweep_goes_on(tmp_path):
     sweep = tmp_path / "sweep"
     result = _run("codec=quant-delta-zstd", "codec.step_cm=0.5,-1.0", *TINY, f"hydra.sweep.dir={sweep}")
-    assert result.returncode == 0, result.stderr[-3000:]
+    assert result.returncode == 1, result.stderr[-3000:]  # a failed job fails the sweep...
+    assert "[2/2]" in result.stdout and "ETA" in result.stdout  # one line per finished job
+    assert "1/2 jobs done, 1 failed" in result.stdout and "step_cm" in result.stdout.split("failures by reason")[1]
     data = aggregate([sweep])
     assert set(data["param_step_cm"]) == {0.5}
     (error,) = read_errors([sweep]).to_dict("records")
     assert error["stage"] == "setup" and "step_cm" in error["error"] and error["codec"] == "quant-delta-zstd"
+    assert error["dataset"] == "synthetic"  # from the job's saved config, for the headline's row
     assert json.loads((sweep / "quant-delta-zstd" / "codec.step_cm=-1.0" / "job.json").read_text())["status"] == "failed"
+    again = _run("codec=quant-delta-zstd", "codec.step_cm=0.5,-1.0", *TINY, f"hydra.sweep.dir={sweep}",
+                 "hydra.sweeper.allow_failures=true")
+    assert again.returncode == 0, again.stderr[-3000:]  # ...unless failures are allowed (the done job is skipped)
+    assert "1 skipped (already done)" in again.stdout

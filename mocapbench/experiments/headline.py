@@ -1,0 +1,235 @@
+"""The headline that decides: per dataset and per L∞ bound, codecs ranked by compression ratio, winner in a sentence.
+
+Input: :func:`mocapbench.experiments.aggregate.curve_points` (one row per dataset, codec, config) and, optionally,
+the failed jobs (:func:`mocapbench.experiments.aggregate.read_errors`). Each codec's best complete config under
+the bound (highest ratio whose worst-clip L∞ stays below it) is ranked; a codec with no such config, a codec whose
+every job failed and a codec that cannot run here (:data:`mocapbench.codecs.registry.UNAVAILABLE`) keep a row with
+the reason instead of a rank. Beside rate and error the columns say what a user choosing a codec must know: does
+it output rotations (can it write BVH/glTF), does it need a model fit for the skeleton (and how many bytes), its
+latency in frames, random access, its family.
+"""
+
+from __future__ import annotations
+
+from typing import Iterable, Sequence
+
+import numpy as np
+import pandas as pd
+
+__all__ = ["DEFAULT_BOUNDS_CM", "TRAIT_COLUMNS", "headline_table", "winner_sentences", "synthetic_only_note",
+           "is_synthetic", "failure_reasons"]
+
+DEFAULT_BOUNDS_CM = (1.0, 3.0)
+TRAIT_COLUMNS = ("codes_rotations", "family", "needs_model", "random_access", "latency_frames")
+
+_METRICS = {
+    "compression_ratio": "CR", "bits_per_joint_frame": "bits/joint/frame", "max_err_cm": "L∞ cm",
+    "mean_err_cm": "mean cm", "encode_fps": "encode frames/s", "decode_fps": "decode frames/s",
+}
+
+
+def bounds_with(extra: Iterable[float] | None) -> tuple[float, ...]:
+    """1 cm, 3 cm and the user's bounds, sorted, without duplicates."""
+    values = set(DEFAULT_BOUNDS_CM) | {float(b) for b in (extra or ())}
+    bad = [b for b in values if not np.isfinite(b) or b <= 0]
+    if bad:
+        raise ValueError(f"L∞ bounds must be positive numbers of cm, got {sorted(bad)}")
+    return tuple(sorted(values))
+
+
+def is_synthetic(frame: pd.DataFrame) -> pd.Series:
+    """Per row, whether its dataset is the embedded synthetic one (sinusoids, not motion capture)."""
+    desc = frame["dataset_desc"].astype(str) if "dataset_desc" in frame else pd.Series("", index=frame.index)
+    return desc.str.startswith("synthetic") | frame["dataset"].astype(str).str.startswith("synthetic")
+
+
+def synthetic_only_note(rows: pd.DataFrame) -> str | None:
+    """The report's first line when no real clip was measured (else None)."""
+    if rows.empty or not is_synthetic(rows).all():
+        return None
+    return ("Synthetic data only: every number below is measured on generated sinusoidal skeletons, not on motion "
+            "capture; they check that the codecs work, not how well they compress real motion (run with the CMU "
+            "data for that).")
+
+
+def _traits(codec: str, row: pd.Series | None) -> dict:
+    """Trait columns from the result row when it holds them, else from the registered class's defaults."""
+    values = {}
+    if row is not None:
+        values = {k: row[k] for k in TRAIT_COLUMNS if k in row.index and _present(row[k])}
+    missing = [k for k in TRAIT_COLUMNS if k not in values]
+    if missing:
+        try:
+            from mocapbench.codecs import create
+
+            instance = create(codec)
+            for key in missing:
+                values[key] = getattr(instance, key)
+        except Exception:  # noqa: BLE001 - unknown or unavailable here: the columns stay empty
+            pass
+    latency = values.get("latency_frames")
+    return {
+        "family": values.get("family", ""),
+        "rotations (BVH/glTF)": _yes_no(values.get("codes_rotations")),
+        "needs model": _yes_no(values.get("needs_model")),
+        "latency frames": ("whole clip" if latency is not None and int(latency) < 0
+                           else "" if latency is None else int(latency)),
+        "random access": _yes_no(values.get("random_access")),
+    }
+
+
+def _yes_no(value) -> str:
+    if value is None or not _present(value):
+        return ""
+    return "yes" if bool(value) else "no"
+
+
+def _present(value) -> bool:
+    try:
+        return not pd.isna(value)
+    except (TypeError, ValueError):
+        return True
+
+
+def failure_reasons(errors: pd.DataFrame) -> dict[tuple[str, str], str]:
+    """``(dataset, codec) -> reason`` of failed jobs: the most frequent error message, with counts."""
+    if errors is None or errors.empty or "codec" not in errors:
+        return {}
+    out = {}
+    frame = errors.copy()
+    if "dataset" not in frame:
+        frame["dataset"] = ""
+    frame["dataset"] = frame["dataset"].fillna("")
+    frame["_message"] = frame["error"].astype(str).str.split("\n").str[0].str.slice(0, 160)
+    for (dataset, codec), group in frame.groupby(["dataset", "codec"], sort=True):
+        counts = group["_message"].value_counts()
+        reason = counts.index[0]
+        more = f" (+{len(counts) - 1} other error(s))" if len(counts) > 1 else ""
+        out[(str(dataset), str(codec))] = f"failed {len(group)}x: {reason}{more}"
+    return out
+
+
+def headline_table(
+    points: pd.DataFrame,
+    bounds: Sequence[float] = DEFAULT_BOUNDS_CM,
+    errors: pd.DataFrame | None = None,
+    unavailable: dict[str, str] | None = None,
+    config_text=None,
+) -> pd.DataFrame:
+    """Ranked headline rows for every dataset and bound.
+
+    Parameters
+    ----------
+    points : DataFrame
+        ``curve_points`` rows (``dataset, codec, config_hash, complete, compression_ratio, max_err_cm, ...``).
+    bounds : floats, cm
+        L∞ bounds; a config qualifies when its worst-clip L∞ is strictly below the bound.
+    errors : DataFrame, optional
+        Failed jobs (``codec``, ``error``, ``dataset`` when known): a codec without any result on a dataset
+        gets a row with the reason.
+    unavailable : dict, optional
+        Codecs that cannot run here and why (default: the registry's ``UNAVAILABLE``).
+    config_text : callable(row) -> str, optional
+        Renders a point's config (default: its ``param_*`` columns).
+
+    Returns
+    -------
+    DataFrame
+        ``dataset, L∞ bound, rank, codec, config, CR, bits/joint/frame, L∞ cm, mean cm, encode frames/s,
+        decode frames/s, rotations (BVH/glTF), needs model, model bytes, latency frames, random access, family,
+        clips, note``; ranked rows first (rank 1 = highest ratio), then the rows without a rank.
+    """
+    if unavailable is None:
+        from mocapbench.codecs.registry import UNAVAILABLE
+
+        unavailable = dict(UNAVAILABLE)
+    config_text = config_text or _default_config_text
+    failures = failure_reasons(errors) if errors is not None else {}
+    datasets = sorted(set(points["dataset"]) if not points.empty else set())
+    datasets += sorted({d for d, _ in failures if d and d not in datasets})
+    out = []
+    for dataset in datasets:
+        ds = points[points["dataset"] == dataset] if not points.empty else points
+        measured = sorted(set(ds["codec"])) if not ds.empty else []
+        failed_only = sorted({c for (d, c) in failures if d in (dataset, "") and c not in measured})
+        for bound in bounds:
+            ranked, unranked = [], []
+            for codec in measured:
+                group = ds[(ds["codec"] == codec) & ds["complete"]]
+                ok = group[group["max_err_cm"] < bound]
+                if ok.empty:
+                    best = ds[ds["codec"] == codec]
+                    least = best["max_err_cm"].min() if not best.empty else float("nan")
+                    note = f"no config under {bound:g} cm (lowest L∞ {least:.3g} cm)"
+                    if (dataset, codec) in failures:
+                        note += "; " + failures[(dataset, codec)]
+                    unranked.append({"codec": codec, **_traits(codec, best.iloc[0] if not best.empty else None),
+                                     "note": note})
+                    continue
+                best = ok.loc[ok["compression_ratio"].idxmax()]
+                row = {"codec": codec, "config": config_text(best)}
+                row.update({label: best[column] for column, label in _METRICS.items() if column in best.index})
+                row.update(_traits(codec, best))
+                row["model bytes"] = int(best["model_bytes"]) if _present(best.get("model_bytes")) else 0
+                row["clips"] = int(best["clips"])
+                row["note"] = failures.get((dataset, codec)) or failures.get(("", codec), "")
+                ranked.append(row)
+            for codec in failed_only:
+                reason = failures.get((dataset, codec)) or failures.get(("", codec), "failed")
+                unranked.append({"codec": codec, **_traits(codec, None), "note": reason})
+            for codec, reason in sorted(unavailable.items()):
+                if codec not in measured and codec not in failed_only:
+                    unranked.append({"codec": codec, **_traits(codec, None), "note": f"unavailable here: {reason}"})
+            ranked.sort(key=lambda r: -float(r["CR"]))
+            for rank, row in enumerate(ranked, 1):
+                out.append({"dataset": dataset, "L∞ bound": f"< {bound:g} cm", "rank": rank, **row})
+            for row in unranked:
+                out.append({"dataset": dataset, "L∞ bound": f"< {bound:g} cm", "rank": "–", **row})
+    columns = ["dataset", "L∞ bound", "rank", "codec", "config", *_METRICS.values(), "rotations (BVH/glTF)",
+               "needs model", "model bytes", "latency frames", "random access", "family", "clips", "note"]
+    table = pd.DataFrame(out)
+    for column in columns:
+        if column not in table:
+            table[column] = np.nan if column in _METRICS.values() else ""
+    return table[columns]
+
+
+def _default_config_text(row: pd.Series) -> str:
+    keys = [k for k in row.index if k.startswith("param_") and _present(row[k])]
+    return ", ".join(f"{k[6:]}={row[k]}" for k in keys)
+
+
+def _ratio(value: float) -> str:
+    return f"{value:,.3g}:1" if value < 1000 else f"{value:,.0f}:1"
+
+
+def winner_sentences(table: pd.DataFrame) -> list[str]:
+    """One sentence per (dataset, bound): the winner, its margin over the runner-up, the best rotation codec."""
+    sentences = []
+    if table.empty:
+        return sentences
+    for (dataset, bound), group in table.groupby(["dataset", "L∞ bound"], sort=False):
+        ranked = group[group["rank"] != "–"]
+        where = f"{dataset}, L∞ {bound}"
+        if ranked.empty:
+            sentences.append(f"{where}: no codec stays under the bound.")
+            continue
+        first = ranked.iloc[0]
+        text = (f"{where}: {first['codec']} wins at {_ratio(float(first['CR']))} "
+                f"({float(first['bits/joint/frame']):.3g} bits/joint/frame, L∞ {float(first['L∞ cm']):.3g} cm)")
+        if len(ranked) > 1:
+            second = ranked.iloc[1]
+            text += (f", {float(first['CR']) / float(second['CR']):.2g}x the runner-up {second['codec']} "
+                     f"({_ratio(float(second['CR']))})")
+        if first["rotations (BVH/glTF)"] != "yes":
+            rotations = ranked[ranked["rotations (BVH/glTF)"] == "yes"]
+            if rotations.empty:
+                text += "; no codec that outputs rotations (BVH/glTF) stays under the bound"
+            else:
+                best = rotations.iloc[0]
+                text += (f"; it outputs joint positions only: the best codec that outputs rotations (BVH/glTF) is "
+                         f"{best['codec']} at {_ratio(float(best['CR']))}")
+        if first["needs model"] == "yes":
+            text += "; the winner needs a model fit for this skeleton"
+        sentences.append(text + ".")
+    return sentences

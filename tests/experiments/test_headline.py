@@ -1,0 +1,90 @@
+"""The headline that decides: ranking, winner sentence, rows kept with a reason, synthetic note, formats, verdicts."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from mocapbench.experiments.document import format_column, markdown_table
+from mocapbench.experiments.headline import bounds_with, headline_table, synthetic_only_note, winner_sentences
+from mocapbench.experiments.reproduction import MIN_REAL_CLIPS, guard_verdicts
+
+
+def _point(codec, ratio, linf, dataset="cmu_test", **extra):
+    return {"dataset": dataset, "codec": codec, "config_hash": f"{codec}-{ratio}", "complete": True, "clips": 12,
+            "compression_ratio": ratio, "bits_per_joint_frame": 96.0 / ratio, "max_err_cm": linf,
+            "mean_err_cm": linf / 4, "encode_fps": 1000.0, "decode_fps": 5e4, "model_bytes": 0, **extra}
+
+
+POINTS = pd.DataFrame([
+    _point("quant-delta-zstd", 30.0, 0.8, family="generic", codes_rotations=False, latency_frames=-1),
+    _point("quant-delta-zstd", 45.0, 2.5, family="generic", codes_rotations=False, latency_frames=-1),
+    _point("quant-rot-zstd", 5.0, 0.9, family="generic", codes_rotations=True, latency_frames=-1),
+    _point("mcb-linf", 90.0, 0.5, family="mocapbench", codes_rotations=False, needs_model=True, latency_frames=480,
+           model_bytes=23064),
+    _point("svd", 12.0, 4.0, family="paper", codes_rotations=True, latency_frames=-1),
+])
+ERRORS = pd.DataFrame([{"dataset": "cmu_test", "codec": "pga-ik", "error": "ValueError: IK diverged\ntrace"}] * 3)
+
+
+def test_codecs_are_ranked_by_ratio_under_each_bound_and_the_rest_keep_a_reason():
+    table = headline_table(POINTS, (1.0, 3.0), errors=ERRORS, unavailable={"acl": "no C++ compiler (apt install g++)"})
+    one = table[table["L∞ bound"] == "< 1 cm"]
+    assert list(one["codec"]) == ["mcb-linf", "quant-delta-zstd", "quant-rot-zstd", "svd", "pga-ik", "acl"]
+    assert list(one["rank"]) == [1, 2, 3, "–", "–", "–"]
+    assert list(one["CR"].iloc[:3]) == [90.0, 30.0, 5.0]
+    notes = dict(zip(one["codec"], one["note"]))
+    assert notes["svd"] == "no config under 1 cm (lowest L∞ 4 cm)"
+    assert notes["pga-ik"] == "failed 3x: ValueError: IK diverged"
+    assert notes["acl"] == "unavailable here: no C++ compiler (apt install g++)"
+    three = table[table["L∞ bound"] == "< 3 cm"]
+    assert three.loc[three["codec"] == "quant-delta-zstd", "CR"].item() == 45.0  # its best config under 3 cm
+    row = one.iloc[0]
+    assert (row["rotations (BVH/glTF)"], row["needs model"], row["model bytes"], row["latency frames"]) == \
+        ("no", "yes", 23064, 480)
+    assert one.loc[one["codec"] == "quant-rot-zstd", "latency frames"].item() == "whole clip"
+
+
+def test_the_winner_is_stated_with_its_margin_and_the_best_rotation_codec():
+    sentences = winner_sentences(headline_table(POINTS, (0.6, 1.0), unavailable={}))
+    assert sentences[0].startswith("cmu_test, L∞ < 0.6 cm: mcb-linf wins at 90:1")
+    assert "no codec that outputs rotations" in sentences[0]
+    assert "3x the runner-up quant-delta-zstd (30:1)" in sentences[1]
+    assert "the best codec that outputs rotations (BVH/glTF) is quant-rot-zstd at 5:1" in sentences[1]
+    assert "needs a model" in sentences[1]
+    nothing = winner_sentences(headline_table(POINTS, (0.1,), unavailable={}))
+    assert nothing == ["cmu_test, L∞ < 0.1 cm: no codec stays under the bound."]
+
+
+def test_user_bounds_join_1_and_3_cm():
+    assert bounds_with([0.5, 3.0]) == (0.5, 1.0, 3.0)
+    with pytest.raises(ValueError, match="positive"):
+        bounds_with([-1.0])
+
+
+def test_a_synthetic_only_run_says_so_first():
+    synthetic = pd.DataFrame({"dataset": ["synthetic"] * 2, "dataset_desc": ["synthetic sinusoidal, seeds [1]"] * 2})
+    assert synthetic_only_note(synthetic).startswith("Synthetic data only")
+    mixed = pd.concat([synthetic, pd.DataFrame({"dataset": ["cmu_09_06"], "dataset_desc": ["CMU 09_06"]})])
+    assert synthetic_only_note(mixed) is None
+
+
+def test_a_column_keeps_one_number_format():
+    column = pd.Series([97834.0, 1.32e5, 3877.2, 185123.4, 4.852, 0.01274])
+    assert format_column(column) == ["97,800", "132,000", "3,880", "185,000", "4.85", "0.0127"]
+    assert format_column(pd.Series([23064, 0])) == ["23,064", "0"]
+    text = markdown_table(pd.DataFrame({"x": [1.23e-5, 4.0e6, np.nan]}))
+    assert "e-" not in text and "e+" not in text and "4,000,000" in text
+
+
+def test_a_claim_needs_five_real_clips():
+    rows = pd.DataFrame({"dataset": ["cmu_09_06"] * 2 + ["cmu_test"] * MIN_REAL_CLIPS + ["synthetic"] * 9,
+                         "dataset_desc": ["CMU"] * (2 + MIN_REAL_CLIPS) + ["synthetic sinusoidal"] * 9,
+                         "clip": ["09_06", "09_06", *[f"c{i}" for i in range(MIN_REAL_CLIPS)],
+                                  *[f"s{i}" for i in range(9)]]})
+    claims = pd.DataFrame({"dataset": ["cmu_09_06", "cmu_test", "synthetic", "cmu_09_06"],
+                           "holds?": ["yes", "no", "partly (better)", "not run"]})
+    guarded = guard_verdicts(claims, rows)["holds?"].tolist()
+    assert guarded == ["too few clips (1 real clip; a verdict needs 5)", "no",
+                       "too few clips (0 real clips; a verdict needs 5)", "not run"]

@@ -1,0 +1,39 @@
+"""The shared timing helper: warm-up, repeats, median of wall and CPU time, budget, load average."""
+
+from __future__ import annotations
+
+import time
+
+import pytest
+
+from mocapbench.experiments.evaluate import TimingSettings
+from mocapbench.metrics.timing import measure, time_call
+
+
+def test_measure_runs_warmup_then_repeats_and_reports_medians():
+    calls = []
+    timing, result = measure(lambda: calls.append(1) or len(calls), repeats=3, warmup=2)
+    assert len(calls) == 5 and result == 5
+    assert (timing.repeats, timing.warmup, timing.threads) == (3, 2, 1)
+    assert timing.wall_s >= 0 and timing.cpu_s >= 0 and timing.wall_spread_s >= 0
+    assert timing.as_columns("encode")["encode_repeats"] == 3
+
+
+def test_cpu_time_excludes_sleeping():
+    timing, _ = measure(lambda: time.sleep(0.05), repeats=3, warmup=0)
+    assert timing.wall_s >= 0.045 and timing.cpu_s < 0.02
+
+
+def test_a_call_over_the_budget_is_timed_once():
+    calls = []
+    timing, _ = measure(lambda: calls.append(time.sleep(0.03)), repeats=3, warmup=1, budget_s=0.01)
+    assert len(calls) == 1 and (timing.repeats, timing.warmup) == (1, 0)
+
+
+def test_bad_settings_are_refused():
+    with pytest.raises(ValueError, match="repeats"):
+        measure(lambda: None, repeats=0)
+    with pytest.raises(ValueError, match="TimingSettings"):
+        TimingSettings(repeats=0)
+    seconds, value = time_call(lambda: 7, repeats=2)
+    assert value == 7 and seconds >= 0
