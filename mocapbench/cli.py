@@ -1,13 +1,22 @@
 """``mocapbench`` command line: compress, decompress, inspect, codecs.
 
 Errors are one line on stderr and exit code 2; an existing output file is never overwritten without ``--force``.
+
+Start-up is kept short (``mocapbench --help`` imports nothing beyond the standard library, ``codecs`` no scipy,
+torch, pandas, matplotlib or Hydra): this module imports only the standard library at the top, and each command
+imports what it needs when it runs. A new subcommand keeps its code in its own module and registers here with
+``set_defaults(run=_lazy("package.module", "function"))``, so its imports cost nothing to the other commands
+(``tests/test_cli_startup.py`` checks which modules each command loads; ``mocapbench.benchmarks.cli_startup``
+measures it).
 """
 
 from __future__ import annotations
 
 import argparse
 import ast
+import importlib
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 __all__ = ["main"]
@@ -168,19 +177,38 @@ def _inspect(args) -> None:
 
 
 def _list_codecs(args) -> None:
-    from mocapbench.codecs import CODECS
+    from mocapbench.codecs import CODECS, UNAVAILABLE
 
     for name in sorted(CODECS):
         cls = CODECS[name]
         print(f"{name}: {(cls.__doc__ or '').strip().splitlines()[0]}")
         for line in cls.Config.describe_fields().splitlines():
             print(f"    {line}")
+    for name in sorted(set(UNAVAILABLE) - set(CODECS)):
+        print(f"{name}: unavailable here: {UNAVAILABLE[name]}")
+
+
+def _lazy(module: str, function: str) -> Callable[[argparse.Namespace], None]:
+    """A command handler that imports ``module`` only when the command runs, then calls ``module.function(args)``."""
+
+    def run(args: argparse.Namespace) -> None:
+        getattr(importlib.import_module(module), function)(args)
+
+    run.__qualname__ = f"{module}.{function}"
+    return run
+
+
+def _version() -> str:
+    from mocapbench import __version__
+
+    return f"mocapbench {__version__} (Python {sys.version.split()[0]})"
 
 
 def _parser() -> argparse.ArgumentParser:
     from mocapbench.cli_units import add_motion_arguments
 
     parser = argparse.ArgumentParser(prog="mocapbench", description=__doc__.splitlines()[0])
+    parser.add_argument("--version", action="version", version=_version())
     commands = parser.add_subparsers(dest="command", required=True)
 
     compress = commands.add_parser("compress", help="encode a BVH, AMC, glTF or FBX file into a .mcb bitstream")
@@ -228,27 +256,36 @@ def _parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _user_error_message(error: Exception) -> str | None:
+    """The one line to print for an error the user can fix (bad file, bad setting, codec unavailable), else None.
+
+    The error classes are imported here, after the failure, so that a successful command never pays for them.
+    """
+    from mocapbench.codecs.registry import CodecUnavailableError
+    from mocapbench.entropy.errors import BitstreamError
+    from mocapbench.motion import MotionFormatError
+
+    if isinstance(error, KeyError) and error.args:
+        return str(error.args[0])
+    # OSError: the safe-output refusals (an existing path or link, a missing folder) and the system's own
+    # (a full disk, no permission), whose str() is one line naming the file.
+    one_line = (CliError, BitstreamError, MotionFormatError, CodecUnavailableError, OSError, KeyError, TypeError,
+                ValueError)  # fmt: skip
+    return str(error) if isinstance(error, one_line) else None
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``mocapbench`` command; returns the exit code."""
     args = _parser().parse_args(argv)
-    from mocapbench.codecs import BitstreamError
-    from mocapbench.motion import MotionFormatError
-
     try:
         args.run(args)
-    except CliError as error:
-        print(f"mocapbench: error: {error}", file=sys.stderr)
-        return 2
-    except (BitstreamError, MotionFormatError, OSError) as error:
-        # OSError: the safe-output refusals (an existing path or link, a missing folder) and the system's own
-        # (a full disk, no permission), whose str() is one line naming the file.
-        print(f"mocapbench: error: {error}", file=sys.stderr)
-        return 2
     except MemoryError:
         print("mocapbench: error: out of memory; lower the decode limits (--limit output_bytes=N)", file=sys.stderr)
         return 2
-    except (KeyError, TypeError, ValueError) as error:
-        message = error.args[0] if isinstance(error, KeyError) and error.args else error
+    except Exception as error:
+        message = _user_error_message(error)
+        if message is None:
+            raise
         print(f"mocapbench: error: {message}", file=sys.stderr)
         return 2
     return 0

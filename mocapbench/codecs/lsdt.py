@@ -55,7 +55,7 @@ from importlib import resources
 from typing import Any, ClassVar, Sequence
 
 import numpy as np
-import scipy.fft
+import scipy  # scipy.fft loads on first use (see mocapbench.lazy_imports)
 
 from mocapbench.codecs import container
 from mocapbench.codecs.base import Codec, CodecConfig, Header, NotFittedError, param

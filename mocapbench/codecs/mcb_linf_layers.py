@@ -13,7 +13,7 @@ from dataclasses import dataclass
 from functools import cached_property, lru_cache
 
 import numpy as np
-import scipy.fft
+import scipy  # scipy.fft loads on first use (see mocapbench.lazy_imports)
 
 from mocapbench.codecs.segments import window_lengths
 

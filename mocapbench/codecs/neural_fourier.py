@@ -64,7 +64,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from scipy.fft import dct
+import scipy  # scipy.fft loads on first use (see mocapbench.lazy_imports)
 
 from mocapbench.codecs.base import Codec, CodecConfig, Header, param
 from mocapbench.codecs.pose_params import (
@@ -576,7 +576,7 @@ def _dominant_dct_index(residual: np.ndarray, weights: np.ndarray, used: set[int
     # First principal direction p from the m x m covariance (cheaper than an SVD of the N x m matrix).
     _, vectors = np.linalg.eigh(weighted.T @ weighted)
     history = weighted @ vectors[:, -1]  # time history of the first principal component
-    spectrum = np.abs(dct(history, type=2, norm="ortho"))
+    spectrum = np.abs(scipy.fft.dct(history, type=2, norm="ortho"))
     spectrum[0] = -1.0  # DC: the biases fit a constant
     for index in sorted(used):
         spectrum[index] = -1.0

@@ -54,7 +54,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from scipy.spatial.transform import Rotation
+from mocapbench.lazy_imports import Rotation
 
 from mocapbench.codecs.base import Codec, CodecConfig, Header, param
 from mocapbench.codecs.limits import current_limits

@@ -25,7 +25,7 @@ use it, and decoders run without torch.
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial.transform import Rotation
+from mocapbench.lazy_imports import Rotation
 
 from mocapbench.entropy.quantize import RangeQuantizer
 from mocapbench.motion import Motion, Skeleton

@@ -12,7 +12,7 @@ the data do not matter anywhere.
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial.transform import Rotation
+from mocapbench.lazy_imports import Rotation
 
 from mocapbench.geometry.so3 import as_rotation
 

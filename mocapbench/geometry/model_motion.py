@@ -8,7 +8,7 @@ directions, and (the coordinates being centred) mu is exactly their Karcher mean
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial.transform import Rotation
+from mocapbench.lazy_imports import Rotation
 
 from mocapbench.geometry.pga import geodesic_poses
 from mocapbench.motion import Motion

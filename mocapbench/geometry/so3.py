@@ -8,7 +8,7 @@ matrices through :func:`rodrigues` because a scipy call costs more than the arit
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial.transform import Rotation
+from mocapbench.lazy_imports import Rotation
 
 __all__ = ["as_rotation", "skew", "rodrigues", "relative_rotvec", "geodesic_distance"]
 

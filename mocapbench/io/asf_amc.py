@@ -29,7 +29,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from scipy.spatial.transform import Rotation
+from mocapbench.lazy_imports import Rotation
 
 from mocapbench.io import read_text
 from mocapbench.motion import Motion, MotionFormatError, Skeleton

@@ -9,8 +9,9 @@ lets the codecs batch it over frames, clips and coordinates.
 from __future__ import annotations
 
 import numpy as np
-import pywt
-import scipy.fft
+import scipy  # scipy.fft loads on first use (see mocapbench.lazy_imports)
+
+from mocapbench.lazy_imports import pywt
 
 __all__ = ["dct_matrix", "haar_dwt_matrix", "is_orthogonal", "spatial_basis"]
 
