@@ -10,7 +10,7 @@ makes the two sides cost what they would cost coded apart.
 from __future__ import annotations
 
 import numpy as np
-import scipy.fft
+import scipy  # scipy.fft loads on first use (see mocapbench.lazy_imports)
 
 __all__ = ["detect_cuts", "segment_starts", "SegmentLayout", "forward", "inverse"]
 
