@@ -15,7 +15,7 @@ from functools import lru_cache
 from importlib import resources
 
 import numpy as np
-import scipy.linalg
+import scipy  # scipy.linalg loads on first use (see mocapbench.lazy_imports)
 
 from mocapbench.codecs.mcb_linf_layers import (
     BAND_EDGES,
