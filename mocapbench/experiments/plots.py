@@ -358,7 +358,8 @@ def error_heatmap_figure(examples: list[tuple[str, dict]], path: Path) -> Path:
         top = float(error.max()) or 1e-9
         image = ax.imshow(error.T, aspect="auto", interpolation="nearest", cmap="viridis", vmin=0, vmax=top,
                           extent=(0, error.shape[0] / float(example["fps"]), error.shape[1] - 0.5, -0.5))
-        ax.set_title(f"{label}: clip {example['clip']}, max {top:.3g} cm (own colour scale)")
+        peak = f"max {float(error.max()):.3g} cm (own colour scale)" if error.max() > 0 else "no error (lossless)"
+        ax.set_title(f"{label}: clip {example['clip']}, {peak}")
         ax.set_ylabel("joint")
         names = [str(n) for n in example["names"]]
         step = max(1, len(names) // 8)
