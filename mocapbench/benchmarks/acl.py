@@ -21,7 +21,6 @@ from __future__ import annotations
 import argparse
 import os
 import statistics
-import time
 from collections.abc import Callable
 from typing import Any
 
@@ -90,15 +89,12 @@ def rd_point(motions: list[Motion], precision_cm: float, shell_cm: float) -> dic
 
 
 def _time(function: Callable[[], Any], repeats: int) -> tuple[float, float]:
-    """Median wall and median process-CPU seconds of ``function()`` over ``repeats`` runs after one warm-up."""
-    function()
-    walls, cpus = [], []
-    for _ in range(repeats):
-        wall, cpu = time.perf_counter(), time.process_time()
-        function()
-        walls.append(time.perf_counter() - wall)
-        cpus.append(time.process_time() - cpu)
-    return statistics.median(walls), statistics.median(cpus)
+    """Median wall and median process-CPU seconds of ``function()`` over ``repeats`` runs after one warm-up
+    (:func:`mocapbench.metrics.timing.measure`, the helper every benchmark times with)."""
+    from mocapbench.metrics.timing import measure
+
+    timing, _ = measure(function, repeats=repeats, warmup=1)
+    return timing.wall_s, timing.cpu_s
 
 
 def _print_rd(points: list[dict[str, Any]], fmt: str) -> None:

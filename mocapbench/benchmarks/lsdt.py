@@ -325,7 +325,7 @@ def speed(data_dir, clip: str = "13_17", repeats: int = 15) -> str:
         f"{platform.processor() or platform.machine()}, Python {platform.python_version()}. 'encode' starts from joint "
         "positions (the paper's input: `encode_positions`), 'encode+FK' from the Motion (`encode`, forward kinematics "
         "included); 'decode' is bytes to positions (container check included).\n",
-        "| codec | step cm | stream bytes | CR | encode frames/s | encode+FK frames/s | decode frames/s |",
+        "| codec | step cm | stream bytes | CR | encode frames/CPU s | encode+FK frames/CPU s | decode frames/CPU s |",
         "|---|---:|---:|---:|---:|---:|---:|",
     ]
     for name, params in (("lsdt-clip", {"clip_length": 120}), ("lsdt-frame", {}), ("dct-spatial-frame", {}),

@@ -69,7 +69,8 @@ def bound_check(rows: pd.DataFrame) -> float:
 
 
 def speed_table(data_dir: str | None) -> pd.DataFrame:
-    """Encode and decode frames/s of mcb-linf at each eps over the cmu_test clips, one core."""
+    """Encode and decode frames per CPU second of mcb-linf at each eps over the cmu_test clips, one core
+    (median of 3 timed runs after a warm-up, :func:`mocapbench.metrics.timing.measure`)."""
     from mocapbench.codecs import create
     from mocapbench.datasets.cmu import load_split
     from mocapbench.metrics import time_call
@@ -80,7 +81,7 @@ def speed_table(data_dir: str | None) -> pd.DataFrame:
     for eps in EPSILONS_CM:
         codec = create(CODEC, eps_cm=eps)
         streams = [codec.encode(m) for m in clips]
-        encode_s, _ = time_call(lambda: [codec.encode(m) for m in clips], repeats=1, warmup=0)
+        encode_s, _ = time_call(lambda: [codec.encode(m) for m in clips], repeats=3, warmup=1)
         decode_s, _ = time_call(lambda: [codec.decode(s) for s in streams], repeats=5)
         rows.append({"eps_cm": eps, "frames": frames, "encode_fps": frames / encode_s, "decode_fps": frames / decode_s})
     return pd.DataFrame(rows)

@@ -36,6 +36,7 @@ from mocapbench.codecs import create
 from mocapbench.codecs.neural_fourier import num_network_parameters
 from mocapbench.codecs.pose_params import num_pose_parameters
 from mocapbench.datasets.cmu import load_clip, load_split
+from mocapbench.metrics.timing import measure
 
 OUT = Path("reports") / "neural_fourier"
 SVD_RANKS = (1, 2, 3, 4, 6, 8, 12, 16, 24)
@@ -90,12 +91,8 @@ def run_speed(data_dir: str | None, iterations: int) -> None:
     wall = time.perf_counter() - start
     cpu = time.process_time() - cpu
     stats = codec.last_encode_stats
-    decode_times = []
-    for _ in range(7):
-        start = time.perf_counter()
-        decoded = codec.decode(data)
-        decode_times.append(time.perf_counter() - start)
-    decode_s = float(np.median(decode_times))
+    decode_timing, decoded = measure(lambda: codec.decode(data), repeats=7, warmup=1)
+    decode_s = decode_timing.wall_s
     error = metrics.max_joint_error(motion.positions(), decoded.positions)
     print("## fourier-mlp-dct speed: training to K = 10 on 900 frames (124_02 frames 0-899), 1 thread\n")
     print("| quantity | value | target |")
@@ -108,7 +105,7 @@ def run_speed(data_dir: str | None, iterations: int) -> None:
     print(f"| stream | {len(data)} bytes, ratio {metrics.raw_position_bytes(31, 900) / len(data):.1f}, "
           f"paper ratio {stats['paper_compression_ratio']:.1f} | |")
     print(f"| decode (network + FK), median of 7 | {1e6 * decode_s / motion.num_frames:.1f} us/frame "
-          f"({decode_s * 1e3:.1f} ms per clip) | |")
+          f"({decode_s * 1e3:.1f} ms per clip; CPU {1e6 * decode_timing.cpu_s / motion.num_frames:.1f} us/frame) | |")
     print(f"\nMachine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, load average at start "
           f"{load_before:.2f} (the machine is shared: wall time includes waiting for the CPU).")
 

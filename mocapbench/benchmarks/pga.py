@@ -44,7 +44,7 @@ from mocapbench.geometry.lifting import (
 )
 from mocapbench.geometry.pga import fit_pga, variance_count
 from mocapbench.motion import Motion
-from mocapbench.metrics.timing import time_call
+from mocapbench.metrics.timing import measure
 
 # The paper's Table 2: clip, description, frames, k, #LOD root, #LOD end joints, ratio, KG %, ms/frame.
 PAPER_TABLE_2 = [
@@ -97,13 +97,10 @@ def evaluate_setting(motion, params: dict, repeats: int) -> dict:
     data = codec.encode(motion)
     encode_s = time.perf_counter() - start
     stats = dict(codec.last_encode_stats)
-    decode_s, decoded = time_call(lambda: create("pga-ik").decode(data), repeats=repeats, warmup=0)
-    # CPU time of this (single-threaded) process: what one unshared core needs, whatever else runs beside it.
-    cpu_times = []
-    for _ in range(repeats):
-        start_cpu = time.process_time()
-        create("pga-ik").decode(data)
-        cpu_times.append(time.process_time() - start_cpu)
+    # Wall and CPU time of this (single-threaded) process: CPU is what one unshared core needs, whatever else
+    # runs beside it (the shared helper: warm-up, median of the repeats).
+    timing, decoded = measure(lambda: create("pga-ik").decode(data), repeats=repeats, warmup=1)
+    decode_s = timing.wall_s
     reference = motion.positions()
     ends = select_end_joints(motion.skeleton)
     return {
@@ -121,7 +118,7 @@ def evaluate_setting(motion, params: dict, repeats: int) -> dict:
         "mean": metrics.mean_joint_error(reference, decoded.positions),
         "end_linf": metrics.max_joint_error(reference[:, ends], decoded.positions[:, ends]),
         "decode_ms": 1e3 * decode_s / motion.num_frames,
-        "decode_cpu_ms": 1e3 * float(np.median(cpu_times)) / motion.num_frames,
+        "decode_cpu_ms": 1e3 * timing.cpu_s / motion.num_frames,
         "encode_s": encode_s,
         "explained": stats["explained_variance"],
         "k_95": stats["k_95"],

@@ -163,10 +163,11 @@ def measure(
     return timing, result
 
 
-def time_call(function: Callable[[], Any], *, repeats: int = 5, warmup: int = 1) -> tuple[float, Any]:
-    """Median wall time of ``function()`` (s) and its last result: :func:`measure` reduced to one number.
-
-    Kept for scripts that print one time; new code should use :func:`measure` and report ``cpu_s`` beside it.
-    """
+def time_call(function: Callable[[], Any], *, repeats: int = 5, warmup: int = 1,
+              clock: str = "cpu") -> tuple[float, Any]:
+    """:func:`measure` reduced to one number: the median CPU time of the process (``clock="cpu"``, default) or
+    wall time (``clock="wall"``) of ``function()`` in s, and its last result."""
+    if clock not in ("cpu", "wall"):
+        raise ValueError(f"`clock` must be 'cpu' or 'wall', got {clock!r}.")
     timing, result = measure(function, repeats=repeats, warmup=warmup)
-    return timing.wall_s, result
+    return (timing.cpu_s if clock == "cpu" else timing.wall_s), result
