@@ -118,7 +118,8 @@ def curve_points(data: pd.DataFrame) -> pd.DataFrame:
     Rate is pooled (total bytes over total joint-frames, so long clips weigh more, as a whole dataset would be
     stored); ``max_err_cm`` is the worst clip's L-inf, ``p99_err_cm`` the worst clip's p99, ``mean_err_cm`` and
     ``kg_percent`` frame-weighted means; speeds are total frames over total CPU seconds (``encode_fps``,
-    ``decode_fps``; wall seconds for rows without CPU times) and over wall seconds (``*_wall_fps``). ``clips`` counts the clips;
+    ``decode_fps``; wall seconds for rows without CPU times) and over wall seconds (``*_wall_fps``). ``clips``
+    counts the clips;
     a config that failed on some clip of the dataset has fewer clips than the others and is flagged in
     ``complete``.
     """

@@ -150,7 +150,8 @@ def _page_facts(binary: str, index: Path, width: int) -> dict:
     return facts
 
 
-def check_report(report: str | Path, shots: str | Path | None = None, widths: tuple[int, ...] = (1280, 1024)) -> BrowserCheck:
+def check_report(report: str | Path, shots: str | Path | None = None,
+                 widths: tuple[int, ...] = (1280, 1024)) -> BrowserCheck:
     """Run the checks of the module docstring on ``report/index.html`` and save screenshots.
 
     Raises
@@ -180,7 +181,8 @@ def check_report(report: str | Path, shots: str | Path | None = None, widths: tu
         smallest = float("inf")
         for image in facts["images"]:
             if image["naturalWidth"] > 0:
-                shown = SMALLEST_FIGURE_FONT_PT * facts["figure_px_per_pt"] * image["shownWidth"] / image["naturalWidth"]
+                scale = image["shownWidth"] / image["naturalWidth"]
+                shown = SMALLEST_FIGURE_FONT_PT * facts["figure_px_per_pt"] * scale
                 smallest = min(smallest, shown)
                 if shown < MIN_TEXT_PX:
                     check.failures.append(f"{where}: figure text {shown:.1f} px in {image['src']} "

@@ -245,14 +245,23 @@ def calibrate(sweep: str = "all", clip_frames: int = 300, memory_frames: int = 4
     configs: dict[str, Any] = {}
     data["folder"] = [str(Path(d).relative_to(Path(d).parents[1])) for d in data["job_dir"]]
     overhead_per_clip = []
+    def calls(group, step: str):
+        """Encode/decode calls per clip: the timing's warm-up and repeats (one call in rows without them)."""
+        if f"{step}_repeats" not in group:
+            return 1
+        return group[f"{step}_repeats"].fillna(1) + group.get(f"{step}_warmup", 0).fillna(0)
+
     for folder_name, group in data.groupby("folder"):
-        cpu = float((group["encode_cpu_s"] + group["decode_cpu_s"]).sum())
+        # Rows hold the median CPU time of one call; the job ran warm-up + repeats calls of each.
+        cpu = float((group["encode_cpu_s"] * calls(group, "encode")
+                     + group["decode_cpu_s"] * calls(group, "decode")).sum())
         frames = int(group["frames"].sum())
         configs[folder_name] = {"codec": str(group["codec"].iloc[0]), "cpu_s_per_frame": cpu / frames,
                                 "cpu_s_per_clip": 0.0, "frames_measured": frames}
         job = jobs.get(folder_name)
         if job:
-            wall_clips = float((group["encode_s"] + group["decode_s"]).sum()) + float(group["fit_s"].iloc[0])
+            wall_clips = float((group["encode_s"] * calls(group, "encode")
+                                + group["decode_s"] * calls(group, "decode")).sum()) + float(group["fit_s"].iloc[0])
             overhead_per_clip.append(max(0.0, (job["seconds"] - wall_clips) / len(group)))
     memory = {}
     baselines = []

@@ -34,7 +34,8 @@ from mocapbench.experiments.reproduction import reproduction_sections
 from mocapbench.experiments.run import EXAMPLE_FILE
 from mocapbench.io.safe_output import check_name, write_text
 
-__all__ = ["build_report", "headline_table", "headline_tables", "headline_text", "QUOTED_REFERENCES", "CMU_ACKNOWLEDGEMENT", "unique_report_folder"]
+__all__ = ["build_report", "headline_table", "headline_tables", "headline_text", "QUOTED_REFERENCES",
+           "CMU_ACKNOWLEDGEMENT", "unique_report_folder"]
 
 BOUNDS_CM = DEFAULT_BOUNDS_CM
 

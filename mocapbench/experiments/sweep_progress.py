@@ -163,7 +163,8 @@ def format_summary(summary: SweepSummary, allow_failures: bool = False, limit: i
         for reason, count in summary.reasons.most_common(limit):
             lines.append(f"  {count:>4}  {reason}")
         if len(summary.reasons) > limit:
-            lines.append(f"  ... and {len(summary.reasons) - limit} other reason(s); see errors.jsonl in the job folders")
+            others = len(summary.reasons) - limit
+            lines.append(f"  ... and {others} other reason(s); see errors.jsonl in the job folders")
         examples = (summary.failed + summary.missing)[:3]
         lines.append("  e.g. " + ", ".join(examples))
         lines.append("exit status 0 (--allow-failures)" if allow_failures
