@@ -12,12 +12,13 @@ import pytest
 from mocapbench.codecs import create
 from mocapbench.experiments.aggregate import AggregateError, aggregate, curve_points
 from mocapbench.experiments.bdrate import bd_rate_percent, pareto_front
-from mocapbench.experiments.evaluate import evaluate
+from mocapbench.experiments.evaluate import TimingSettings, evaluate
 from mocapbench.experiments.reproduction import compare_at_equal_rate, neural_fourier_tables, pga_tables
 from mocapbench.experiments.report import CMU_ACKNOWLEDGEMENT, build_report, headline_table
 from mocapbench.experiments.run import write_rows_atomic
 from mocapbench.synthetic import sinusoidal_motion
 
+ONCE = TimingSettings(repeats=1, warmup=0)  # speeds are not checked here
 STEPS = (0.05, 0.2, 0.8, 3.0)
 BITS = (6, 8, 10)
 
@@ -33,7 +34,7 @@ def sweep_dir(tmp_path_factory):
         folder = root / name / ",".join(f"codec.{k}={v}" for k, v in params.items())
         rows = []
         for motion in motions:
-            row = evaluate(codec, motion)
+            row = evaluate(codec, motion, timing=ONCE)
             row.update({"dataset": "synthetic", "train_set": "synthetic seeds 11-13", "cmu_data": False})
             rows.append(row)
         write_rows_atomic(folder / "results.jsonl", rows)
@@ -118,7 +119,7 @@ def test_report_writes_tables_and_figures_and_never_overwrites(sweep_dir, tmp_pa
 def test_report_carries_the_cmu_acknowledgement_when_cmu_was_used(tmp_path):
     codec = create("quant-delta-zstd", step_cm=0.5)
     motion = sinusoidal_motion(num_frames=30, seed=3)
-    row = {**evaluate(codec, motion), "dataset": "cmu_test", "cmu_data": True, "train_set": "CMU cmu_train"}
+    row = {**evaluate(codec, motion, timing=ONCE), "dataset": "cmu_test", "cmu_data": True, "train_set": "CMU cmu_train"}
     write_rows_atomic(tmp_path / "sweep" / "job" / "results.jsonl", [row])
     report = build_report([tmp_path / "sweep"], reports_root=tmp_path / "reports")
     assert CMU_ACKNOWLEDGEMENT in (report / "report.md").read_text()

@@ -15,7 +15,8 @@ from mocapbench.experiments.aggregate import aggregate, read_errors
 from mocapbench.experiments.report import build_report
 
 REPO = Path(__file__).resolve().parents[2]
-TINY = ["dataset.clips.seeds=[1,2]", "dataset.clips.num_frames=40", "dataset.train.clips.num_frames=40"]
+TINY = ["dataset.clips.seeds=[1,2]", "dataset.clips.num_frames=40", "dataset.train.clips.num_frames=40",
+        "timing.repeats=1", "timing.warmup=0"]  # speeds are not checked here: one timed call is enough
 
 
 def _run(*overrides: str, timeout: int = 300) -> subprocess.CompletedProcess:
