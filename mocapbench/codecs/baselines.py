@@ -3,6 +3,12 @@
 * ``raw-zstd``: float32 joint positions through zstd, lossless. The floor every lossy codec must beat.
 * ``quant-delta-zstd``: positions uniformly quantized with a step in cm, delta-coded along time, zstd.
   Its step sets the error (per coordinate ≤ step/2, so ≤ step·√3/2 per joint), giving a full RD curve.
+* ``quant-pred-zstd``: the strongest generic pipeline, the anchor of the BD-rate tables. The same quantized
+  positions as ``quant-delta-zstd``, laid out channel-major (one channel's whole track, then the next), predicted
+  along time with order 1 (``q[t] - q[t-1]``) or order 2 (``q[t] - 2 q[t-1] + q[t-2]``), whichever gives the
+  smaller stream, then zigzag, narrowest width, **byte shuffle** (Blosc's filter: all low bytes, then all high
+  bytes) and zstd. On ``cmu_test`` it is 14-16 % smaller than ``quant-delta-zstd`` at the same step (same
+  decoded positions); brotli -q 11 instead of zstd gave 1-3 % less, so zstd stays (no new dependency).
 * ``quant-rot-zstd``: local rotations and root translation quantized and zstd-coded, decoded through FK;
   the way game engines store clips. Each quaternion is made scalar-positive (``w >= 0``), its x, y, z are
   range-reduced per joint over the clip and quantized to ``rotation_bits``, ``w`` is rebuilt from the unit
@@ -27,7 +33,7 @@ from mocapbench.entropy.errors import BitstreamError
 from mocapbench.entropy.quantize import quantize
 from mocapbench.motion import Motion
 
-__all__ = ["RawZstdCodec", "QuantDeltaZstdCodec", "QuantRotZstdCodec"]
+__all__ = ["RawZstdCodec", "QuantDeltaZstdCodec", "QuantPredZstdCodec", "QuantRotZstdCodec"]
 
 _ZSTD_LEVEL_DOC = "zstd compression level (higher: smaller and slower to encode; decode speed barely changes)"
 
@@ -109,6 +115,82 @@ class QuantDeltaZstdCodec(Codec):
 
     def describe_payload(self, header: Header, payload: memoryview):
         return {"step_cm": float(ByteReader(payload).read_array(1, np.float64, "step")[0])}
+
+
+_MAX_ORDER2_INDEX = 1 << 60  # second differences of larger indices could overflow int64
+
+
+def _predict(indices: np.ndarray, order: int) -> np.ndarray:
+    """Residuals of order-1 or order-2 prediction along the last axis (the first samples kept as they are).
+
+    Parameters
+    ----------
+    indices : ndarray, shape (C, F), int64 (channel-major tracks)
+    order : 1 or 2
+    """
+    residuals = np.diff(indices, axis=1, prepend=np.zeros((indices.shape[0], 1), dtype=np.int64))
+    if order == 2:
+        residuals[:, 2:] = np.diff(residuals[:, 1:], axis=1)
+    return residuals
+
+
+def _reconstruct(residuals: np.ndarray, order: int) -> np.ndarray:
+    """Inverse of :func:`_predict`."""
+    firsts = residuals.copy()
+    if order == 2:
+        firsts[:, 1:] = np.cumsum(residuals[:, 1:], axis=1)
+    return np.cumsum(firsts, axis=1)
+
+
+@register_codec
+class QuantPredZstdCodec(Codec):
+    """Quantized positions, channel-major, order-1/2 temporal prediction, byte shuffle, zstd: the generic anchor."""
+
+    name = "quant-pred-zstd"
+    family = "generic"
+    smoke_params = {"step_cm": 0.1}
+    smoke_max_error_cm = 0.1 * 3**0.5 / 2 + 1e-9  # step/2 per coordinate
+
+    @dataclass(frozen=True)
+    class Config(CodecConfig):
+        step_cm: float = param(0.1, low=1e-4, high=100.0, unit="cm", doc="quantization step of each coordinate")
+        zstd_level: int = param(19, low=1, high=22, doc=_ZSTD_LEVEL_DOC)
+
+    @property
+    def latency_frames(self) -> int:
+        return -1  # the order is chosen over the whole clip
+
+    def encode_payload(self, motion: Motion) -> bytes:
+        step = self.config.step_cm
+        tracks = quantize(motion.positions().reshape(motion.num_frames, -1), step).T  # (3J, F) channel-major
+        orders = (1, 2) if np.abs(tracks).max() < _MAX_ORDER2_INDEX else (1,)
+        blobs = {order: zstd_pack_ints(_predict(tracks, order), self.config.zstd_level, shuffle=True)
+                 for order in orders}
+        order = min(orders, key=lambda o: len(blobs[o]))
+        writer = ByteWriter()
+        writer.write_array(np.array([step]), np.float64)
+        writer.write_u8(order)
+        writer.write_blob(blobs[order])
+        self.last_encode_stats = {"prediction_order": order}
+        return writer.getvalue()
+
+    def decode_payload(self, header: Header, payload: memoryview):
+        reader = ByteReader(payload)
+        step = float(reader.read_array(1, np.float64, "step")[0])
+        order = reader.read_u8("prediction order")
+        if not (step > 0 and np.isfinite(step)) or order not in (1, 2):
+            raise BitstreamError(f"quant-pred-zstd: expected a positive step and order 1 or 2, found {step}, {order}.")
+        channels = header.num_joints * 3
+        residuals = zstd_unpack_ints(reader.read_blob("positions"), channels * header.num_frames, "positions",
+                                     shuffle=True)
+        reader.expect_end()
+        tracks = _reconstruct(residuals.reshape(channels, header.num_frames), order)
+        return (tracks.T * step).reshape(header.num_frames, header.num_joints, 3), None
+
+    def describe_payload(self, header: Header, payload: memoryview):
+        reader = ByteReader(payload)
+        step = float(reader.read_array(1, np.float64, "step")[0])
+        return {"step_cm": step, "prediction_order": reader.read_u8("prediction order")}
 
 
 @register_codec

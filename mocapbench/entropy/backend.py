@@ -159,28 +159,36 @@ def lzma_decompress(data, max_output_size: int) -> bytes:
     return out
 
 
-def zstd_pack_ints(values, level: int = 19) -> bytes:
+def zstd_pack_ints(values, level: int = 19, *, shuffle: bool = False) -> bytes:
     """Integers through zstd: zigzag, the narrowest little-endian width (1, 2, 4 or 8 bytes), one zstd frame.
 
     Layout: one byte holding the width, then the zstd frame. The element order is kept, so callers put values
     that resemble each other next to each other (channel-major tracks, coefficient bands) before packing.
+    With ``shuffle`` the bytes are regrouped by significance before zstd (all lowest bytes, then all next bytes,
+    ...: Blosc's byte shuffle), so the mostly-constant high bytes of small residuals form long runs.
 
     Parameters
     ----------
     values : array_like of int, any shape (flattened in C order)
     level : int
         zstd level, 1..22.
+    shuffle : bool
+        Byte-shuffle before zstd (the decoder must be told: :func:`zstd_unpack_ints` ``shuffle``).
     """
     from mocapbench.entropy.bitio import zigzag_encode
 
     codes = zigzag_encode(np.asarray(values).ravel())
     peak = int(codes.max()) if codes.size else 0
     width = next(w for w in (1, 2, 4, 8) if peak < 1 << (8 * w))
-    return bytes([width]) + zstd_compress(codes.astype(f"<u{width}").tobytes(), level=level)
+    raw = codes.astype(f"<u{width}")
+    if shuffle:
+        raw = raw.view(np.uint8).reshape(-1, width).T
+    return bytes([width]) + zstd_compress(np.ascontiguousarray(raw).tobytes(), level=level)
 
 
-def zstd_unpack_ints(blob, count: int, what: str = "integers") -> np.ndarray:
-    """Inverse of :func:`zstd_pack_ints`: exactly ``count`` int64 values, or :class:`BitstreamError`."""
+def zstd_unpack_ints(blob, count: int, what: str = "integers", *, shuffle: bool = False) -> np.ndarray:
+    """Inverse of :func:`zstd_pack_ints` (same ``shuffle``): exactly ``count`` int64 values, or
+    :class:`BitstreamError`."""
     from mocapbench.entropy.bitio import zigzag_decode
 
     blob = bytes(blob)
@@ -190,4 +198,7 @@ def zstd_unpack_ints(blob, count: int, what: str = "integers") -> np.ndarray:
     raw = zstd_decompress(blob[1:], count * width)
     if len(raw) != count * width:
         raise BitstreamError(f"{what}: expected {count * width} bytes after zstd, found {len(raw)}")
-    return zigzag_decode(np.frombuffer(raw, dtype=f"<u{width}").astype(np.uint64)).astype(np.int64)
+    planes = np.frombuffer(raw, dtype=np.uint8)
+    if shuffle:
+        planes = np.ascontiguousarray(planes.reshape(width, count).T)
+    return zigzag_decode(planes.view(f"<u{width}").reshape(-1).astype(np.uint64)).astype(np.int64)

@@ -11,6 +11,10 @@ the largest of the three vertex distances::
 with ``R`` the joint's global rotation (joint frame to world), ``p`` its global position (cm) and ``d`` the
 shell distance (cm; ACL's default is 3 cm, a skinned vertex near the bone). With ``d = 0`` it is the joint
 position error. It needs rotations, so only codecs that return a :class:`~mocapbench.motion.Motion` get it.
+
+This is the three-vertex ``calculate_error`` that ACL's ``calculate_compression_error`` reports. While it
+compresses a clip without scale ACL checks only the x and y vertices (``calculate_error_no_scale``), so the z
+vertex can exceed ACL's precision: on ``cmu_test`` at precision 0.01 cm, x/y give 0.013 cm and x/y/z 0.017 cm.
 Pure functions, no I/O.
 """
 

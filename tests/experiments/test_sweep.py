@@ -53,12 +53,12 @@ def test_sweep_all_expands_every_registered_codec_curve(tmp_path):
 @pytest.mark.slow
 def test_tiny_sweep_then_report(tmp_path):
     sweep = tmp_path / "sweep"
-    result = _run("sweep=small", "hydra.sweeper.codecs=[quant-delta-zstd,quant-rot-zstd,raw-zstd]",
+    result = _run("sweep=small", "hydra.sweeper.codecs=[quant-pred-zstd,quant-rot-zstd,raw-zstd]",
                   "hydra.sweeper.max_points=2", *TINY, f"hydra.sweep.dir={sweep}")
     assert result.returncode == 0, result.stderr[-3000:]
     data = aggregate([sweep])
     assert sorted(data.groupby("codec")["config_hash"].nunique().items()) == [
-        ("quant-delta-zstd", 2), ("quant-rot-zstd", 2), ("raw-zstd", 1)]
+        ("quant-pred-zstd", 2), ("quant-rot-zstd", 2), ("raw-zstd", 1)]
     assert len(data) == 5 * 2
     for job in {Path(d) for d in data["job_dir"]}:  # Hydra's saved configs beside the rows
         assert (job / ".hydra" / "config.yaml").exists() and (job / ".hydra" / "overrides.yaml").exists()
@@ -70,15 +70,15 @@ def test_tiny_sweep_then_report(tmp_path):
     markdown = (report / "report.md").read_text()
     headline = markdown.split("## Headline")[1].split("\n## ")[0]
     assert headline.count("### synthetic, L∞ < 1 cm") == 1 and headline.count("### synthetic, L∞ < 3 cm") == 1
-    for codec in ("quant-delta-zstd", "quant-rot-zstd", "raw-zstd"):
+    for codec in ("quant-pred-zstd", "quant-rot-zstd", "raw-zstd"):
         assert headline.count(f" | {codec} | ") == 2, codec  # one row per bound
-    assert "| synthetic | quant-delta-zstd | quant-delta-zstd | 0 | anchor |" in markdown
+    assert "| synthetic | quant-pred-zstd | quant-pred-zstd | 0 | anchor |" in markdown
     assert "python -m mocapbench.experiments.run -m sweep=small" in markdown
     for figure in ("rd_max_err_cm_synthetic", "rd_mean_err_cm_synthetic", "rd_kg_percent_synthetic",
                    "rd_per_clip_synthetic", "heatmap_synthetic", "overlay_synthetic"):
         assert (report / "figures" / f"{figure}.png").stat().st_size > 5000
     assert (report / "index.html").read_text().count("<table>") >= 6
-    for codec in ("quant-delta-zstd", "quant-rot-zstd", "raw-zstd"):
+    for codec in ("quant-pred-zstd", "quant-rot-zstd", "raw-zstd"):
         assert (report / "results" / "synthetic" / f"{codec}.json").exists()
     assert len((report / "results" / "rows.csv").read_text().splitlines()) == 1 + len(data)
 
