@@ -25,10 +25,10 @@ BITS = (6, 8, 10)
 
 @pytest.fixture(scope="module")
 def sweep_dir(tmp_path_factory):
-    """A sweep-like folder: quant-delta-zstd (4 steps) and quant-rot-zstd (3 bit depths) on 2 short clips."""
+    """A sweep-like folder: quant-pred-zstd (4 steps) and quant-rot-zstd (3 bit depths) on 2 short clips."""
     root = tmp_path_factory.mktemp("sweep")
     motions = [sinusoidal_motion(num_frames=60, seed=seed) for seed in (1, 2)]
-    jobs = [("quant-delta-zstd", {"step_cm": s}) for s in STEPS] + [("quant-rot-zstd", {"rotation_bits": b}) for b in BITS]
+    jobs = [("quant-pred-zstd", {"step_cm": s}) for s in STEPS] + [("quant-rot-zstd", {"rotation_bits": b}) for b in BITS]
     for name, params in jobs:
         codec = create(name, **params)
         folder = root / name / ",".join(f"codec.{k}={v}" for k, v in params.items())
@@ -52,7 +52,7 @@ def sweep_dir(tmp_path_factory):
 def test_aggregate_reads_every_row(sweep_dir):
     data = aggregate([sweep_dir])
     assert len(data) == (len(STEPS) + len(BITS)) * 2
-    assert set(data["codec"]) == {"quant-delta-zstd", "quant-rot-zstd"}
+    assert set(data["codec"]) == {"quant-pred-zstd", "quant-rot-zstd"}
     assert (data["sweep_dir"] == str(sweep_dir)).all()
     assert len(aggregate([sweep_dir, sweep_dir])) == len(data)  # the same rows twice are kept once
 
@@ -68,8 +68,8 @@ def test_curve_points_pool_clips(sweep_dir):
     data = aggregate([sweep_dir])
     points = curve_points(data)
     assert len(points) == len(STEPS) + len(BITS)
-    one = points[(points["codec"] == "quant-delta-zstd") & (points["param_step_cm"] == 0.8)].iloc[0]
-    rows = data[(data["codec"] == "quant-delta-zstd") & (data["param_step_cm"] == 0.8)]
+    one = points[(points["codec"] == "quant-pred-zstd") & (points["param_step_cm"] == 0.8)].iloc[0]
+    rows = data[(data["codec"] == "quant-pred-zstd") & (data["param_step_cm"] == 0.8)]
     assert one["clips"] == 2
     assert one["bitstream_bytes"] == rows["bitstream_bytes"].sum()
     assert one["max_err_cm"] == rows["max_err_cm"].max()
@@ -96,7 +96,7 @@ def test_report_writes_tables_and_figures_and_never_overwrites(sweep_dir, tmp_pa
     assert first != second and first.exists() and second.exists()
     markdown = (first / "report.md").read_text()
     html = (first / "index.html").read_text()
-    for text in ("Headline", "ACL 2.1 [quoted, not measured here]", "BD-rate against quant-delta-zstd",
+    for text in ("Headline", "ACL 2.1 [quoted, not measured here]", "BD-rate against quant-pred-zstd",
                  "Neural Fourier", "LSDT", "PGA", "Data and method", "12·J·F bytes", "Failed jobs", "boom"):
         assert text in markdown, text
         assert text in html or text.replace("·", "&middot;") in html, text
@@ -117,7 +117,7 @@ def test_report_writes_tables_and_figures_and_never_overwrites(sweep_dir, tmp_pa
 
 
 def test_report_carries_the_cmu_acknowledgement_when_cmu_was_used(tmp_path):
-    codec = create("quant-delta-zstd", step_cm=0.5)
+    codec = create("quant-pred-zstd", step_cm=0.5)
     motion = sinusoidal_motion(num_frames=30, seed=3)
     row = {**evaluate(codec, motion, timing=ONCE), "dataset": "cmu_test", "cmu_data": True, "train_set": "CMU cmu_train"}
     write_rows_atomic(tmp_path / "sweep" / "job" / "results.jsonl", [row])
