@@ -102,7 +102,8 @@ def _decompress(args) -> None:
     output = check_output(args.output, force=args.force)
     suffix = output.suffix.lower()
     if suffix not in (".npy", *WRITE_SUFFIXES):
-        raise CliError(f"{output}: expected a {', '.join(WRITE_SUFFIXES)} or .npy output, got {suffix or 'no extension'}")
+        expected = ", ".join((*WRITE_SUFFIXES, ".npy"))
+        raise CliError(f"{output}: expected a {expected} output, got {suffix or 'no extension'}")
     limits = DecodeLimits.from_settings(args.limit)
     data = Path(args.input).read_bytes()
     codec, header = _codec_for_stream(data)

@@ -15,6 +15,20 @@ from mocapbench.lazy_imports import Rotation
 
 from mocapbench.motion import Motion, Skeleton
 
+# Users' rigs (15-70 joints, Y/Z-up, any unit and Euler order, T-pose frame, cuts): mocapbench.synthetic_rigs.
+from mocapbench.synthetic_rigs import (
+    RigCase,
+    RigConfig,
+    check_fields,
+    concatenate_takes,
+    rig_motion,
+    rig_skeleton,
+    user_case,
+    user_cases,
+    with_tpose_first_frame,
+    write_case_bvh,
+)
+
 __all__ = [
     "SyntheticConfig",
     "cmu_like_skeleton",
@@ -123,15 +137,13 @@ class SyntheticConfig:
 
     def __post_init__(self) -> None:
         checks = [
-            ("num_frames", 1 <= self.num_frames <= 1_000_000, "[1, 1000000]"),
+            ("num_frames", 1 <= self.num_frames <= 1_000_000, "in [1, 1000000]"),
             ("fps", self.fps > 0, "> 0"),
-            ("num_frequencies", 1 <= self.num_frequencies <= 16, "[1, 16]"),
+            ("num_frequencies", 1 <= self.num_frequencies <= 16, "in [1, 16]"),
             ("max_frequency_hz", self.max_frequency_hz > 0, "> 0"),
-            ("amplitude_deg", 0 <= self.amplitude_deg <= 90, "[0, 90]"),
+            ("amplitude_deg", 0 <= self.amplitude_deg <= 90, "in [0, 90]"),
         ]
-        for name, ok, allowed in checks:
-            if not ok:
-                raise ValueError(f"SyntheticConfig.{name} must be in {allowed}, got {getattr(self, name)}.")
+        check_fields(self, checks)
 
 
 def sinusoidal_motion(config: SyntheticConfig | None = None, **overrides) -> Motion:
@@ -187,16 +199,3 @@ def sinusoidal_motion(config: SyntheticConfig | None = None, **overrides) -> Mot
         name=f"synthetic-seed{config.seed}",
     )
 
-
-# Users' rigs (15-70 joints, Y/Z-up, any unit and Euler order, T-pose frame, cuts): mocapbench.synthetic_rigs.
-from mocapbench.synthetic_rigs import (  # noqa: E402
-    RigCase,
-    RigConfig,
-    concatenate_takes,
-    rig_motion,
-    rig_skeleton,
-    user_case,
-    user_cases,
-    with_tpose_first_frame,
-    write_case_bvh,
-)

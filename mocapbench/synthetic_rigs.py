@@ -1,4 +1,4 @@
-"""Synthetic rigs that users throw at mocapbench: many joint counts and topologies, Y-up or Z-up, any unit and Euler order.
+"""Synthetic rigs users throw at mocapbench: many joint counts and topologies, Y-up or Z-up, any unit and Euler order.
 
 The CMU-like fixture of :mod:`mocapbench.synthetic` is one 31-joint skeleton; real files differ. This module builds
 the cases of issue 16 from seeds, with no file:
@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from mocapbench.io.bvh import _depth_first_order  # the order a BVH file lists joints
 from mocapbench.io.units import UNITS_CM, turn_axes
 from mocapbench.motion import Motion, Skeleton
 
@@ -58,7 +59,7 @@ _Joint = tuple[str, str | None, tuple[float, float, float], int]
 
 
 def _biped_joints() -> list[_Joint]:
-    """A 70-joint human (1.6 m, T-pose: arms along +-X): core 15, then clavicles, spine, toes, 30 fingers, twists, face."""
+    """A 70-joint human (1.6 m, T-pose: arms along +-X): core 15, clavicles, spine, toes, 30 fingers, twists, face."""
     joints: list[_Joint] = [
         ("Hips", None, (0.0, 0.0, 0.0), 0),
         ("Spine", "Hips", (0.0, 10.0, 0.0), 5),
@@ -138,23 +139,22 @@ def _quadruped_joints() -> list[_Joint]:
     return joints
 
 
-def _depth_first(names: list[str], parents: list[int]) -> list[int]:
-    """Joint indices in depth-first pre-order, children in index order (the order BVH writes and reads)."""
-    children: list[list[int]] = [[] for _ in names]
-    for joint, parent in enumerate(parents):
-        if parent >= 0:
-            children[parent].append(joint)
-    order, stack = [], [0]
-    while stack:
-        joint = stack.pop()
-        order.append(joint)
-        stack.extend(reversed(children[joint]))
-    return order
+def check_fields(config, checks: list[tuple[str, bool, str]]) -> None:
+    """Raise ``ValueError("<Config>.<field> must be <allowed>, got <value>.")`` for the first failed check.
+
+    Parameters
+    ----------
+    config : dataclass instance
+    checks : list of (field name, passed, what is allowed, e.g. ``"in [1, 16]"``)
+    """
+    for name, ok, allowed in checks:
+        if not ok:
+            raise ValueError(f"{type(config).__name__}.{name} must be {allowed}, got {getattr(config, name)!r}.")
 
 
 def _skeleton_from_tree(names: list[str], parents: list[int], offsets: np.ndarray, orders: tuple[str, ...]) -> Skeleton:
     """A Skeleton in depth-first order from a tree whose parents may come in any order; leaves get an End Site."""
-    order = _depth_first(names, parents)
+    order = _depth_first_order(np.array(parents))
     where = {old: new for new, old in enumerate(order)}
     new_parents = [-1 if parents[old] < 0 else where[parents[old]] for old in order]
     leaves = [j for j in range(len(order)) if j not in set(new_parents)]
@@ -250,18 +250,16 @@ class RigConfig:
 
     def __post_init__(self) -> None:
         checks = [
-            ("num_joints", MIN_JOINTS <= self.num_joints <= MAX_JOINTS, f"[{MIN_JOINTS}, {MAX_JOINTS}]"),
+            ("num_joints", MIN_JOINTS <= self.num_joints <= MAX_JOINTS, f"in [{MIN_JOINTS}, {MAX_JOINTS}]"),
             ("topology", self.topology in TOPOLOGIES, f"one of {list(TOPOLOGIES)}"),
             ("up_axis", self.up_axis in ("y", "z"), "one of ['y', 'z']"),
             ("euler_orders", self.euler_orders in (*EULER_ORDERS, "mixed"), f"one of {[*EULER_ORDERS, 'mixed']}"),
             ("unit", self.unit in UNITS_CM, f"one of {list(UNITS_CM)}"),
-            ("num_frames", 1 <= self.num_frames <= 1_000_000, "[1, 1000000]"),
+            ("num_frames", 1 <= self.num_frames <= 1_000_000, "in [1, 1000000]"),
             ("fps", self.fps > 0, "> 0"),
-            ("amplitude_deg", 0 <= self.amplitude_deg <= 90, "[0, 90]"),
+            ("amplitude_deg", 0 <= self.amplitude_deg <= 90, "in [0, 90]"),
         ]
-        for name, ok, allowed in checks:
-            if not ok:
-                raise ValueError(f"RigConfig.{name} must be {allowed}, got {getattr(self, name)!r}.")
+        check_fields(self, checks)
 
 
 def rig_skeleton(config: RigConfig | None = None, **overrides) -> Skeleton:
@@ -384,7 +382,9 @@ def concatenate_takes(first: Motion, second: Motion) -> Motion:
     if not first.skeleton.same_structure(second.skeleton):
         raise ValueError(f"Takes {first.name!r} and {second.name!r} are on different skeletons; cannot concatenate.")
     if first.fps != second.fps:
-        raise ValueError(f"Takes {first.name!r} ({first.fps} fps) and {second.name!r} ({second.fps} fps) differ in fps.")
+        raise ValueError(
+            f"Takes {first.name!r} ({first.fps} fps) and {second.name!r} ({second.fps} fps) differ in fps."
+        )
     return dataclasses.replace(
         first,
         root_positions=np.concatenate([first.root_positions, second.root_positions]),

@@ -20,7 +20,8 @@ _TICKS_PER_SECOND = 46_186_158_000
 
 def _array(values) -> str:
     values = list(values)
-    return f"*{len(values)} {{\n\t\t\ta: " + ",".join(f"{v:.9g}" if isinstance(v, float) else str(v) for v in values) + "\n\t\t}"
+    numbers = ",".join(f"{v:.9g}" if isinstance(v, float) else str(v) for v in values)
+    return f"*{len(values)} {{\n\t\t\ta: {numbers}\n\t\t}}"
 
 
 def write_fbx_ascii(motion: Motion, path: str | Path, *, unit_cm: float = 1.0, moving_joint: int | None = None) -> Path:

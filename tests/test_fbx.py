@@ -41,8 +41,11 @@ def test_moving_bone_is_refused_in_one_line(tmp_path):
 
 @pytest.mark.parametrize(
     ("data", "message"),
-    [(b"Kaydara FBX Binary  \x00\x1a\x00garbage", "not a readable FBX file"), (b"; FBX 7.4.0 project file\nFBXHeaderExtension:  {\n\tFBXHeaderVersion: 1003\n\tFBXVersion: 7400\n}\n",
-      "has no skeleton")],
+    [
+        (b"Kaydara FBX Binary  \x00\x1a\x00garbage", "not a readable FBX file"),
+        (b"; FBX 7.4.0 project file\nFBXHeaderExtension:  {\n\tFBXHeaderVersion: 1003\n\tFBXVersion: 7400\n}\n",
+         "has no skeleton"),
+    ],
 )
 def test_bad_fbx_one_line(tmp_path, data, message):
     path = tmp_path / "bad.fbx"

@@ -156,8 +156,8 @@ def test_user_cases_cover_issue_16(tmp_path):
 @pytest.mark.parametrize(
     ("field", "value", "message"),
     [
-        ("num_joints", 14, r"num_joints must be \[15, 70\], got 14"),
-        ("num_joints", 71, r"num_joints must be \[15, 70\], got 71"),
+        ("num_joints", 14, r"num_joints must be in \[15, 70\], got 14"),
+        ("num_joints", 71, r"num_joints must be in \[15, 70\], got 71"),
         ("topology", "spider", "topology must be one of"),
         ("up_axis", "x", "up_axis must be one of"),
         ("euler_orders", "XYX", "euler_orders must be one of"),

@@ -17,9 +17,9 @@ specification defines them) and returns a :class:`~mocapbench.motion.Motion` in 
 * lengths are metres by the specification (``length_unit_cm`` = 100); ``up_axis`` is ``"y"``.
 
 Writing (:func:`write_gltf`) produces what a glTF viewer plays: one node per joint (no static rotation, so the
-nodes' own pose is the rest pose; translation the offset, the root's the first root position), a skin over them, a line mesh of the bones
-skinned to them (so a viewer shows a stick figure), and one animation with a LINEAR rotation sampler per joint and
-a translation sampler on the root, one key per frame. Lengths in metres, Y-up (a Z-up motion is turned by -90
+nodes' own pose is the rest pose; translation the offset, the root's the first root position), a skin over them,
+a line mesh of the bones skinned to them (so a viewer shows a stick figure), and one animation with a LINEAR
+rotation sampler per joint and a translation sampler on the root, one key per frame. Lengths in metres, Y-up (a Z-up motion is turned by -90
 degrees about X first). ``.glb`` is binary glTF; ``.gltf`` embeds its buffer as a base64 data URI (one file).
 
 Not read: morph-target weights (ignored), sparse accessors, KHR extensions that change the data (refused), more
@@ -332,7 +332,9 @@ def read_gltf(
         target = channel.target
         node, kind = getattr(target, "node", None), getattr(target, "path", None)
         if node in ancestors:
-            raise reader.error(f"animations[{animation}] animates node {node} ({nodes[node].name!r}) above the root joint")
+            raise reader.error(
+                f"animations[{animation}] animates node {node} ({nodes[node].name!r}) above the root joint"
+            )
         if node not in joint_set or kind == "weights":
             continue
         samplers = anim.samplers or []
@@ -359,7 +361,9 @@ def read_gltf(
             continue
         tracks[(node, kind)] = (times, values, interpolation)
     if not tracks:
-        raise reader.error(f"animations[{animation}] has no rotation or translation channel on the joints of skins[{skin}]")
+        raise reader.error(
+            f"animations[{animation}] has no rotation or translation channel on the joints of skins[{skin}]"
+        )
     start = min(t[0] for t, _, _ in tracks.values())
     stop = max(t[-1] for t, _, _ in tracks.values())
     rate = fps or _frames_per_second([t for t, _, _ in tracks.values()])
@@ -485,8 +489,8 @@ def write_gltf(motion: Motion, path: str | Path, *, length_unit_cm: float = 100.
                                            interpolation="LINEAR"))
         channels.append(g.AnimationChannel(sampler=len(samplers) - 1,
                                            target=g.AnimationChannelTarget(node=j, path="rotation")))
-    samplers.append(g.AnimationSampler(
-        input=times, output=add((motion.root_positions * scale).astype(np.float32), "VEC3", 5126), interpolation="LINEAR"))
+    root_track = add((motion.root_positions * scale).astype(np.float32), "VEC3", 5126)
+    samplers.append(g.AnimationSampler(input=times, output=root_track, interpolation="LINEAR"))
     channels.append(g.AnimationChannel(sampler=len(samplers) - 1,
                                        target=g.AnimationChannelTarget(node=0, path="translation")))
 

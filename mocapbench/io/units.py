@@ -171,7 +171,9 @@ def rest_height_warning(motion: Motion, up_axis: str | None = None) -> str | Non
     if height <= 0:
         return message + ": the rest pose is flat along the up axis; check --up."
     in_units = height / used
-    candidates = [(abs(math.log(in_units * cm / _TYPICAL_HEIGHT_CM)), name, in_units * cm) for name, cm in UNITS_CM.items()]
+    candidates = [
+        (abs(math.log(in_units * cm / _TYPICAL_HEIGHT_CM)), name, in_units * cm) for name, cm in UNITS_CM.items()
+    ]
     fits = sorted(c for c in candidates if low <= c[2] <= high)
     if not fits:
         return message + ": no unit of --units makes it one; check --units and --up."
