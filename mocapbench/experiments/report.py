@@ -224,11 +224,13 @@ def _timing_note(rows: pd.DataFrame) -> str:
         return ("Speeds: one encode and one decode per clip, wall clock (rows written before repeated timing "
                 "existed): indicative only.")
     repeats = int(rows["encode_repeats"].max())
-    fewer = rows[(rows["encode_repeats"] < 3) | (rows["decode_repeats"] < 3)]
+    fewer = rows[(rows["encode_repeats"] < repeats) | (rows["decode_repeats"] < rows["decode_repeats"].max())]
     load = pd.concat([rows.get("encode_load_after"), rows.get("decode_load_after")]).dropna()
     threads = int(rows["encode_threads"].max()) if "encode_threads" in rows else 1
     text = ("Speeds (frames per CPU second of the process, total frames over the summed per-clip medians): "
             + METHOD.format(repeats=repeats, warmup=int(rows["encode_warmup"].max()), threads=threads) + ". ")
+    if repeats < 3:
+        text += "Fewer than 3 timed runs: these speeds are indicative only. "
     if len(load):
         text += f"Load average during the runs: {load.min():.2f} to {load.max():.2f} on {os.cpu_count()} cores. "
     if not fewer.empty:
