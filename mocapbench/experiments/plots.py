@@ -66,6 +66,7 @@ _KNOWN = {
     "raw-zstd": ("#000000", "X"),
     "quant-delta-zstd": ("#E69F00", "s"),
     "quant-rot-zstd": ("#56B4E9", "D"),
+    "quant-pred-zstd": ("#AA7700", "8"),
     "svd": ("#009E73", "^"),
     "fourier-mlp-int": ("#CC79A7", "v"),
     "fourier-mlp-dct": ("#882255", "<"),
