@@ -38,6 +38,7 @@ import struct
 import subprocess
 import sys
 import time
+import warnings
 import zlib
 from collections import Counter, defaultdict
 from collections.abc import Iterator
@@ -380,6 +381,9 @@ def _worker_main() -> None:
         resetable = _reset_peak()
         cpu0, wall0 = time.process_time(), time.perf_counter()
         result = {"outcome": "decoded", "error": "", "output_bytes": 0}
+        caught = warnings.catch_warnings(record=True)
+        seen = caught.__enter__()
+        warnings.simplefilter("always")
         try:
             decoded = codec.decode(data, limits=limits)
             result["output_bytes"] = decoded.positions.nbytes + (
@@ -393,6 +397,12 @@ def _worker_main() -> None:
         except BaseException as error:  # noqa: BLE001 - every other outcome is a finding, reported as such
             result["outcome"] = f"other:{type(error).__name__}"
             result["error"] = str(error)[:300]
+        finally:
+            caught.__exit__(None, None, None)
+        if seen and not result["outcome"].startswith("other:"):
+            # A decode must be silent: a warning is a line the user sees that says nothing (a finding).
+            result["outcome"] = f"other:{seen[0].category.__name__}"
+            result["error"] = str(seen[0].message)[:300]
         result["wall_s"] = time.perf_counter() - wall0
         result["cpu_s"] = time.process_time() - cpu0
         result["memory_bytes"] = max(_peak_rss() - before, 0) if resetable else -1

@@ -219,7 +219,10 @@ class Codec(abc.ABC):
 
     def _decode_checked(self, header: Header, payload: memoryview) -> Decoded:
         try:
-            positions, motion = self.decode_payload(header, payload)
+            # A hostile payload may overflow or hold NaN: numpy's warnings would print lines that say nothing to
+            # the user, and the non-finite result is refused below with one BitstreamError.
+            with np.errstate(all="ignore"):
+                positions, motion = self.decode_payload(header, payload)
         except BitstreamError:
             raise
         except (ValueError, IndexError, KeyError, OverflowError, EOFError, TypeError) as error:
