@@ -268,9 +268,71 @@ def test_channel_count_disagrees_with_names(tmp_path):
         read_bvh(path)
 
 
-def test_position_channels_below_the_root(tmp_path):
+def test_a_moving_position_channel_below_the_root_is_refused_naming_the_joint(tmp_path):
+    # B's OFFSET x is 0; its new Xposition channel takes the old Zrotation column: 90 on line 25.
     path = variant(tmp_path, "CHANNELS 3 Zrotation Yrotation Xrotation", "CHANNELS 3 Xposition Yrotation Xrotation")
-    with pytest.raises(MotionFormatError, match=r"line 9: position channels on joint 'B', which is not the root"):
+    with pytest.raises(MotionFormatError, match=r"line 25: joint 'B' moves: its Xposition channel is 90 where its OFFSET"):
+        read_bvh(path)
+
+
+def test_position_channels_that_stay_at_the_offset_are_folded_away(tmp_path):
+    path = variant(tmp_path, "CHANNELS 3 Zrotation Yrotation Xrotation\n\t\tJOINT C",
+                   "CHANNELS 5 Yposition Zrotation Xposition Yrotation Xrotation\n\t\tJOINT C")
+    text = path.read_text().replace("1 2 3 90 0 0 0 0 0", "1 2 3 90 0 0 10.00001 0 0 0 0").replace(
+        "0 0 0 0 0 0 90 0 90", "0 0 0 0 0 0 10 90 0 0 90")
+    path.write_text(text)
+    folded = read_bvh(path)
+    reference = read_bvh(CHAIN)
+    np.testing.assert_allclose(folded.positions(), reference.positions(), atol=1e-9)
+    assert folded.skeleton.channel_orders == reference.skeleton.channel_orders
+
+
+def test_every_joint_with_position_channels_round_trips(tmp_path):
+    motion = sinusoidal_motion(num_frames=30, seed=2)
+    path = write_bvh(motion, tmp_path / "mobu.bvh", position_channels="all")
+    assert path.read_text().count("CHANNELS 6") == motion.num_joints
+    back = read_bvh(path)
+    np.testing.assert_allclose(back.positions(), motion.positions(), atol=1e-3)
+
+
+def test_a_hierarchy_thousands_deep_reads_and_writes_without_recursion(tmp_path):
+    depth = 3000
+    lines = ["HIERARCHY"] + [f"{'ROOT' if j == 0 else 'JOINT'} j{j}\n{{\nOFFSET 0 1 0\nCHANNELS 3 Zrotation Yrotation "
+                              f"Xrotation" for j in range(depth)] + ["}"] * depth
+    values = " ".join(["1"] * (3 * depth))
+    (tmp_path / "deep.bvh").write_text("\n".join(lines) + f"\nMOTION\nFrames: 2\nFrame Time: 0.01\n{values}\n{values}\n")
+    motion = read_bvh(tmp_path / "deep.bvh")
+    assert motion.num_joints == depth and motion.skeleton.parents[-1] == depth - 2
+    again = read_bvh(write_bvh(motion, tmp_path / "again.bvh"))
+    np.testing.assert_allclose(again.positions(), motion.positions(), atol=1e-3)
+
+
+def test_more_joints_than_the_limit_is_one_line(tmp_path):
+    lines = ["HIERARCHY", "ROOT r", "{", "OFFSET 0 0 0", "CHANNELS 3 Zrotation Yrotation Xrotation"]
+    lines += [f"JOINT j{j}\n{{\nOFFSET 0 1 0\n}}" for j in range(4096)] + ["}", "MOTION", "Frames: 1",
+                                                                         "Frame Time: 0.01", "0 0 0"]
+    (tmp_path / "wide.bvh").write_text("\n".join(lines) + "\n")
+    with pytest.raises(MotionFormatError, match=r"more than 4096 joints"):
+        read_bvh(tmp_path / "wide.bvh")
+
+
+@pytest.mark.parametrize("frame_time", ["5e-324", "1e-6", "1e308", "2000"])
+def test_absurd_frame_times_are_refused_in_one_line(tmp_path, frame_time):
+    path = variant(tmp_path, "Frame Time: 0.0333333", f"Frame Time: {frame_time}")
+    with pytest.raises(MotionFormatError, match=rf"line 23: expected a frame time in \[1e-05, 1000\] s .*{frame_time}"):
+        read_bvh(path)
+
+
+def test_a_frame_count_the_file_cannot_hold_allocates_nothing_big(tmp_path):
+    path = variant(tmp_path, "Frames: 2", "Frames: 1000000000000")
+    with pytest.raises(MotionFormatError, match=r"'Frames: 1000000000000' but the MOTION section has 2 data lines"):
+        read_bvh(path)
+
+
+def test_bytes_that_are_not_text_in_the_hierarchy(tmp_path):
+    path = tmp_path / "binary.bvh"
+    path.write_bytes(CHAIN.read_bytes().replace(b"ROOT A", b"ROOT \xff\xfe"))
+    with pytest.raises(MotionFormatError, match=r"line 2 \(invalid start byte\)"):
         read_bvh(path)
 
 

@@ -7,47 +7,71 @@ Conventions of the reading (the common one, e.g. the CMU/cgspeed files and Blend
   multiplication order, i.e. scipy's intrinsic ``Rotation.from_euler("ZYX", [z, y, x], degrees=True)``.
   Any order and any subset of the three axes is read; a joint's ``Skeleton.channel_orders`` entry keeps
   the file's order (missing axes appended) so that :func:`write_bvh` writes it back the same way.
-* Position channels are read on the root only, in any order; they are absolute root positions. An axis
-  without a channel takes the root ``OFFSET``; with no position channel at all the root stays at its OFFSET.
-  Position channels on another joint raise :class:`~mocapbench.motion.MotionFormatError` (a
-  :class:`~mocapbench.motion.Motion` carries the root translation only).
+* Position channels on the root, in any order, are absolute root positions. An axis without a channel takes
+  the root ``OFFSET``; with no position channel at all the root stays at its OFFSET.
+* Position channels on other joints (MotionBuilder and many game tools write ``CHANNELS 6`` on every joint)
+  are read and *folded away* when they stay equal to the joint's OFFSET in every frame (within
+  :data:`POSITION_TOLERANCE` file units, relative to the offset's size): the joint's bone has a fixed length, which
+  is all a :class:`~mocapbench.motion.Motion` (root translation only) can hold. A non-root joint whose position
+  channel moves is refused with one :class:`~mocapbench.motion.MotionFormatError` naming the joint, the line
+  and the value: mocapbench's codecs carry no translation track below the root, so reading it would drop
+  the motion silently.
 * ``End Site`` blocks become ``Skeleton.end_site_parents`` / ``end_site_offsets``.
 * ``length_unit_cm`` is the length of one file unit in cm: offsets and root positions are multiplied by it
   on reading and divided by it on writing (the CMU files use ASF units: pass
   :data:`mocapbench.io.asf_amc.CMU_CM_PER_UNIT`).
 
-The MOTION block is validated per line with numpy (values per line, ``Frames:`` against the number of data
-lines) and converted in one ``np.array(text.split(), float)`` call; Python loops run over joints, never over
-frames, except to locate the line of an error.
+Reading streams: the HIERARCHY block is parsed without recursion (any depth, at most :data:`MAX_JOINTS`
+joints), the MOTION numbers are parsed in blocks of :data:`_CHUNK_BYTES` into arrays allocated once from
+``Frames:`` (bounded by what the file's bytes can hold), and each block is turned into quaternions at once, so
+the peak memory is about the decoded motion (twice its quaternions while :class:`Motion` normalizes them) plus a
+block, not a multiple of the file. Each block is validated with numpy (characters, values per line, finite
+values) and parsed by ``np.loadtxt``'s C parser; Python loops run over joints and blocks, never over frames,
+except to locate the line of an error. ``Frame Time`` must be finite and in [1e-5, 1000] s (100,000 to 0.001
+frames per second, the container's range).
 """
 
 from __future__ import annotations
 
 import io
 import math
+import os
 import re
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import BinaryIO
 
 import numpy as np
 from mocapbench.lazy_imports import Rotation
 
-from mocapbench.io import read_text
+from mocapbench.io import MotionFileNotFoundError
 from mocapbench.io.safe_output import check_output, open_output
 from mocapbench.motion import Motion, MotionFormatError, Skeleton
 
-__all__ = ["read_bvh", "write_bvh"]
+__all__ = ["read_bvh", "write_bvh", "MAX_JOINTS", "POSITION_TOLERANCE"]
+
+#: Most joints a BVH file may declare (the container's limit; real rigs have 15-150).
+MAX_JOINTS = 4096
+#: A non-root position channel within this many file units of its OFFSET (times max(1, |offset|)) is folded away.
+POSITION_TOLERANCE = 1e-4
+# Frame Time range, seconds: the frame rates a stream may carry (mocapbench.codecs.container.MIN_FPS/MAX_FPS).
+MIN_FRAME_TIME_S = 1e-5
+MAX_FRAME_TIME_S = 1e3
+_MAX_HIERARCHY_BYTES = 16 << 20  # 4096 joints need well under 1 MiB
+_CHUNK_BYTES = 8 << 20  # MOTION bytes parsed at a time
 
 # Channel name (lower case) -> (kind, axis).
 _CHANNELS = {f"{axis.lower()}{kind}": (kind, axis) for axis in "XYZ" for kind in ("position", "rotation")}
 _CHANNEL_LIST = "Xposition Yposition Zposition Xrotation Yrotation Zrotation"
 # What np.loadtxt reads as a float64 (decimal notation, nan, inf); Python's float() also takes "1_0" and "١".
 _NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*(?:[eE][+-]?\d+)?|\.\d+(?:[eE][+-]?\d+)?|nan|inf|infinity)\Z", re.IGNORECASE)
-_MOTION_LINE = re.compile(r"^[ \t]*MOTION[ \t]*\r?$", re.MULTILINE)
 _WRITE_CHUNK_FRAMES = 4096  # frames formatted per write: bounded memory for long motions
 _IS_WHITESPACE_BYTE = np.zeros(256, dtype=bool)
 _IS_WHITESPACE_BYTE[[ord(c) for c in " \t\n\r\v\f"]] = True
+# Bytes that may appear in the MOTION block: whitespace, digits, sign, point, exponent, and the letters of nan/inf.
+_IS_NUMBER_BYTE = _IS_WHITESPACE_BYTE.copy()
+_IS_NUMBER_BYTE[list(b"0123456789+-.eEnNaAiIfFtTyY")] = True
 
 
 @dataclass
@@ -60,10 +84,11 @@ class _Joint:
     offset: tuple[float, float, float] | None = None
     channels: list[tuple[str, str]] = field(default_factory=list)  # (kind, axis) in file order
     channels_line: int = 0
+    open_line: int = 0
 
 
 class _HierarchyParser:
-    """Recursive-descent parser of the HIERARCHY block over ``(token, line number)`` pairs."""
+    """Parser of the HIERARCHY block over ``(token, line number)`` pairs, with an explicit stack (any depth)."""
 
     def __init__(self, path: Path, tokens: list[tuple[str, int]], end_line: int, end_what: str) -> None:
         self.path = path
@@ -72,6 +97,7 @@ class _HierarchyParser:
         self.end_line = end_line
         self.end_what = end_what
         self.joints: list[_Joint] = []
+        self.names: set[str] = set()
         self.end_parents: list[int] = []
         self.end_offsets: list[tuple[float, float, float]] = []
 
@@ -111,7 +137,37 @@ class _HierarchyParser:
         token, line = self.next("'ROOT'")
         if token != "ROOT":
             raise self.error(line, f"expected 'ROOT', got {token!r}.")
-        self.joint(parent=-1, keyword_line=line)
+        stack = [self.open_joint(parent=-1, keyword_line=line)]
+        while stack:
+            joint = self.joints[stack[-1]]
+            closing = f"'}}' closing joint {joint.name!r} (opened at line {joint.open_line})"
+            token, line = self.next(closing)
+            if token == "}":
+                if joint.offset is None:
+                    raise self.error(joint.line, f"joint {joint.name!r} has no OFFSET.")
+                stack.pop()
+            elif token == "OFFSET":
+                if joint.offset is not None:
+                    raise self.error(line, f"second OFFSET in joint {joint.name!r}.")
+                joint.offset = self.numbers("OFFSET", line, 3)
+            elif token == "CHANNELS":
+                if joint.channels_line:
+                    raise self.error(
+                        line, f"second CHANNELS in joint {joint.name!r} (first at line {joint.channels_line})."
+                    )
+                joint.channels = self.channels(joint.name, line)
+                joint.channels_line = line
+            elif token == "JOINT":
+                stack.append(self.open_joint(parent=stack[-1], keyword_line=line))
+            elif token == "End":
+                self.end_site(stack[-1], line)
+            elif token == "{":
+                raise self.error(line, f"unbalanced braces: unexpected '{{' inside joint {joint.name!r}.")
+            else:
+                raise self.error(
+                    line,
+                    f"expected OFFSET, CHANNELS, JOINT, End Site or {closing} in joint {joint.name!r}, got {token!r}.",
+                )
         if self.position < len(self.tokens):
             token, line = self.tokens[self.position]
             if token == "}":
@@ -120,45 +176,22 @@ class _HierarchyParser:
                 raise self.error(line, "found a second ROOT; mocapbench reads one skeleton per BVH file.")
             raise self.error(line, f"expected 'MOTION' after the root joint's closing brace, got {token!r}.")
 
-    def joint(self, parent: int, keyword_line: int) -> None:
+    def open_joint(self, parent: int, keyword_line: int) -> int:
+        """Read ``NAME {`` after ROOT/JOINT; returns the new joint's index."""
         name_words = self.rest_of_line(keyword_line)
         if len(name_words) != 1 or name_words[0] in "{}":
             raise self.error(keyword_line, f"expected one joint name after ROOT/JOINT, got {name_words}.")
         name = name_words[0]
-        if any(joint.name == name for joint in self.joints):
+        if name in self.names:
             raise self.error(keyword_line, f"joint name {name!r} is used twice; joint names must be unique.")
+        if len(self.joints) >= MAX_JOINTS:
+            raise self.error(keyword_line, f"more than {MAX_JOINTS} joints; mocapbench reads at most {MAX_JOINTS}.")
         token, open_line = self.next(f"'{{' opening joint {name!r}")
         if token != "{":
             raise self.error(open_line, f"expected '{{' opening joint {name!r}, got {token!r}.")
-        index = len(self.joints)
-        joint = _Joint(name=name, parent=parent, line=keyword_line)
-        self.joints.append(joint)
-        closing = f"'}}' closing joint {name!r} (opened at line {open_line})"
-        while True:
-            token, line = self.next(closing)
-            if token == "}":
-                break
-            if token == "OFFSET":
-                if joint.offset is not None:
-                    raise self.error(line, f"second OFFSET in joint {name!r}.")
-                joint.offset = self.numbers("OFFSET", line, 3)
-            elif token == "CHANNELS":
-                if joint.channels_line:
-                    raise self.error(line, f"second CHANNELS in joint {name!r} (first at line {joint.channels_line}).")
-                joint.channels = self.channels(name, line)
-                joint.channels_line = line
-            elif token == "JOINT":
-                self.joint(parent=index, keyword_line=line)
-            elif token == "End":
-                self.end_site(index, line)
-            elif token == "{":
-                raise self.error(line, f"unbalanced braces: unexpected '{{' inside joint {name!r}.")
-            else:
-                raise self.error(
-                    line, f"expected OFFSET, CHANNELS, JOINT, End Site or {closing} in joint {name!r}, got {token!r}."
-                )
-        if joint.offset is None:
-            raise self.error(keyword_line, f"joint {name!r} has no OFFSET.")
+        self.names.add(name)
+        self.joints.append(_Joint(name=name, parent=parent, line=keyword_line, open_line=open_line))
+        return len(self.joints) - 1
 
     def channels(self, joint: str, line: int) -> list[tuple[str, str]]:
         words = self.rest_of_line(line)
@@ -196,32 +229,6 @@ class _HierarchyParser:
         self.end_offsets.append(offset)
 
 
-def _tokenize(text: str, first_line: int) -> list[tuple[str, int]]:
-    """``(token, line number)`` pairs of ``text``; its first line has number ``first_line``."""
-    return [(word, number) for number, line in enumerate(text.splitlines(), first_line) for word in line.split()]
-
-
-def _tokens_per_line(data: str) -> np.ndarray:
-    """Number of whitespace-separated tokens on each line of ``data`` (a final line without newline counts).
-
-    Vectorized over bytes; falls back to ``str.split`` per line when ``data`` holds non-ASCII text (where a
-    byte is not a character).
-    """
-    raw = np.frombuffer(data.encode("utf-8"), dtype=np.uint8)
-    if raw.size == 0:
-        return np.zeros(0, dtype=np.int64)
-    if raw.size != len(data):
-        return np.array([len(line.split()) for line in data.split("\n")], dtype=np.int64)
-    space = _IS_WHITESPACE_BYTE[raw]
-    starts = ~space
-    starts[1:] &= space[:-1]
-    line_ends = np.flatnonzero(raw == 10)
-    if raw[-1] != 10:
-        line_ends = np.append(line_ends, raw.size)
-    cumulative = np.concatenate(([0], np.cumsum(starts)))
-    return np.diff(cumulative[np.concatenate(([0], line_ends))])
-
-
 def _frames_per_second(frame_time: float, text: str) -> float:
     """``1 / frame_time``, snapped to the nearest integer rate when the printed frame time is that rate rounded.
 
@@ -235,81 +242,210 @@ def _frames_per_second(frame_time: float, text: str) -> float:
     return fps
 
 
-def _motion_header(path: Path, text: str, start: int, first_line: int) -> tuple[int, float, int, int, int]:
-    """Parse the ``Frames:`` and ``Frame Time:`` lines that follow the MOTION line.
+class _Reader:
+    """One read of one BVH file from an open binary handle (see :func:`read_bvh`)."""
 
-    Parameters
-    ----------
-    text : str
-        The whole file; ``start`` is the index just after the MOTION line's newline, on line ``first_line``.
+    def __init__(self, path: Path, handle: BinaryIO, size: int) -> None:
+        self.path, self.handle, self.size = path, handle, size
+        self.line = 0  # number of the last line read
+
+    def error(self, line: int, message: str) -> MotionFormatError:
+        return MotionFormatError(f"{self.path}: line {line}: {message}")
+
+    def _text_line(self) -> str | None:
+        raw = self.handle.readline(_MAX_HIERARCHY_BYTES + 1)
+        if not raw:
+            return None
+        self.line += 1
+        try:
+            return raw.decode("utf-8")
+        except UnicodeDecodeError as error:
+            raise MotionFormatError(
+                f"{self.path}: expected a BVH file as text, got undecodable bytes on line {self.line} ({error.reason})."
+            ) from None
+
+    # -- HIERARCHY ------------------------------------------------------------------------------------------
+    def hierarchy(self) -> tuple[_HierarchyParser, int]:
+        """Parse up to the MOTION line; returns the parser and the MOTION line's number."""
+        tokens: list[tuple[str, int]] = []
+        read = 0
+        while True:
+            text = self._text_line()
+            if text is None:
+                break
+            read += len(text)
+            words = text.split()
+            if words == ["MOTION"] and text.strip(" \t\r\n") == "MOTION":
+                parser = _HierarchyParser(self.path, tokens, self.line, "the MOTION line before the hierarchy ended")
+                parser.parse()
+                return parser, self.line
+            if read > _MAX_HIERARCHY_BYTES:
+                raise MotionFormatError(
+                    f"{self.path}: no MOTION line in the first {_MAX_HIERARCHY_BYTES >> 20} MiB; expected a HIERARCHY "
+                    f"of at most {MAX_JOINTS} joints followed by 'MOTION'."
+                )
+            tokens.extend((word, self.line) for word in words)
+        if not tokens:
+            raise MotionFormatError(f"{self.path}: the BVH file is empty.")
+        if tokens[0][0] != "HIERARCHY":
+            raise MotionFormatError(
+                f"{self.path}: line {tokens[0][1]}: expected 'HIERARCHY' to start a BVH file, got {tokens[0][0]!r}."
+            )
+        raise MotionFormatError(f"{self.path}: no MOTION section: expected a line 'MOTION' after the HIERARCHY block.")
+
+    # -- Frames: / Frame Time: -----------------------------------------------------------------------------
+    def motion_header(self) -> tuple[int, float, int]:
+        """``(frames, fps, frames_line)`` from the two lines after MOTION."""
+        found: list[tuple[list[str], int]] = []
+        for expected in ("Frames:", "Frame Time:"):
+            while True:
+                text = self._text_line()
+                if text is None:
+                    raise self.error(self.line + 1, f"expected '{expected} <number>', reached the end of the file.")
+                if text.strip():
+                    break
+            words, label_words = text.split(), expected.split()
+            if words[: len(label_words)] != label_words or len(words) != len(label_words) + 1:
+                raise self.error(self.line, f"expected '{expected} <number>', got {text.strip()!r}.")
+            found.append((words, self.line))
+        (frames_words, frames_line), (time_words, time_line) = found
+        try:
+            frames = int(frames_words[1])
+        except ValueError:
+            raise self.error(frames_line, f"expected an integer frame count, got {frames_words[1]!r}.") from None
+        if frames < 0:
+            raise self.error(frames_line, f"expected a frame count >= 1, got {frames}.")
+        if frames == 0:
+            raise self.error(frames_line, "'Frames: 0'; a motion needs at least one frame.")
+        try:
+            frame_time = float(time_words[2])
+        except ValueError:
+            frame_time = math.nan
+        if not (math.isfinite(frame_time) and frame_time > 0):
+            raise self.error(time_line, f"expected a frame time in seconds > 0, got {time_words[2]!r}.")
+        if not MIN_FRAME_TIME_S <= frame_time <= MAX_FRAME_TIME_S:
+            raise self.error(
+                time_line,
+                f"expected a frame time in [{MIN_FRAME_TIME_S:g}, {MAX_FRAME_TIME_S:g}] s "
+                f"({1 / MIN_FRAME_TIME_S:g} to {1 / MAX_FRAME_TIME_S:g} frames per second), got {time_words[2]!r}.",
+            )
+        return frames, _frames_per_second(frame_time, time_words[2]), frames_line
+
+
+class _MotionBlock:
+    """Turns blocks of MOTION values into root positions and quaternions, written into preallocated arrays."""
+
+    def __init__(self, reader: _Reader, joints: list[_Joint], capacity: int) -> None:
+        self.reader, self.joints = reader, joints
+        num_joints = len(joints)
+        self.root = np.tile(np.array(joints[0].offset, dtype=np.float64), (capacity, 1))
+        self.rotations = np.zeros((capacity, num_joints, 4))
+        self.rotations[..., 3] = 1.0
+        self.by_order: dict[str, tuple[list[int], list[int]]] = {}  # axes -> (joints, columns in axis order)
+        self.root_columns: list[tuple[int, int]] = []  # (column, axis)
+        self.fixed: list[tuple[int, int, int, float]] = []  # (column, joint, axis, offset) to fold away
+        column = 0
+        for index, joint in enumerate(joints):
+            axes, columns = "", []
+            for kind, axis in joint.channels:
+                if kind == "position":
+                    if index == 0:
+                        self.root_columns.append((column, "XYZ".index(axis)))
+                    else:
+                        self.fixed.append((column, index, "XYZ".index(axis), joint.offset["XYZ".index(axis)]))
+                else:
+                    axes += axis
+                    columns.append(column)
+                column += 1
+            if axes:
+                members, cols = self.by_order.setdefault(axes, ([], []))
+                members.append(index)
+                cols.extend(columns)
+        self.num_channels = column
+
+    def store(self, values: np.ndarray, row: int, line_numbers: np.ndarray) -> None:
+        """Put the ``(n, C)`` block ``values`` (file lines ``line_numbers``) at frames ``row .. row + n``."""
+        n = len(values)
+        for column, joint, axis, offset in self.fixed:
+            moved = np.abs(values[:, column] - offset) > POSITION_TOLERANCE * max(1.0, abs(offset))
+            if moved.any():
+                frame = int(np.flatnonzero(moved)[0])
+                name = self.joints[joint].name
+                raise self.reader.error(
+                    int(line_numbers[frame]),
+                    f"joint {name!r} moves: its {'XYZ'[axis]}position channel is {values[frame, column]:g} where its "
+                    f"OFFSET says {offset:g}; mocapbench carries translation on the root only, so this file cannot "
+                    f"be read without losing that motion.",
+                )
+        for column, axis in self.root_columns:
+            self.root[row : row + n, axis] = values[:, column]
+        for axes, (members, columns) in self.by_order.items():
+            angles = values[:, np.array(columns)].reshape(n, len(members), len(axes))
+            self.rotations[row : row + n, members] = Rotation.from_euler(axes, angles, degrees=True).as_quat()
+
+
+def _parse_block(reader: _Reader, chunk: bytes, first_line: int, num_channels: int):
+    """Validate and parse one block of whole MOTION lines.
 
     Returns
     -------
-    (frames, fps, frames_line, data_start, data_line) : declared frame count, frames per second, the line
-    number of ``Frames:``, the index in ``text`` where the data lines start and the number of their first line.
+    (values, line_numbers) : ndarray (n, C) float64 and the file line of each of its n rows (blank lines skipped).
     """
-    found: list[tuple[list[str], int]] = []
-    line_number = first_line
-    for expected in ("Frames:", "Frame Time:"):
-        while True:
-            if start >= len(text):
-                raise MotionFormatError(
-                    f"{path}: line {line_number}: expected '{expected} <number>', reached the end of the file."
-                )
-            stop = text.find("\n", start)
-            stop = len(text) if stop < 0 else stop
-            line, start, line_number = text[start:stop], stop + 1, line_number + 1
-            if line.strip():
-                break
-        words, label_words = line.split(), expected.split()
-        if words[: len(label_words)] != label_words or len(words) != len(label_words) + 1:
-            raise MotionFormatError(
-                f"{path}: line {line_number - 1}: expected '{expected} <number>', got {line.strip()!r}."
-            )
-        found.append((words, line_number - 1))
-    (frames_words, frames_line), (time_words, time_line) = found
-    try:
-        frames = int(frames_words[1])
-    except ValueError:
-        raise MotionFormatError(
-            f"{path}: line {frames_line}: expected an integer frame count, got {frames_words[1]!r}."
-        ) from None
-    if frames < 0:
-        raise MotionFormatError(f"{path}: line {frames_line}: expected a frame count >= 1, got {frames}.")
-    try:
-        frame_time = float(time_words[2])
-    except ValueError:
-        frame_time = math.nan
-    if not (math.isfinite(frame_time) and frame_time > 0):
-        raise MotionFormatError(
-            f"{path}: line {time_line}: expected a frame time in seconds > 0, got {time_words[2]!r}."
+    raw = np.frombuffer(chunk, dtype=np.uint8)
+    newlines = np.flatnonzero(raw == 10)
+    foreign = np.flatnonzero(~_IS_NUMBER_BYTE[raw])
+    if foreign.size:
+        _raise_bad_token(reader, chunk, int(foreign[0]), first_line, newlines)
+    space = _IS_WHITESPACE_BYTE[raw]
+    starts = ~space
+    starts[1:] &= space[:-1]
+    line_ends = newlines if raw[-1] == 10 else np.append(newlines, raw.size)
+    cumulative = np.concatenate(([0], np.cumsum(starts)))
+    counts = np.diff(cumulative[np.concatenate(([0], line_ends))])
+    del space, starts, cumulative
+    nonblank = np.flatnonzero(counts > 0)
+    wrong = np.flatnonzero(counts[nonblank] != num_channels)
+    if wrong.size:
+        bad = nonblank[wrong[0]]
+        raise reader.error(
+            first_line + int(bad),
+            f"expected {num_channels} values (the channels of the HIERARCHY), got {counts[bad]}.",
         )
-    return frames, _frames_per_second(frame_time, time_words[2]), frames_line, min(start, len(text)), line_number
-
-
-def _parse_values(path: Path, data: str, line_numbers: np.ndarray, num_channels: int) -> np.ndarray:
-    """The MOTION numbers as an ``(F, C)`` array; every non-blank line already holds ``C`` tokens.
-
-    ``np.loadtxt``'s C parser is strict (no hex, no ``1_0``, no trailing letters) and skips blank lines; on its
-    error the lines are scanned again in Python to name the line and the token.
-    """
+    line_numbers = first_line + nonblank
+    if not nonblank.size:
+        return np.zeros((0, num_channels)), line_numbers
     try:
-        values = np.loadtxt(io.StringIO(data), dtype=np.float64, comments=None, ndmin=2)
+        values = np.loadtxt(io.StringIO(chunk.decode("ascii")), dtype=np.float64, comments=None, ndmin=2)
     except ValueError as error:
-        lines = [line for line in data.split("\n") if line.strip()]
-        for number, line in zip(line_numbers, lines, strict=True):
+        text = chunk.decode("ascii")
+        for number, line in zip(line_numbers, [line for line in text.split("\n") if line.strip()], strict=True):
             for word in line.split():
                 if not _NUMBER.match(word):
-                    raise MotionFormatError(f"{path}: line {number}: expected a number, got {word!r}.") from None
-        raise MotionFormatError(f"{path}: the MOTION section holds a value that is not a number ({error}).") from None
+                    raise reader.error(int(number), f"expected a number, got {word!r}.") from None
+        raise MotionFormatError(
+            f"{reader.path}: the MOTION section holds a value that is not a number ({error})."
+        ) from None
     finite = np.isfinite(values)
     if not finite.all():
         frame, channel = np.argwhere(~finite)[0]
-        raise MotionFormatError(
-            f"{path}: line {line_numbers[frame]}: expected finite numbers, got {values[frame, channel]} "
-            f"(value {channel + 1} of {num_channels})."
+        raise reader.error(
+            int(line_numbers[frame]),
+            f"expected finite numbers, got {values[frame, channel]} (value {channel + 1} of {num_channels}).",
         )
-    return values
+    return values, line_numbers
+
+
+def _raise_bad_token(reader: _Reader, chunk: bytes, at: int, first_line: int, newlines: np.ndarray) -> None:
+    """Raise the error for the byte at ``chunk[at]``, which cannot be part of a number: name its word and line."""
+    line = first_line + int(np.searchsorted(newlines, at))
+    start = at
+    while start > 0 and not _IS_WHITESPACE_BYTE[chunk[start - 1]]:
+        start -= 1
+    stop = at
+    while stop < len(chunk) and not _IS_WHITESPACE_BYTE[chunk[stop]]:
+        stop += 1
+    word = chunk[start:stop].decode("utf-8", errors="replace")
+    raise reader.error(line, f"expected a number, got {word!r}.")
 
 
 def read_bvh(
@@ -338,110 +474,103 @@ def read_bvh(
     Raises
     ------
     MotionFormatError
-        A missing (:class:`~mocapbench.io.MotionFileNotFoundError`), empty or malformed file; the message
-        names the file, the line and what was expected. ``ValueError`` for a bad ``length_unit_cm``.
+        A missing (:class:`~mocapbench.io.MotionFileNotFoundError`), empty or malformed file, a frame time
+        outside [1e-5, 1000] s, more than :data:`MAX_JOINTS` joints, or a non-root joint whose position channels
+        move; the message names the file, the line and what was expected. ``ValueError`` for a bad
+        ``length_unit_cm``.
     """
     if not (math.isfinite(length_unit_cm) and length_unit_cm > 0):
         raise ValueError(f"`length_unit_cm` must be a finite number > 0, got {length_unit_cm}.")
     path = Path(path)
-    text = read_text(path, "BVH file")
-    motion_match = _MOTION_LINE.search(text)
-    if motion_match is None:
-        first = text.split(None, 1)[0]
-        if first != "HIERARCHY":
-            line = text.count("\n", 0, text.index(first)) + 1
-            raise MotionFormatError(f"{path}: line {line}: expected 'HIERARCHY' to start a BVH file, got {first!r}.")
-        raise MotionFormatError(f"{path}: no MOTION section: expected a line 'MOTION' after the HIERARCHY block.")
-    motion_line = text.count("\n", 0, motion_match.start()) + 1
-    parser = _HierarchyParser(
-        path, _tokenize(text[: motion_match.start()], 1), motion_line, "the MOTION line before the hierarchy ended"
-    )
-    parser.parse()
-    joints = parser.joints
-    num_channels = _check_channels(path, joints)
+    if not path.exists():
+        raise MotionFileNotFoundError(f"{path}: BVH file does not exist.")
+    if path.is_dir():
+        raise MotionFormatError(f"{path}: expected a BVH file, got a folder.")
+    try:
+        handle = open(path, "rb")
+    except OSError as error:
+        raise MotionFormatError(f"{path}: cannot read the BVH file: {error.strerror or error}.") from None
+    with handle:
+        try:
+            return _read(path, handle, length_unit_cm, drop_first_frame, name)
+        except OSError as error:
+            raise MotionFormatError(f"{path}: cannot read the BVH file: {error.strerror or error}.") from None
 
-    # Frames: and Frame Time: lines, then the data block.
-    after_motion = text.find("\n", motion_match.end())
-    after_motion = len(text) if after_motion < 0 else after_motion + 1
-    num_frames, fps, frames_line, data_start, first_data_line = _motion_header(
-        path, text, after_motion, motion_line + 1
-    )
-    data = text[data_start:]
-    counts = _tokens_per_line(data)
-    nonblank = np.flatnonzero(counts > 0)
-    line_numbers = first_data_line + nonblank
-    if num_frames == 0:
-        raise MotionFormatError(f"{path}: line {frames_line}: 'Frames: 0'; a motion needs at least one frame.")
-    wrong = np.flatnonzero(counts[nonblank] != num_channels)
-    if wrong.size:
-        bad = nonblank[wrong[0]]
-        raise MotionFormatError(
-            f"{path}: line {first_data_line + bad}: expected {num_channels} values (the channels of the HIERARCHY), "
-            f"got {counts[bad]}."
+
+def _read(path: Path, handle: BinaryIO, length_unit_cm: float, drop_first_frame: bool, name: str | None) -> Motion:
+    reader = _Reader(path, handle, os.fstat(handle.fileno()).st_size)
+    parser, _ = reader.hierarchy()
+    joints = parser.joints
+    num_frames, fps, frames_line = reader.motion_header()
+    first_data_line = reader.line + 1
+    data_bytes = reader.size - handle.tell()
+    num_channels = sum(len(joint.channels) for joint in joints)
+    if num_channels == 0:
+        raise reader.error(frames_line, "the HIERARCHY declares no channels, so there is no motion to read.")
+    # A frame is C numbers, C - 1 separators and a newline: a file of B bytes holds at most (B + 1) / 2C frames, so
+    # a 'Frames:' that claims more allocates only what the bytes can hold (and fails below naming the real count).
+    capacity = min(num_frames, (data_bytes + 1) // (2 * num_channels))
+    if capacity * len(joints) * 32 > 8 * data_bytes + (64 << 20):
+        raise reader.error(
+            frames_line,
+            f"{len(joints)} joints but only {num_channels} channels: {capacity} frames would take "
+            f"{capacity * len(joints) * 32:,} bytes of rotations for a {reader.size:,}-byte file.",
         )
-    if nonblank.size != num_frames:
-        span = f"lines {line_numbers[0]}-{line_numbers[-1]}" if nonblank.size else f"after line {first_data_line - 1}"
-        raise MotionFormatError(
-            f"{path}: line {frames_line}: 'Frames: {num_frames}' but the MOTION section has {nonblank.size} data "
-            f"lines ({span})."
+    block = _MotionBlock(reader, joints, max(capacity, 1))
+    row, line, data_lines, last_data_line = 0, first_data_line, 0, 0
+    carry = b""
+    while True:
+        read = handle.read(_CHUNK_BYTES)
+        data = carry + read if carry else read
+        if read:
+            cut = data.rfind(b"\n")
+            if cut < 0:
+                carry = data
+                continue
+            chunk, carry = data[: cut + 1], data[cut + 1 :]
+        else:
+            chunk, carry = data, b""
+        if chunk:
+            values, line_numbers = _parse_block(reader, chunk, line, num_channels)
+            line += chunk.count(b"\n")
+            if len(line_numbers):
+                last_data_line = int(line_numbers[-1])
+            fits = max(0, min(len(values), capacity - row))
+            if fits:
+                block.store(values[:fits], row, line_numbers[:fits])
+                row += fits
+            data_lines += len(values)
+        if not read:
+            break
+    if data_lines != num_frames:
+        span = f"lines {first_data_line}-{last_data_line}" if data_lines else f"after line {first_data_line - 1}"
+        raise reader.error(
+            frames_line, f"'Frames: {num_frames}' but the MOTION section has {data_lines} data lines ({span})."
         )
-    values = _parse_values(path, data, line_numbers, num_channels)
+    start = 0
     if drop_first_frame:
         if num_frames < 2:
-            raise MotionFormatError(f"{path}: line {frames_line}: drop_first_frame needs 2 frames or more, got 1.")
-        values = values[1:]
-    skeleton, root_positions, rotations = _to_motion_arrays(parser, values, length_unit_cm)
-    return Motion(skeleton, fps, root_positions, rotations, name=path.stem if name is None else name)
-
-
-def _check_channels(path: Path, joints: list[_Joint]) -> int:
-    """Refuse position channels below the root; return the total channel count C."""
-    for index, joint in enumerate(joints):
-        if index > 0 and any(kind == "position" for kind, _ in joint.channels):
-            raise MotionFormatError(
-                f"{path}: line {joint.channels_line}: position channels on joint {joint.name!r}, which is not the "
-                "root; expected rotation channels only (a Motion carries the root translation only)."
-            )
-    return sum(len(joint.channels) for joint in joints)
-
-
-def _to_motion_arrays(parser: _HierarchyParser, values: np.ndarray, length_unit_cm: float):
-    """Skeleton (cm), root positions (F, 3) in cm and quaternions (F, J, 4) from the (F, C) channel values."""
-    joints = parser.joints
-    num_frames, num_joints = values.shape[0], len(joints)
-    root_offset = np.array(joints[0].offset)
-    root_positions = np.tile(root_offset, (num_frames, 1))
-    rotations = np.zeros((num_frames, num_joints, 4))
-    rotations[..., 3] = 1.0
-    by_order: dict[str, tuple[list[int], list[list[int]]]] = {}
-    orders = []
-    column = 0
-    for index, joint in enumerate(joints):
-        rotation_axes, rotation_columns = "", []
-        for kind, axis in joint.channels:
-            if kind == "position":
-                root_positions[:, "XYZ".index(axis)] = values[:, column]
-            else:
-                rotation_axes += axis
-                rotation_columns.append(column)
-            column += 1
-        orders.append(rotation_axes + "".join(a for a in "XYZ" if a not in rotation_axes))
-        if rotation_axes:
-            members = by_order.setdefault(rotation_axes, ([], []))
-            members[0].append(index)
-            members[1].append(rotation_columns)
-    for axes, (members, columns) in by_order.items():
-        angles = values[:, np.array(columns)]  # (F, k, len(axes))
-        rotations[:, members] = Rotation.from_euler(axes, angles, degrees=True).as_quat()
+            raise reader.error(frames_line, "drop_first_frame needs 2 frames or more, got 1.")
+        start = 1
     skeleton = Skeleton(
         names=tuple(joint.name for joint in joints),
         parents=np.array([joint.parent for joint in joints]),
         offsets=np.array([joint.offset for joint in joints]) * length_unit_cm,
-        channel_orders=tuple(orders),
+        channel_orders=tuple(_channel_order(joint) for joint in joints),
         end_site_parents=np.array(parser.end_parents, dtype=np.int64),
         end_site_offsets=np.array(parser.end_offsets, dtype=np.float64).reshape(-1, 3) * length_unit_cm,
     )
-    return skeleton, root_positions * length_unit_cm, rotations
+    root = block.root[start:]
+    root *= length_unit_cm
+    rotations = block.rotations[start:]
+    del block
+    return Motion(skeleton, fps, root, rotations, name=path.stem if name is None else name)
+
+
+def _channel_order(joint: _Joint) -> str:
+    """The joint's rotation axes in file order, missing axes appended (what :func:`write_bvh` writes back)."""
+    axes = "".join(axis for kind, axis in joint.channels if kind == "rotation")
+    return axes + "".join(a for a in "XYZ" if a not in axes)
 
 
 def write_bvh(
@@ -500,11 +629,26 @@ def write_bvh(
     path = check_output(path, force=overwrite)
     skeleton = motion.skeleton
     order = _depth_first_order(skeleton.parents)
+    children: list[list[int]] = [[] for _ in range(skeleton.num_joints)]
+    for joint in range(1, skeleton.num_joints):
+        children[int(skeleton.parents[joint])].append(joint)
     number = f"{{:.{decimals}f}}"
     lines = ["HIERARCHY"]
 
-    def write_joint(joint: int, depth: int) -> None:
-        indent = "\t" * depth
+    # Depth first with an explicit stack (no recursion limit on deep chains): ("open", joint, depth) writes the
+    # joint's header and schedules its children, its end sites and its closing brace.
+    stack: list[tuple[str, int, int]] = [("open", 0, 0)]
+    while stack:
+        action, joint, depth = stack.pop()
+        indent = "\t" * min(depth, 64)  # a chain thousands deep would otherwise write megabytes of tabs
+        if action == "close":
+            for end in np.flatnonzero(skeleton.end_site_parents == joint):
+                end_offset = " ".join(number.format(v) for v in skeleton.end_site_offsets[end] / length_unit_cm)
+                lines.extend(
+                    [f"{indent}\tEnd Site", f"{indent}\t{{", f"{indent}\t\tOFFSET {end_offset}", f"{indent}\t}}"]
+                )
+            lines.append(f"{indent}}}")
+            continue
         keyword = "ROOT" if joint == 0 else "JOINT"
         offset = " ".join(number.format(v) for v in skeleton.offsets[joint] / length_unit_cm)
         rotation_channels = " ".join(f"{axis}rotation" for axis in skeleton.channel_orders[joint])
@@ -512,14 +656,8 @@ def write_bvh(
         channels = f"6 Xposition Yposition Zposition {rotation_channels}" if with_position else f"3 {rotation_channels}"
         lines.extend([f"{indent}{keyword} {skeleton.names[joint]}", f"{indent}{{", f"{indent}\tOFFSET {offset}"])
         lines.append(f"{indent}\tCHANNELS {channels}")
-        for child in skeleton.children(joint):
-            write_joint(child, depth + 1)
-        for end in np.flatnonzero(skeleton.end_site_parents == joint):
-            end_offset = " ".join(number.format(v) for v in skeleton.end_site_offsets[end] / length_unit_cm)
-            lines.extend([f"{indent}\tEnd Site", f"{indent}\t{{", f"{indent}\t\tOFFSET {end_offset}", f"{indent}\t}}"])
-        lines.append(f"{indent}}}")
-
-    write_joint(0, 0)
+        stack.append(("close", joint, depth))
+        stack.extend(("open", child, depth + 1) for child in reversed(children[joint]))
     lines.extend(["MOTION", f"Frames: {motion.num_frames}", f"Frame Time: {1.0 / motion.fps:.10g}"])
 
     columns = [motion.root_positions / length_unit_cm]
