@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from mocapbench.lazy_imports import Rotation
 
-__all__ = ["Skeleton", "Motion", "MotionFormatError"]
+__all__ = ["Skeleton", "Motion", "MotionFormatError", "OwnedQuaternions"]
 
 
 class MotionFormatError(ValueError):
@@ -58,6 +58,17 @@ def _tree_levels(parents: np.ndarray) -> tuple[list[tuple[np.ndarray, np.ndarray
         ancestors[j] += ancestors[parents[j]]
     levels = [(np.flatnonzero(depth == d), parents[depth == d]) for d in range(1, int(depth.max()) + 1)]
     return levels, ancestors
+
+
+@dataclass(frozen=True)
+class OwnedQuaternions:
+    """Quaternions ``(F, J, 4)`` float64 handed to :class:`Motion` for keeps: it normalizes them in place.
+
+    Readers of long files wrap the array they just filled, so that building the motion does not copy it (the
+    caller must not use the array afterwards). Any other input is copied, as usual.
+    """
+
+    array: np.ndarray
 
 
 @dataclass(frozen=True, eq=False)
@@ -232,6 +243,9 @@ class Motion:
         object.__setattr__(self, "source_unit_cm", unit)
         num_joints = self.skeleton.num_joints
         rotations = self.rotations
+        owned = isinstance(rotations, OwnedQuaternions)
+        if owned:
+            rotations = rotations.array
         if isinstance(rotations, Rotation):
             if rotations.single or len(rotations.shape) != 2:
                 raise ValueError(f"Expected `rotations` as a Rotation of shape (F, {num_joints}), got {rotations.shape}.")
@@ -241,11 +255,14 @@ class Motion:
         if num_frames == 0:
             raise ValueError("A motion needs at least one frame, got 0.")
         roots = _as_float_array("root_positions", self.root_positions, (num_frames, 3))
-        norms = np.linalg.norm(quats, axis=-1, keepdims=True)
+        norms = np.sqrt(np.einsum("...i,...i->...", quats, quats))[..., None]  # no (F, J, 4) temporary
         if np.any(norms < 1e-8):
             frame, joint = np.argwhere(norms[..., 0] < 1e-8)[0]
             raise ValueError(f"Found a zero-norm quaternion in `rotations` at frame {frame}, joint {joint}.")
-        quats = quats / norms
+        if owned and quats is rotations and quats.flags.writeable:
+            quats /= norms  # the caller gave this array away: normalize it in place, no second copy
+        else:
+            quats = quats / norms
         quats.setflags(write=False)
         roots.setflags(write=False)
         object.__setattr__(self, "fps", fps)

@@ -126,6 +126,17 @@ class Decoded:
     header: Header
 
 
+def _longest_chain_cm(skeleton) -> float:
+    """Largest sum of bone-offset lengths from the root to any joint (end sites included), cm."""
+    lengths = np.linalg.norm(skeleton.offsets, axis=1)
+    lengths[0] = 0.0
+    reach = lengths.copy()
+    for joint in range(1, skeleton.num_joints):  # parents come before children
+        reach[joint] += reach[skeleton.parents[joint]]
+    ends = reach[skeleton.end_site_parents] + np.linalg.norm(skeleton.end_site_offsets, axis=1)
+    return float(max(reach.max(), ends.max(initial=0.0)))
+
+
 class Codec(abc.ABC):
     """Base class of every codec. Subclasses set ``name`` and ``Config`` and implement the payload methods.
 
@@ -149,6 +160,12 @@ class Codec(abc.ABC):
     # (tests/codecs/test_registry.py runs every registered codec with them).
     smoke_params: ClassVar[dict[str, Any]] = {}
     smoke_max_error_cm: ClassVar[float] = 1.0
+    # The numeric range of the codec's format: every joint of a motion it encodes lies within this distance of
+    # the origin, cm (default 1e6 cm = 10 km; codecs whose format is coarser set less and say why). Beyond it a
+    # codec would overflow or lose its precision silently, so :meth:`encode` refuses the motion in one line.
+    max_coordinate_cm: ClassVar[float] = 1e6
+    # Fewest joints the codec can code (a codec that models a pose below the root needs 2).
+    min_joints: ClassVar[int] = 1
 
     def __init__(self, config: CodecConfig | None = None) -> None:
         if config is None:
@@ -183,6 +200,7 @@ class Codec(abc.ABC):
         if not isinstance(motion, Motion):
             raise TypeError(f"{self.name}: encode expects a Motion, got {type(motion).__name__}.")
         self.last_encode_stats = {}
+        self.check_motion_fits(motion)
         payload = self.encode_payload(motion)
         return container.pack(
             self.name,
@@ -193,6 +211,25 @@ class Codec(abc.ABC):
             source_unit_cm=motion.source_unit_cm,
             up_axis=motion.up_axis,
         )
+
+    def check_motion_fits(self, motion: Motion) -> None:
+        """Refuse, in one ``ValueError`` line, a motion outside the codec's range or with too few joints.
+
+        The reach of a motion is bounded without forward kinematics: the largest root coordinate plus the longest
+        chain of bone offsets from the root (no joint can be farther from the origin).
+        """
+        if motion.num_joints < self.min_joints:
+            raise ValueError(
+                f"{self.name}: needs a skeleton of at least {self.min_joints} joints, the motion {motion.name!r} has "
+                f"{motion.num_joints}."
+            )
+        reach = float(np.abs(motion.root_positions).max()) + _longest_chain_cm(motion.skeleton)
+        if not reach <= self.max_coordinate_cm:
+            raise ValueError(
+                f"{self.name}: the motion {motion.name!r} reaches {reach:.3g} cm from the origin; this codec's "
+                f"numeric range is ±{self.max_coordinate_cm:g} cm (re-centre the motion, check its length unit, or "
+                "pick another codec)."
+            )
 
     def decode(self, data: bytes, *, limits: DecodeLimits | None = None) -> Decoded:
         """Decode a stream written by this codec from its bytes alone.

@@ -62,6 +62,8 @@ class RawZstdCodec(Codec):
 
     name = "raw-zstd"
     family = "generic"
+    # float32 positions: beyond 1 km a float32 step exceeds 0.008 cm and the "lossless" floor stops being one.
+    max_coordinate_cm = 1e5
     smoke_max_error_cm = 1e-3  # float32 rounding only
 
     @dataclass(frozen=True)

@@ -508,6 +508,11 @@ class _SpatialTransformCodec(Codec):
             raise ValueError(f"{self.name}: expected `positions` of shape (F, J, 3) with F, J >= 1, got {positions.shape}.")
         if not np.all(np.isfinite(positions)):
             raise ValueError(f"{self.name}: `positions` holds non-finite values.")
+        if np.abs(positions).max() > self.max_coordinate_cm:
+            raise ValueError(
+                f"{self.name}: a joint lies {np.abs(positions).max():.3g} cm from the origin; this codec's numeric range "
+                f"is ±{self.max_coordinate_cm:g} cm (re-centre the motion or check its length unit)."
+            )
         self.last_encode_stats = {}
         payload = self._encode_positions(positions)
         return container.pack(self.name, positions.shape[0], positions.shape[1], float(fps), payload)

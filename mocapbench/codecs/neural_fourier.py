@@ -329,6 +329,10 @@ class _FourierMlpCodec(Codec):
     """What both Fourier-MLP codecs share: the stream, the decoder, the quantized evaluation."""
 
     codes_rotations = True
+    # The stream stores the pose parameters' mean and scale as float16 (largest 65504): the root translation in
+    # cm must stay well inside it.
+    max_coordinate_cm = 5e4
+    min_joints = 2  # the pose parameters (axis-angles of non-root joints) need a joint below the root
 
     # -- helpers used by encode_payload -------------------------------------------------------------------
     def _prepare(self, motion: Motion) -> dict[str, Any]:

@@ -89,6 +89,7 @@ class SvdCodec(Codec):
     """
 
     name = "svd"
+    min_joints = 2  # the pose parameters (axis-angles of non-root joints) need a joint below the root
     codes_rotations = True
     smoke_params = {"rank": 16}
     smoke_max_error_cm = 1.0  # measured 0.26 cm

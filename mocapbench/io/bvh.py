@@ -22,7 +22,7 @@ Conventions of the reading (the common one, e.g. the CMU/cgspeed files and Blend
   :data:`mocapbench.io.asf_amc.CMU_CM_PER_UNIT`).
 
 Reading streams: the HIERARCHY block is parsed without recursion (any depth, at most :data:`MAX_JOINTS`
-joints), the MOTION numbers are parsed in blocks of :data:`_CHUNK_BYTES` into arrays allocated once from
+joints), the MOTION numbers are parsed in blocks of 2 MiB into arrays allocated once from
 ``Frames:`` (bounded by what the file's bytes can hold), and each block is turned into quaternions at once, so
 the peak memory is about the decoded motion (twice its quaternions while :class:`Motion` normalizes them) plus a
 block, not a multiple of the file. Each block is validated with numpy (characters, values per line, finite
@@ -47,7 +47,7 @@ from mocapbench.lazy_imports import Rotation
 
 from mocapbench.io import MotionFileNotFoundError
 from mocapbench.io.safe_output import check_output, open_output
-from mocapbench.motion import Motion, MotionFormatError, Skeleton
+from mocapbench.motion import Motion, MotionFormatError, OwnedQuaternions, Skeleton
 
 __all__ = ["read_bvh", "write_bvh", "MAX_JOINTS", "POSITION_TOLERANCE"]
 
@@ -59,7 +59,7 @@ POSITION_TOLERANCE = 1e-4
 MIN_FRAME_TIME_S = 1e-5
 MAX_FRAME_TIME_S = 1e3
 _MAX_HIERARCHY_BYTES = 16 << 20  # 4096 joints need well under 1 MiB
-_CHUNK_BYTES = 8 << 20  # MOTION bytes parsed at a time
+_CHUNK_BYTES = 2 << 20  # MOTION bytes parsed at a time (its temporaries are a few times this)
 
 # Channel name (lower case) -> (kind, axis).
 _CHANNELS = {f"{axis.lower()}{kind}": (kind, axis) for axis in "XYZ" for kind in ("position", "rotation")}
@@ -393,16 +393,16 @@ def _parse_block(reader: _Reader, chunk: bytes, first_line: int, num_channels: i
     """
     raw = np.frombuffer(chunk, dtype=np.uint8)
     newlines = np.flatnonzero(raw == 10)
-    foreign = np.flatnonzero(~_IS_NUMBER_BYTE[raw])
-    if foreign.size:
-        _raise_bad_token(reader, chunk, int(foreign[0]), first_line, newlines)
+    if not _IS_NUMBER_BYTE[raw].all():
+        _raise_bad_token(reader, chunk, int(np.argmin(_IS_NUMBER_BYTE[raw])), first_line, newlines)
     space = _IS_WHITESPACE_BYTE[raw]
     starts = ~space
     starts[1:] &= space[:-1]
+    token_starts = np.flatnonzero(starts)
+    del space, starts
     line_ends = newlines if raw[-1] == 10 else np.append(newlines, raw.size)
-    cumulative = np.concatenate(([0], np.cumsum(starts)))
-    counts = np.diff(cumulative[np.concatenate(([0], line_ends))])
-    del space, starts, cumulative
+    counts = np.diff(np.searchsorted(token_starts, line_ends), prepend=0)  # tokens per line
+    del token_starts
     nonblank = np.flatnonzero(counts > 0)
     wrong = np.flatnonzero(counts[nonblank] != num_channels)
     if wrong.size:
@@ -562,7 +562,7 @@ def _read(path: Path, handle: BinaryIO, length_unit_cm: float, drop_first_frame:
     )
     root = block.root[start:]
     root *= length_unit_cm
-    rotations = block.rotations[start:]
+    rotations = OwnedQuaternions(block.rotations[start:])  # normalized in place by Motion: no second copy
     del block
     return Motion(skeleton, fps, root, rotations, name=path.stem if name is None else name)
 
