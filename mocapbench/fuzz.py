@@ -606,6 +606,36 @@ def run_campaign(names: list[str], per_codec: int, *, seed: int = 0, workers: in
     return result
 
 
+def memory_check(names: list[str], num_frames: int, *, timeout_s: float = 600.0) -> str:
+    """Decode one valid ``num_frames``-frame stream per codec in a fresh worker; a markdown table of the peak memory.
+
+    The target of issue 17: the growth of the worker's peak resident memory over the decode is at most twice
+    the decoded arrays plus a constant. The stream is the codec's ``smoke_params`` on a synthetic motion.
+    """
+    from mocapbench.codecs import CODECS, create
+    from mocapbench.synthetic import sinusoidal_motion
+
+    motion = sinusoidal_motion(num_frames=num_frames, seed=5)
+    lines = ["| codec | frames | decoded arrays MB | peak memory growth MB | growth / arrays | decode wall s | decode CPU s |",
+             "|---|---:|---:|---:|---:|---:|---:|"]
+    for name in names:
+        data = create(name, **CODECS[name].smoke_params).encode(motion)
+        fuzzer = Fuzzer(workers=1, memory_bytes=16 << 30, output_bytes=8 << 30, timeout_s=timeout_s)
+        try:
+            results: list[dict] = []
+            fuzzer.decode_all([(name, "valid", data)], lambda *args: results.append(args[3]))
+        finally:
+            fuzzer.close()
+        r = results[0]
+        if r["outcome"] != "decoded":
+            lines.append(f"| {name} | {num_frames} | - | - | - | {r.get('wall_s', 0):.1f} | {r['outcome']}: {r['error']} |")
+            continue
+        out, grow = r["output_bytes"] / 2**20, r["memory_bytes"] / 2**20
+        lines.append(f"| {name} | {num_frames} | {out:.1f} | {grow:.1f} | {grow / out:.2f} | {r['wall_s']:.2f} "
+                     f"| {r['cpu_s']:.2f} |")
+    return "\n".join(lines)
+
+
 def save_findings(result: FuzzResult, folder: Path = REGRESSION_DIR) -> list[Path]:
     """Write each finding's stream to ``folder/<codec>-<sha1 12>.mcb`` (kept by name; duplicates once)."""
     folder.mkdir(parents=True, exist_ok=True)
@@ -630,11 +660,17 @@ def _main(argv: list[str] | None = None) -> int:
     parser.add_argument("--memory-mb", type=int, default=3072, help="address-space cap of each worker (RLIMIT_AS)")
     parser.add_argument("--output-mb", type=int, default=FUZZ_OUTPUT_BYTES >> 20, help="DecodeLimits.max_output_bytes")
     parser.add_argument("--save-findings", action="store_true", help=f"write findings to {REGRESSION_DIR}")
+    parser.add_argument("--memory-frames", type=int, default=0,
+                        help="instead of fuzzing: decode one valid stream of this many frames per codec, print memory")
     args = parser.parse_args(argv)
     names = sorted(CODECS) if not args.codecs else args.codecs
     unknown = sorted(set(names) - set(CODECS))
     if unknown:
         parser.error(f"unknown codecs {unknown}; registered: {sorted(CODECS)}")
+    if args.memory_frames:
+        print(memory_check(names, args.memory_frames))
+        print(f"\nload average {os.getloadavg()[0]:.2f}")
+        return 0
     started, cpu = time.perf_counter(), time.process_time()
     result = run_campaign(names, args.per_codec, seed=args.seed, workers=args.workers, timeout_s=args.timeout_s,
                           memory_bytes=args.memory_mb << 20, output_bytes=args.output_mb << 20, progress=True)

@@ -158,7 +158,7 @@ def test_motion_with_only_a_root_is_rejected():
     from mocapbench.motion import Motion
 
     motion = Motion(skeleton, 30.0, np.zeros((4, 3)), np.tile([0, 0, 0, 1.0], (4, 1, 1)))
-    with pytest.raises(ValueError, match="only a root joint"):
+    with pytest.raises(ValueError, match="pga-ik: needs a skeleton of at least 2 joints"):
         create("pga-ik").encode(motion)
 
 
