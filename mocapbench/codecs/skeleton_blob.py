@@ -13,11 +13,11 @@ from itertools import permutations
 import numpy as np
 
 from mocapbench.entropy.backend import zstd_compress, zstd_decompress
-from mocapbench.entropy.bitio import ByteReader, ByteWriter
+from mocapbench.entropy.bitio import ByteReader, ByteWriter, zigzag_decode, zigzag_encode
 from mocapbench.entropy.errors import BitstreamError
 from mocapbench.motion import Skeleton
 
-__all__ = ["pack_skeleton", "unpack_skeleton"]
+__all__ = ["pack_skeleton", "unpack_skeleton", "pack_skeleton_compact", "unpack_skeleton_compact"]
 
 _ORDERS = ["".join(p) for p in permutations("XYZ")]
 _MAX_SKELETON_BYTES = 1 << 20
@@ -64,4 +64,94 @@ def unpack_skeleton(reader: ByteReader) -> Skeleton:
             end_site_offsets=end_offsets.astype(np.float64),
         )
     except ValueError as error:
+        raise BitstreamError(f"Skeleton in the stream is invalid: {error}") from error
+
+
+# -- compact layout (mcb-rot) ------------------------------------------------------------------------------------
+# Joint names most skeletons share, as zstd's raw-content dictionary: the CMU ASF and BVH trees (what the benchmark
+# codes), then common names of other rigs. A stream whose names match costs a few bytes for them instead of ~200.
+# Part of the format: BE CAREFUL WHEN CHANGING (old streams decode only with the same text).
+NAME_DICTIONARY = "\0".join(
+    [
+        "Hips", "Spine", "Spine1", "Spine2", "Spine3", "Chest", "UpperChest", "Neck", "Neck1", "Head", "HeadTop_End",
+        "LeftShoulder", "LeftArm", "LeftUpperArm", "LeftForeArm", "LeftLowerArm", "LeftHand", "LeftHandThumb1",
+        "LeftHandIndex1", "LeftHandMiddle1", "LeftUpLeg", "LeftUpperLeg", "LeftLeg", "LeftLowerLeg", "LeftFoot",
+        "LeftToeBase", "LeftToe_End", "RightShoulder", "RightArm", "RightUpperArm", "RightForeArm", "RightLowerArm",
+        "RightHand", "RightHandThumb1", "RightHandIndex1", "RightHandMiddle1", "RightUpLeg", "RightUpperLeg",
+        "RightLeg", "RightLowerLeg", "RightFoot", "RightToeBase", "RightToe_End", "pelvis", "spine_01", "neck_01",
+        "head", "clavicle_l", "upperarm_l", "lowerarm_l", "hand_l", "thigh_l", "calf_l", "foot_l", "ball_l",
+        "mixamorig:",
+        # CMU ASF, then CMU BVH, in file order (the longest matches come last: zstd looks back from the end).
+        "root", "lhipjoint", "lfemur", "ltibia", "lfoot", "ltoes", "rhipjoint", "rfemur", "rtibia", "rfoot", "rtoes",
+        "lowerback", "upperback", "thorax", "lowerneck", "upperneck", "head", "lclavicle", "lhumerus", "lradius",
+        "lwrist", "lhand", "lfingers", "lthumb", "rclavicle", "rhumerus", "rradius", "rwrist", "rhand", "rfingers",
+        "rthumb",
+        "Hips", "LHipJoint", "LeftUpLeg", "LeftLeg", "LeftFoot", "LeftToeBase", "RHipJoint", "RightUpLeg",
+        "RightLeg", "RightFoot", "RightToeBase", "LowerBack", "Spine", "Spine1", "Neck", "Neck1", "Head",
+        "LeftShoulder", "LeftArm", "LeftForeArm", "LeftHand", "LeftFingerBase", "LeftHandIndex1", "LThumb",
+        "RightShoulder", "RightArm", "RightForeArm", "RightHand", "RightFingerBase", "RightHandIndex1", "RThumb",
+    ]
+).encode()
+#: Grid of the compact layout's offsets, cm (2^-16: 1.5e-5 cm; the codec takes the change off its error bound).
+OFFSET_STEP_CM = 2.0**-16
+_MAX_OFFSET_CM = 1e6
+
+
+def pack_skeleton_compact(skeleton: Skeleton) -> bytes:
+    """The skeleton as a smaller self-delimiting blob than :func:`pack_skeleton`, for codecs that bound the error.
+
+    Offsets are rounded to :data:`OFFSET_STEP_CM` and written as zigzag varints (exact zeros and short bones cost a
+    byte or two, not four), parents as ``j - parent``, names compressed against :data:`NAME_DICTIONARY`. The
+    unpacked skeleton's offsets differ from the original's by at most half a grid step per coordinate.
+
+    Raises
+    ------
+    ValueError
+        If an offset exceeds 1e6 cm.
+    """
+    offsets = np.concatenate([skeleton.offsets, skeleton.end_site_offsets]).ravel()
+    if offsets.size and np.abs(offsets).max() > _MAX_OFFSET_CM:
+        raise ValueError(f"Skeleton offsets must be within {_MAX_OFFSET_CM:g} cm, got {np.abs(offsets).max():g} cm.")
+    writer = ByteWriter()
+    writer.write_varint(skeleton.num_joints)
+    writer.write_varint(len(skeleton.end_site_parents))
+    writer.write_varints(np.arange(1, skeleton.num_joints) - skeleton.parents[1:])
+    writer.write_array(np.array([_ORDERS.index(o) for o in skeleton.channel_orders]), np.uint8)
+    writer.write_varints(zigzag_encode(np.round(offsets / OFFSET_STEP_CM).astype(np.int64)))
+    writer.write_varints(skeleton.end_site_parents)
+    writer.write_blob("\0".join(skeleton.names).encode("utf-8"))
+    outer = ByteWriter()
+    outer.write_blob(zstd_compress(writer.getvalue(), dictionary=NAME_DICTIONARY))
+    return outer.getvalue()
+
+
+def unpack_skeleton_compact(reader: ByteReader) -> Skeleton:
+    """Read a skeleton written by :func:`pack_skeleton_compact` from ``reader``."""
+    inner = ByteReader(zstd_decompress(reader.read_blob("skeleton"), _MAX_SKELETON_BYTES, dictionary=NAME_DICTIONARY))
+    num_joints = inner.read_varint("joint count")
+    num_ends = inner.read_varint("end-site count")
+    if not 1 <= num_joints <= 4096 or num_ends > 4096:
+        raise BitstreamError(f"Skeleton: expected 1..4096 joints and <= 4096 end sites, found {num_joints}, {num_ends}.")
+    steps = inner.read_varints(num_joints - 1, "parents").astype(np.int64)
+    parents = np.concatenate([[-1], np.arange(1, num_joints) - steps])
+    order_index = inner.read_array(num_joints, np.uint8, "channel orders")
+    if order_index.size and order_index.max() >= len(_ORDERS):
+        raise BitstreamError(f"Skeleton: channel order index must be < 6, found {order_index.max()}.")
+    codes = inner.read_varints(3 * (num_joints + num_ends), "offsets")
+    if codes.size and codes.max() > 2 * _MAX_OFFSET_CM / OFFSET_STEP_CM + 2:
+        raise BitstreamError("Skeleton: an offset exceeds 1e6 cm.")
+    offsets = zigzag_decode(codes.astype(np.int64)).astype(np.float64).reshape(-1, 3) * OFFSET_STEP_CM
+    end_parents = inner.read_varints(num_ends, "end-site parents").astype(np.int64)
+    names = bytes(inner.read_blob("joint names")).decode("utf-8", errors="strict").split("\0")
+    inner.expect_end("skeleton")
+    try:
+        return Skeleton(
+            names=tuple(names),
+            parents=parents,
+            offsets=offsets[:num_joints],
+            channel_orders=tuple(_ORDERS[i] for i in order_index),
+            end_site_parents=end_parents,
+            end_site_offsets=offsets[num_joints:],
+        )
+    except (ValueError, UnicodeDecodeError) as error:
         raise BitstreamError(f"Skeleton in the stream is invalid: {error}") from error

@@ -17,6 +17,7 @@ lzma
 
 from __future__ import annotations
 
+import functools
 import lzma
 
 import numpy as np
@@ -50,7 +51,7 @@ def _check_max_output_size(max_output_size) -> int:
     return max_output_size
 
 
-def zstd_compress(data, level: int = 19) -> bytes:
+def zstd_compress(data, level: int = 19, dictionary: bytes | None = None) -> bytes:
     """Compress ``data`` into one zstd frame that records its content size.
 
     Parameters
@@ -58,17 +59,28 @@ def zstd_compress(data, level: int = 19) -> bytes:
     data : bytes-like
     level : int
         zstd level in [1, 22]; 19 is the highest level that does not need the "ultra" window sizes.
+    dictionary : bytes, optional
+        Raw-content dictionary (text the data is likely to repeat); the decoder must pass the same one.
 
     Returns
     -------
     bytes
     """
     level = _check_level("level", level, 1, zstandard.MAX_COMPRESSION_LEVEL)
-    compressor = zstandard.ZstdCompressor(level=level, write_content_size=True, write_checksum=False, threads=0)
+    compressor = zstandard.ZstdCompressor(
+        level=level, write_content_size=True, write_checksum=False, threads=0, dict_data=_raw_dictionary(dictionary)
+    )
     return compressor.compress(bytes(data))
 
 
-def zstd_decompress(data, max_output_size: int) -> bytes:
+@functools.lru_cache(maxsize=8)
+def _raw_dictionary(dictionary: bytes | None):
+    if dictionary is None:
+        return None
+    return zstandard.ZstdCompressionDict(dictionary, dict_type=zstandard.DICT_TYPE_RAWCONTENT)
+
+
+def zstd_decompress(data, max_output_size: int, dictionary: bytes | None = None) -> bytes:
     """Decompress one frame written by :func:`zstd_compress`.
 
     Parameters
@@ -77,6 +89,8 @@ def zstd_decompress(data, max_output_size: int) -> bytes:
         Exactly one zstd frame, nothing after it.
     max_output_size : int
         Largest accepted decompressed size, bytes; checked against the frame header before decompressing.
+    dictionary : bytes, optional
+        The raw-content dictionary the frame was compressed with.
 
     Returns
     -------
@@ -99,7 +113,7 @@ def zstd_decompress(data, max_output_size: int) -> bytes:
         raise BitstreamError("expected a zstd frame that declares its content size, found one that does not")
     if size > max_output_size:
         raise BitstreamError(f"expected at most {max_output_size} bytes from zstd, the frame declares {size}")
-    decompressor = zstandard.ZstdDecompressor().decompressobj()
+    decompressor = zstandard.ZstdDecompressor(dict_data=_raw_dictionary(dictionary)).decompressobj()
     try:
         out = decompressor.decompress(data)
     except zstandard.ZstdError as exc:

@@ -123,24 +123,25 @@ def test_a_t_pose_first_frame_costs_at_most_ten_percent():
     assert len(with_pose) <= 1.10 * (len(codec.encode(rest)) + len(codec.encode(take)))
 
 
-def test_decode_frames_decodes_only_the_segments_holding_them(synthetic_motion, monkeypatch):
-    codec = create("mcb-rot", eps_cm=0.5, segment_frames=32)
+def test_decode_frames_decodes_only_the_chunks_holding_them(synthetic_motion, monkeypatch):
+    codec = create("mcb-rot", eps_cm=0.5, segment_frames=16, chunk_frames=32)
     data = codec.encode(synthetic_motion)
     full = codec.decode(data)
     seen = []
-    original = mcb_rot_codec._decode_segments
+    original = mcb_rot_codec.decode_chunks
 
-    def spy(frame, payload, segments):
-        seen.append(list(segments))
-        return original(frame, payload, segments)
+    def spy(info, payload, chunks):
+        seen.append(list(chunks))
+        return original(info, payload, chunks)
 
-    monkeypatch.setattr(mcb_rot_codec, "_decode_segments", spy)
+    monkeypatch.setattr(mcb_rot_codec, "decode_chunks", spy)
     for start, stop in [(0, 1), (70, 71), (31, 33), (100, 240), (239, 240)]:
         part = codec.decode_frames(data, start, stop)
         np.testing.assert_allclose(part.positions, full.positions[start:stop], atol=1e-9)
         np.testing.assert_allclose(part.motion.rotations, full.motion.rotations[start:stop], atol=1e-12)
+        assert metrics.max_joint_error(synthetic_motion.positions()[start:stop], part.positions) <= 0.5
         assert seen[-1] == list(range(start // 32, (stop - 1) // 32 + 1))
-    assert codec.latency_frames == 32
+    assert codec.latency_frames == 16
     with pytest.raises(ValueError, match="frame range 5:5 is outside 0:240 or empty"):
         codec.decode_frames(data, 5, 5)
     with pytest.raises(BitstreamError):

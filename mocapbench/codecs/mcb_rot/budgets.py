@@ -40,9 +40,13 @@ class Budgets:
         ``ancestors[k, a]``: the rotation of joint ``a`` moves joint ``k`` (``a`` is a proper ancestor of ``k``).
     has_lever : ndarray, shape (J,), bool
         The joint's rotation moves at least one joint.
+    base_rad : ndarray, shape (J,), float, radians
+        Relative base-layer step of each joint's rotation channels: ``w / W_a`` with ``W_a`` the p-norm of the
+        chain lengths from the joint to its descendants (p = ``allocation_power``; p = inf gives the budgets).
     """
 
     rotation_rad: np.ndarray
+    base_rad: np.ndarray
     root_cm: float
     ancestors: np.ndarray
     has_lever: np.ndarray
@@ -62,7 +66,9 @@ def _chains(skeleton: Skeleton) -> tuple[np.ndarray, np.ndarray]:
     return chain, ancestors
 
 
-def joint_budgets(skeleton: Skeleton, bound_cm: float, root_share: float, free_angle_rad: float) -> Budgets:
+def joint_budgets(
+    skeleton: Skeleton, bound_cm: float, root_share: float, free_angle_rad: float, allocation_power: float = 0.0
+) -> Budgets:
     """Angle budgets of every joint and the root translation budget for an L-inf bound of ``bound_cm``.
 
     Parameters
@@ -74,6 +80,10 @@ def joint_budgets(skeleton: Skeleton, bound_cm: float, root_share: float, free_a
         Share of the bound given to the root translation.
     free_angle_rad : float, > 0
         Budget of the joints without a lever arm.
+    allocation_power : float, >= 0
+        p of the p-norm lever of the base-layer steps (0 stands for infinity: the steps follow the budgets). The
+        budgets guard the worst case, where every ancestor's error points the same way; the base layer's errors are
+        closer to independent, and a finite p lets a joint that moves many joints take a finer step.
     """
     chain, ancestors = _chains(skeleton)
     lever = chain.max(axis=1)  # S_a
@@ -83,8 +93,13 @@ def joint_budgets(skeleton: Skeleton, bound_cm: float, root_share: float, free_a
     rotation_share = bound_cm * (1.0 - root_share)
     weight = rotation_share / worst if worst > 0 else 0.0
     rotation = np.where(has_lever, weight / np.where(has_lever, lever, 1.0), free_angle_rad)
+    if allocation_power > 0:
+        norm = np.sum(chain**allocation_power, axis=1) ** (1.0 / allocation_power)
+        base = np.where(has_lever, weight / np.where(has_lever, norm, 1.0), free_angle_rad)
+    else:
+        base = rotation
     return Budgets(
-        rotation_rad=rotation, root_cm=bound_cm * root_share, ancestors=ancestors, has_lever=has_lever
+        rotation_rad=rotation, base_rad=base, root_cm=bound_cm * root_share, ancestors=ancestors, has_lever=has_lever
     )
 
 

@@ -88,3 +88,13 @@ def fit_single(values: np.ndarray, rounding: float) -> int:
 def classes_of(channels: np.ndarray, bands: np.ndarray, scale: np.ndarray, tilt: np.ndarray) -> np.ndarray:
     """Class of every coefficient from its channel and band (uint8)."""
     return np.clip(scale[channels] + tilt[bands], 0, NUM_CLASSES - 1).astype(np.uint8)
+
+
+def fit_tilt(values: np.ndarray, channels: np.ndarray, scale: np.ndarray, rounding: float) -> int:
+    """The one offset ``t`` in [-64, 64) for which classes ``clip(scale[channel] + t)`` code ``values`` best."""
+    if values.size == 0:
+        return 0
+    cost = _costs(values, channels, len(scale), rounding)  # (C, K)
+    candidates = np.arange(-NUM_CLASSES, NUM_CLASSES)
+    klass = np.clip(scale[:, None] + candidates[None, :], 0, NUM_CLASSES - 1)
+    return int(candidates[np.argmin(np.take_along_axis(cost, klass, axis=1).sum(axis=0))])

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["multiply", "conjugate", "exp_map", "log_map", "angle", "sign_continuous"]
+__all__ = ["multiply", "conjugate", "exp_map", "log_map", "angle", "sign_continuous", "as_matrix", "from_matrix"]
 
 
 def multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -74,3 +74,24 @@ def sign_continuous(q: np.ndarray) -> np.ndarray:
     dots = np.sum(q[1:] * q[:-1], axis=-1)
     flips = np.concatenate([np.ones((1,) + dots.shape[1:]), np.where(dots < 0, -1.0, 1.0)])
     return q * np.cumprod(flips, axis=0)[..., None]
+
+
+def as_matrix(q: np.ndarray) -> np.ndarray:
+    """Rotation matrices (..., 3, 3) of unit quaternions (..., 4)."""
+    x, y, z, w = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
+    return np.stack(
+        [
+            np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], axis=-1),
+            np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], axis=-1),
+            np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], axis=-1),
+        ],
+        axis=-2,
+    )
+
+
+def from_matrix(matrix: np.ndarray) -> np.ndarray:
+    """Unit quaternions (..., 4), ``w >= 0``, of rotation matrices (..., 3, 3) (via scipy)."""
+    from scipy.spatial.transform import Rotation
+
+    q = Rotation.from_matrix(matrix.reshape(-1, 3, 3)).as_quat().reshape(matrix.shape[:-2] + (4,))
+    return q * np.where(q[..., 3:] < 0, -1.0, 1.0)

@@ -54,24 +54,51 @@ def segment_starts(num_frames: int, cuts: np.ndarray, segment_frames: int) -> np
 
 
 class SegmentLayout:
-    """Segments of a motion of F frames: starts (S,), lengths (S,), and the segments grouped by length."""
+    """Segments of a motion of F frames and the chunks (random-access units) that group them.
 
-    def __init__(self, num_frames: int, starts: np.ndarray) -> None:
+    Attributes
+    ----------
+    starts, lengths : ndarray, shape (S,), int64
+        First frame and frame count of every segment.
+    chunk_starts : ndarray, shape (K + 1,), int64
+        First segment of every chunk, then S: consecutive segments are grouped until a chunk holds at least
+        ``chunk_frames`` frames. A chunk's coefficients are one entropy-coded stream, so the decoder makes one
+        coder call per class and chunk instead of per class and segment.
+    """
+
+    def __init__(self, num_frames: int, starts: np.ndarray, chunk_frames: int = 1) -> None:
         self.num_frames = num_frames
         self.starts = np.asarray(starts, dtype=np.int64)
         self.lengths = np.diff(np.append(self.starts, num_frames))
         # Segments of one length are transformed in one call.
         self.groups = {int(n): np.flatnonzero(self.lengths == n) for n in np.unique(self.lengths)}
+        chunk_starts, held = [0], 0
+        for segment, length in enumerate(self.lengths[:-1]):
+            held += int(length)
+            if held >= chunk_frames:
+                chunk_starts.append(segment + 1)
+                held = 0
+        self.chunk_starts = np.array(chunk_starts + [len(self.starts)], dtype=np.int64)
 
     @property
     def num_segments(self) -> int:
         return len(self.starts)
 
-    def segment_of_frames(self, start: int, stop: int) -> np.ndarray:
-        """Indices of the segments holding frames ``start:stop``."""
+    @property
+    def num_chunks(self) -> int:
+        return len(self.chunk_starts) - 1
+
+    def chunk_segments(self, chunk: int) -> np.ndarray:
+        """Segments of ``chunk``."""
+        return np.arange(self.chunk_starts[chunk], self.chunk_starts[chunk + 1])
+
+    def chunks_of_frames(self, start: int, stop: int) -> np.ndarray:
+        """Indices of the chunks holding frames ``start:stop``."""
         first = int(np.searchsorted(self.starts, start, side="right")) - 1
         last = int(np.searchsorted(self.starts, stop - 1, side="right")) - 1
-        return np.arange(first, last + 1)
+        chunk_first = int(np.searchsorted(self.chunk_starts, first, side="right")) - 1
+        chunk_last = int(np.searchsorted(self.chunk_starts, last, side="right")) - 1
+        return np.arange(chunk_first, chunk_last + 1)
 
 
 def forward(signal: np.ndarray, layout: SegmentLayout) -> list[np.ndarray]:

@@ -1,0 +1,444 @@
+"""The ``mcb-rot`` payload: its header, its chunks, and the decoder's path from bytes to rotations.
+
+Layout (after the container header)::
+
+    u8 format | f32 eps | f64 bound | f32 x 6 settings | varint segment, chunk frames
+    skeleton (compact blob) | cuts (varint gaps) | re-referenced (segment, joint) pairs, f32 rotation vectors
+    principal axes: J flag bits, int16 x 3 per flagged joint
+    classes: u8 per channel (scale), u8 per band (tilt), u8 tilts of the segment means and significance counts,
+    u8 classes of correction gaps and values
+    segment means: one ANS stream of their differences along the segments (S x C)
+    varint size of every chunk | chunks
+
+    chunk: varint correction count | ANS stream of the significance counts (per segment and channel, the number
+    of AC coefficients up to the last nonzero one, as differences from the previous segment of the chunk) |
+    ANS stream of the significant coefficients (segment by segment, channel-major), then the correction gaps
+    and values.
+
+Coding only the coefficients up to each channel's last nonzero one (as JPEG's end-of-block) skips the runs of
+zeros at high frequencies: at ε = 1 cm 85 % of the AC coefficients of cmu_test are never coded, so decoding reads a
+seventh of the symbols. Every count is checked before use; a corrupt stream raises :class:`BitstreamError`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from mocapbench.codecs.base import Header
+from mocapbench.codecs.mcb_rot import classes as model
+from mocapbench.codecs.mcb_rot import quaternions as quat
+from mocapbench.codecs.mcb_rot.axes import axes_from_codes
+from mocapbench.codecs.mcb_rot.budgets import Budgets, joint_budgets
+from mocapbench.codecs.mcb_rot.segments import SegmentLayout, inverse, segment_starts
+from mocapbench.codecs.skeleton_blob import unpack_skeleton_compact
+from mocapbench.entropy.ans import ClassTables, decode_classed, encode_classed
+from mocapbench.entropy.bitio import ByteReader, ByteWriter
+from mocapbench.entropy.errors import BitstreamError
+from mocapbench.motion import Skeleton
+
+__all__ = ["Settings", "StreamInfo", "steps_of", "base_signal", "assemble", "apply_corrections", "write_payload",
+           "read_info", "decode_chunks"]
+
+FORMAT = 2  # payload layout version; BE CAREFUL WHEN CHANGING: append only
+_SQRT3 = np.sqrt(3.0)
+_SIDE = model.NUM_CLASSES  # classes >= this are coded with the nearest-rounding tables
+
+
+def _f32(value: float) -> float:
+    return float(np.float32(value))
+
+
+@dataclass(frozen=True)
+class Settings:
+    """The stream's coding settings, exactly as written (floats other than ``bound_cm`` rounded to float32)."""
+
+    eps_cm: float  # nominal bound (for display; the decoder does not use it)
+    bound_cm: float  # bound the budgets are computed for: eps less the safety margins, float64
+    multiplier: float  # base step over the channel's relative step
+    slope: float
+    rounding: float
+    root_share: float
+    free_angle_rad: float
+    allocation_power: float
+    segment_frames: int
+    chunk_frames: int
+
+    @classmethod
+    def create(cls, eps_cm, bound_cm, multiplier, slope, rounding, root_share, free_angle_rad, power, segment, chunk):
+        """Settings with every float32 field rounded as it will be read back."""
+        return cls(_f32(eps_cm), float(bound_cm), _f32(multiplier), _f32(slope), _f32(rounding), _f32(root_share),
+                   _f32(free_angle_rad), _f32(power), int(segment), int(chunk))
+
+    def write(self, writer: ByteWriter) -> None:
+        writer.write_u8(FORMAT)
+        writer.write_f32(self.eps_cm)
+        writer.write_f64(self.bound_cm)
+        for value in (self.multiplier, self.slope, self.rounding, self.root_share, self.free_angle_rad,
+                      self.allocation_power):
+            writer.write_f32(value)
+        writer.write_varint(self.segment_frames)
+        writer.write_varint(self.chunk_frames)
+
+    @classmethod
+    def read(cls, reader: ByteReader) -> "Settings":
+        version = reader.read_u8("mcb-rot format")
+        if version != FORMAT:
+            raise BitstreamError(f"mcb-rot: expected payload format {FORMAT}, found {version}.")
+        eps = reader.read_f32("eps")
+        bound = reader.read_f64("bound")
+        multiplier, slope, rounding, root_share, free, power = (reader.read_f32("setting") for _ in range(6))
+        segment_frames = reader.read_varint("segment frames")
+        chunk_frames = reader.read_varint("chunk frames")
+        if not (
+            0 < bound <= 100 and 0 < eps <= 101 and 0 < multiplier <= 1e6 and 0 <= slope <= 64
+            and 0 <= rounding <= 0.5 and 0 < root_share < 1 and 0 < free <= np.pi and 0 <= power <= 64
+            and 1 <= segment_frames <= 4096 and 1 <= chunk_frames <= 1 << 20
+        ):
+            raise BitstreamError(
+                f"mcb-rot: settings out of range: eps {eps}, bound {bound}, multiplier {multiplier}, slope {slope}, "
+                f"rounding {rounding}, root share {root_share}, free angle {free}, allocation power {power}, "
+                f"segment frames {segment_frames}, chunk frames {chunk_frames}."
+            )
+        return cls(eps, bound, multiplier, slope, rounding, root_share, free, power, segment_frames, chunk_frames)
+
+
+@dataclass(frozen=True, eq=False)
+class StreamInfo:
+    """What a decoder knows after the payload header: everything but the chunks' own contents."""
+
+    settings: Settings
+    skeleton: Skeleton
+    budgets: Budgets
+    layout: SegmentLayout
+    cuts: np.ndarray  # (N,) frames where a take starts
+    overrides: dict  # (segment, joint) -> reference quaternion (4,)
+    axis_codes: np.ndarray  # (J, 3) int codes of each joint's principal axes (:mod:`.axes`)
+    scale: np.ndarray  # (C,) class offsets of the channels
+    tilt: np.ndarray  # (NUM_BANDS,) class offsets of the bands
+    dc_tilt: int = 0  # class offset of the segment means over the channel scales
+    count_tilt: int = 0  # class offset of the significance counts over the channel scales
+    gap_class: int = 0
+    value_class: int = 0
+    dc: np.ndarray | None = None  # (S, C) quantized segment means
+    chunk_offsets: np.ndarray | None = None  # (K + 1,) byte offsets of the chunks in the payload
+    _cache: dict = field(default_factory=dict, repr=False)
+
+    def replace(self, **changes) -> "StreamInfo":
+        """A copy with ``changes`` (and an empty cache: the classes may have changed)."""
+        return dataclasses.replace(self, _cache={}, **changes)
+
+    @property
+    def axes(self) -> np.ndarray:
+        """(J, 3, 3) each joint's principal axes."""
+        if "axes" not in self._cache:
+            self._cache["axes"] = axes_from_codes(self.axis_codes)
+        return self._cache["axes"]
+
+    @property
+    def channels(self) -> int:
+        return 3 + 3 * self.skeleton.num_joints
+
+    @property
+    def channel_steps(self) -> np.ndarray:
+        """(C,) relative base step of each channel: root translation cm, then 3 per joint rotation, rad."""
+        return np.concatenate([np.full(3, self.budgets.root_cm), np.repeat(self.budgets.base_rad, 3)])
+
+    @property
+    def correction_steps(self) -> np.ndarray:
+        """(J + 1,) step of the corrections: root translation cm, then each joint's rotation, rad (cube of side s
+        fits in the ball of radius s sqrt(3) / 2 = the budget)."""
+        return np.concatenate([[self.budgets.root_cm], self.budgets.rotation_rad]) * (2.0 / _SQRT3)
+
+    def class_matrix(self, length: int) -> np.ndarray:
+        """(n - 1, C) classes of the AC coefficients of a segment of ``length`` frames (cached)."""
+        key = ("classes", length)
+        if key not in self._cache:
+            bands = model.band_of(np.arange(1, length), length, self.settings.segment_frames)
+            self._cache[key] = model.classes_of(
+                np.arange(self.channels)[None, :], bands[:, None], self.scale, self.tilt
+            ).reshape(length - 1, self.channels)
+        return self._cache[key]
+
+    def count_classes(self, num_segments: int) -> np.ndarray:
+        return _tilted(self.scale, self.count_tilt, num_segments)
+
+
+def _tilted(scale: np.ndarray, tilt: int, repeats: int) -> np.ndarray:
+    """Classes ``clip(scale + tilt)`` of the side tables, repeated ``repeats`` times (segment-major)."""
+    return (np.tile(np.clip(scale + tilt, 0, model.NUM_CLASSES - 1), repeats) + _SIDE).astype(np.uint8)
+
+
+_TABLES: dict[float, ClassTables] = {}
+
+
+def tables(rounding: float) -> ClassTables:
+    """Classes 0..63: AC coefficients (dead-zone rounding); 64..127: everything else (nearest rounding)."""
+    if rounding not in _TABLES:
+        _TABLES[rounding] = ClassTables(np.concatenate([model.tables(rounding).counts, model.tables(0.5).counts]))
+    return _TABLES[rounding]
+
+
+def steps_of(info: StreamInfo, length: int) -> np.ndarray:
+    """(n, C) quantization steps of a segment of ``length`` frames; row 0 is the step of the mean (DC)."""
+    settings = info.settings
+    base = settings.multiplier * info.channel_steps
+    k = np.arange(length)[:, None]
+    steps = base[None, :] * (1.0 + settings.slope * k / length)
+    steps[0] = base * np.sqrt(length / settings.segment_frames)
+    return steps
+
+
+def significance(coefficients: np.ndarray) -> np.ndarray:
+    """(C,) number of AC coefficients of each channel up to its last nonzero one, of a (n - 1, C) int array."""
+    nonzero = coefficients != 0
+    if len(coefficients) == 0:
+        return np.zeros(coefficients.shape[1], dtype=np.int64)
+    return np.where(nonzero.any(axis=0), len(coefficients) - np.argmax(nonzero[::-1], axis=0), 0)
+
+
+def _significant_mask(counts: np.ndarray, length: int) -> np.ndarray:
+    """(C, n - 1) mask of the coded coefficients, channel-major."""
+    return np.arange(length - 1)[None, :] < counts[:, None]
+
+
+def base_signal(info: StreamInfo, segments, coefficients: dict[int, np.ndarray]) -> dict[int, np.ndarray]:
+    """Dequantize and inverse-transform segments: segment -> (n, C) signal."""
+    spectra = {}
+    for segment in segments:
+        length = int(info.layout.lengths[segment])
+        steps = steps_of(info, length)
+        spectrum = np.empty((length, steps.shape[1]))
+        spectrum[0] = info.dc[segment] * steps[0]
+        spectrum[1:] = coefficients[segment] * steps[1:]
+        spectra[int(segment)] = spectrum
+    return inverse(spectra, info.layout, info.channels)
+
+
+def assemble(info: StreamInfo, segments, signals: dict[int, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """Consecutive decoded segments as roots (n, 3) cm and base quaternions (n, J, 4).
+
+    The quaternions are a view of a component-major (4, J, n) array (what forward kinematics reads fastest); the
+    rotation vectors are turned off each joint's principal axes and mapped to quaternions component by component.
+    """
+    signal = np.concatenate([signals[int(s)] for s in segments]).T  # (C, n)
+    axes = info.axes
+    parts = [signal[3 + i :: 3] for i in range(3)]  # components on the principal axes, (J, n) each
+    rotvec = [sum(axes[:, row, col][:, None] * parts[col] for col in range(3)) for row in range(3)]
+    angle = np.sqrt(rotvec[0] * rotvec[0] + rotvec[1] * rotvec[1] + rotvec[2] * rotvec[2])
+    small = angle < 1e-6
+    scale = np.where(small, 0.5 - angle * angle / 48.0, np.sin(0.5 * angle) / np.where(small, 1.0, angle))
+    quats = np.empty((4,) + angle.shape)
+    for i in range(3):
+        np.multiply(rotvec[i], scale, out=quats[i])
+    np.cos(0.5 * angle, out=quats[3])
+    quats = quats.transpose(2, 1, 0)  # (n, J, 4) view
+    first = int(info.layout.starts[segments[0]])
+    for (segment, joint), reference in info.overrides.items():
+        if segments[0] <= segment <= segments[-1]:
+            start = int(info.layout.starts[segment]) - first
+            frames = slice(start, start + int(info.layout.lengths[segment]))
+            quats[frames, joint] = quat.multiply(reference, quats[frames, joint])
+    return np.ascontiguousarray(signal[:3].T), quats
+
+
+def apply_corrections(info: StreamInfo, roots, quats, flat: np.ndarray, values: np.ndarray) -> None:
+    """Add coded corrections in place: ``flat = frame * (J + 1) + slot`` (slot 0 root, 1 + j joint j), values (N, 3)."""
+    if flat.size == 0:
+        return
+    slots = len(info.correction_steps)
+    frames, slot = np.divmod(flat, slots)
+    steps = info.correction_steps[slot][:, None]
+    root = slot == 0
+    roots[frames[root]] += values[root] * steps[root]
+    joint = ~root
+    quats[frames[joint], slot[joint] - 1] = quat.multiply(
+        quats[frames[joint], slot[joint] - 1], quat.exp_map(values[joint] * steps[joint])
+    )
+
+
+# -- writing ---------------------------------------------------------------------------------------------------
+def write_payload(info: StreamInfo, skeleton_blob: bytes, coefficients: dict, corrections) -> bytes:
+    """The payload of ``info`` (whose ``dc`` is set), the AC coefficients (segment -> (n - 1, C) int) and the
+    corrections (flat indices, values (N, 3)); the entropy classes are chosen here, on the whole stream."""
+    settings, layout = info.settings, info.layout
+    slots = len(info.correction_steps)
+    flat, values = corrections
+    channels = info.channels
+    counts = {s: significance(c) for s, c in coefficients.items()}
+    coded = {s: c.T[_significant_mask(counts[s], len(c) + 1)] for s, c in coefficients.items()}
+    # Classes, chosen on the whole stream: AC by (channel, band), the rest by one tilt or one class each.
+    bands, channel_of = [], []
+    for segment in range(layout.num_segments):
+        length = int(layout.lengths[segment])
+        mask = _significant_mask(counts[segment], length)
+        band = np.broadcast_to(model.band_of(np.arange(1, length), length, settings.segment_frames), mask.shape)
+        bands.append(band[mask])
+        channel_of.append(np.broadcast_to(np.arange(channels)[:, None], mask.shape)[mask])
+    scale, tilt = model.fit_offsets(np.concatenate(list(coded.values())), np.concatenate(channel_of),
+                                    np.concatenate(bands), channels, settings.rounding)
+    all_channels = np.tile(np.arange(channels), layout.num_segments)
+    dc_diff = np.diff(info.dc, axis=0, prepend=0).ravel()
+    count_diff = np.concatenate([_count_differences(counts, layout, chunk) for chunk in range(layout.num_chunks)])
+    info = info.replace(
+        scale=scale, tilt=tilt,
+        dc_tilt=model.fit_tilt(dc_diff, all_channels, scale, 0.5),
+        count_tilt=model.fit_tilt(count_diff, all_channels, scale, 0.5),
+        gap_class=model.fit_single(np.diff(flat, prepend=-1) - 1, 0.5),
+        value_class=model.fit_single(values.ravel(), 0.5),
+    )
+    coder_tables = tables(settings.rounding)
+    chunks = []
+    chunk_first_frame = layout.starts[layout.chunk_starts[:-1]]
+    chunk_of_flat = np.searchsorted(chunk_first_frame * slots, flat, side="right") - 1
+    for chunk in range(layout.num_chunks):
+        segments = layout.chunk_segments(chunk)
+        mine = chunk_of_flat == chunk
+        gaps = np.diff(flat[mine] - chunk_first_frame[chunk] * slots, prepend=-1) - 1
+        writer = ByteWriter()
+        writer.write_varint(int(mine.sum()))
+        encode_classed(writer, _count_differences(counts, layout, chunk), info.count_classes(len(segments)),
+                       coder_tables)
+        classes = [info.class_matrix(int(layout.lengths[s])).T[_significant_mask(counts[s], int(layout.lengths[s]))]
+                   for s in segments]
+        encode_classed(
+            writer,
+            np.concatenate([coded[s] for s in segments] + [gaps, values[mine].ravel()]),
+            np.concatenate(classes + [np.full(len(gaps), _SIDE + info.gap_class, np.uint8),
+                                      np.full(3 * len(gaps), _SIDE + info.value_class, np.uint8)]),
+            coder_tables,
+        )
+        chunks.append(writer.getvalue())
+
+    writer = ByteWriter()
+    settings.write(writer)
+    writer.write_bytes(skeleton_blob)
+    writer.write_varint(len(info.cuts))
+    writer.write_varints(np.diff(info.cuts, prepend=0))
+    writer.write_varint(len(info.overrides))
+    for (segment, joint), reference in sorted(info.overrides.items()):
+        writer.write_varint(segment)
+        writer.write_varint(joint)
+        writer.write_array(quat.log_map(reference).astype(np.float32), np.float32)
+    turned = np.any(info.axis_codes != 0, axis=1)
+    writer.write_bytes(np.packbits(turned).tobytes())
+    writer.write_array(info.axis_codes[turned], np.int16)
+    writer.write_array(scale, np.uint8)
+    writer.write_array(tilt + model.NUM_CLASSES, np.uint8)
+    writer.write_bytes(bytes([info.dc_tilt + model.NUM_CLASSES, info.count_tilt + model.NUM_CLASSES,
+                              info.gap_class, info.value_class]))
+    encode_classed(writer, dc_diff, _tilted(scale, info.dc_tilt, layout.num_segments), coder_tables)
+    writer.write_varints([len(chunk) for chunk in chunks])
+    for chunk in chunks:
+        writer.write_bytes(chunk)
+    return writer.getvalue()
+
+
+def _count_differences(counts: dict, layout: SegmentLayout, chunk: int) -> np.ndarray:
+    """Significance counts of a chunk's segments as differences from the previous segment of the chunk."""
+    stacked = np.stack([counts[int(s)] for s in layout.chunk_segments(chunk)])
+    return np.diff(stacked, axis=0, prepend=0).ravel()
+
+
+# -- reading ---------------------------------------------------------------------------------------------------
+def read_info(header: Header, payload: memoryview) -> StreamInfo:
+    """Parse and check everything before the chunks."""
+    reader = ByteReader(payload)
+    settings = Settings.read(reader)
+    skeleton = unpack_skeleton_compact(reader)
+    num_frames, num_joints = header.num_frames, header.num_joints
+    if skeleton.num_joints != num_joints:
+        raise BitstreamError(f"mcb-rot: the skeleton has {skeleton.num_joints} joints, the header says {num_joints}.")
+    num_cuts = reader.read_varint("cut count")
+    if num_cuts >= num_frames:
+        raise BitstreamError(f"mcb-rot: expected fewer than {num_frames} cuts, found {num_cuts}.")
+    cuts = np.cumsum(reader.read_varints(num_cuts, "cuts").astype(np.int64))
+    if num_cuts and (np.any(np.diff(cuts) <= 0) or cuts[0] < 1 or cuts[-1] >= num_frames):
+        raise BitstreamError("mcb-rot: cuts must be increasing frames inside the motion.")
+    layout = SegmentLayout(num_frames, segment_starts(num_frames, cuts, settings.segment_frames), settings.chunk_frames)
+    num_segments = layout.num_segments
+    num_overrides = reader.read_varint("re-reference count")
+    if num_overrides > num_segments * num_joints:
+        raise BitstreamError(f"mcb-rot: expected at most {num_segments * num_joints} re-references, "
+                             f"found {num_overrides}.")
+    overrides = {}
+    for _ in range(num_overrides):
+        segment = reader.read_varint("re-referenced segment")
+        joint = reader.read_varint("re-referenced joint")
+        rotvec = reader.read_array(3, np.float32, "reference").astype(np.float64)
+        if segment >= num_segments or joint >= num_joints or not np.all(np.abs(rotvec) <= 2 * np.pi):
+            raise BitstreamError("mcb-rot: a re-reference names a segment or joint outside the motion.")
+        overrides[(segment, joint)] = quat.exp_map(rotvec)
+    turned = np.unpackbits(np.frombuffer(reader.read_bytes((num_joints + 7) // 8, "axis flags"), np.uint8))
+    turned = turned[:num_joints].astype(bool)
+    axis_codes = np.zeros((num_joints, 3), dtype=np.int64)
+    axis_codes[turned] = reader.read_array(3 * int(turned.sum()), np.int16, "joint axes").reshape(-1, 3)
+    channels = 3 + 3 * num_joints
+    scale = reader.read_array(channels, np.uint8, "channel classes").astype(np.int64)
+    tilt = reader.read_array(model.NUM_BANDS, np.uint8, "band classes").astype(np.int64) - model.NUM_CLASSES
+    dc_tilt, count_tilt, gap_class, value_class = reader.read_bytes(4, "classes")
+    dc_tilt, count_tilt = dc_tilt - model.NUM_CLASSES, count_tilt - model.NUM_CLASSES
+    if max(dc_tilt, count_tilt, gap_class, value_class) >= model.NUM_CLASSES:
+        raise BitstreamError(f"mcb-rot: classes must be < {model.NUM_CLASSES}.")
+    coder_tables = tables(settings.rounding)
+    dc_diff = decode_classed(reader, _tilted(scale, dc_tilt, num_segments), coder_tables, "mcb-rot: segment means")
+    dc = np.cumsum(dc_diff.reshape(num_segments, channels), axis=0)
+    sizes = reader.read_varints(layout.num_chunks, "chunk sizes").astype(np.int64)
+    offsets = reader.offset + np.concatenate([[0], np.cumsum(sizes)])
+    if offsets[-1] != len(payload):
+        raise BitstreamError(f"mcb-rot: the chunks end at byte {offsets[-1]}, the payload has {len(payload)}.")
+    budgets = joint_budgets(skeleton, settings.bound_cm, settings.root_share, settings.free_angle_rad,
+                            settings.allocation_power)
+    return StreamInfo(settings, skeleton, budgets, layout, cuts, overrides, axis_codes, scale, tilt, dc_tilt,
+                      count_tilt, gap_class, value_class, dc, offsets)
+
+
+def decode_chunks(info: StreamInfo, payload: memoryview, chunks: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Roots (n, 3) cm and rotations (n, J, 4) of the consecutive ``chunks``, corrections applied."""
+    coder_tables = tables(info.settings.rounding)
+    layout = info.layout
+    slots = len(info.correction_steps)
+    channels = info.channels
+    coefficients, corrections = {}, []
+    first = int(layout.starts[layout.chunk_starts[chunks[0]]])
+    for chunk in chunks:
+        chunk = int(chunk)
+        segments = layout.chunk_segments(chunk)
+        lengths = layout.lengths[segments]
+        length = int(lengths.sum())
+        reader = ByteReader(payload[: info.chunk_offsets[chunk + 1]], int(info.chunk_offsets[chunk]))
+        what = f"mcb-rot: chunk {chunk}"
+        count = reader.read_varint("correction count")
+        if count > length * slots:
+            raise BitstreamError(f"{what}: expected at most {length * slots} corrections, found {count}.")
+        counts = np.cumsum(
+            decode_classed(reader, info.count_classes(len(segments)), coder_tables, what).reshape(-1, channels), axis=0
+        )
+        if np.any(counts < 0) or np.any(counts > (lengths - 1)[:, None]):
+            raise BitstreamError(f"{what}: significance counts outside their segments.")
+        masks = [_significant_mask(c, int(n)) for c, n in zip(counts, lengths)]
+        classes = [info.class_matrix(int(n)).T[m] for n, m in zip(lengths, masks)]
+        stream_classes = np.concatenate(classes + [np.full(count, _SIDE + info.gap_class, np.uint8),
+                                                   np.full(3 * count, _SIDE + info.value_class, np.uint8)])
+        values = decode_classed(reader, stream_classes, coder_tables, what)
+        reader.expect_end(f"chunk {chunk}")
+        at = 0
+        for segment, n, mask in zip(segments, lengths, masks):
+            dense = np.zeros((channels, int(n) - 1), dtype=np.int64)
+            size = int(mask.sum())
+            dense[mask] = values[at : at + size]
+            coefficients[int(segment)] = dense.T
+            at += size
+        gaps = values[at : at + count]
+        local = np.cumsum(gaps + 1) - 1
+        if count and (gaps.min() < 0 or local[-1] >= length * slots):
+            raise BitstreamError(f"{what}: corrections run past its end.")
+        start = int(layout.starts[segments[0]])
+        corrections.append((local + (start - first) * slots, values[at + count :].reshape(-1, 3)))
+    segments = np.arange(layout.chunk_starts[chunks[0]], layout.chunk_starts[chunks[-1] + 1])
+    roots, quats = assemble(info, segments, base_signal(info, segments, coefficients))
+    flat = np.concatenate([c[0] for c in corrections])
+    apply_corrections(info, roots, quats, flat, np.concatenate([c[1] for c in corrections]))
+    return roots, quats
