@@ -49,7 +49,8 @@ from mocapbench.codecs.mcb_rot import quaternions as quat
 from mocapbench.codecs.mcb_rot.axes import axes_from_codes, principal_axes, to_axes
 from mocapbench.codecs.mcb_rot.budgets import joint_budgets, offset_discrepancy_cm
 from mocapbench.codecs.mcb_rot.classes import NUM_BANDS
-from mocapbench.codecs.mcb_rot.segments import SegmentLayout, detect_cuts, forward, segment_starts
+from mocapbench.codecs.mcb_rot.segments import SegmentLayout, forward, segment_starts
+from mocapbench.codecs.segments import CUT_MIN_JUMP_CM, CUT_RATIO, find_cuts
 from mocapbench.codecs.mcb_rot.stream import (
     Settings,
     StreamInfo,
@@ -111,9 +112,11 @@ class McbRotCodec(Codec):
             1.0, low=1e-3, high=30.0, unit="deg", doc="budget of joints whose rotation moves no joint (leaves)"
         )
         cut_ratio: float = param(
-            8.0, low=0.0, high=1e6, doc="a frame-to-frame jump this many times the local motion starts a segment (0: off)"
+            CUT_RATIO, low=0.0, high=1e6, doc="a jump this many times the median frame move starts a segment (0: off)"
         )
-        cut_min_cm: float = param(2.0, low=0.0, high=1e4, unit="cm", doc="smallest jump treated as a cut")
+        cut_min_cm: float = param(
+            CUT_MIN_JUMP_CM, low=0.0, high=1e4, unit="cm", doc="smallest jump (RMS over joints) treated as a cut"
+        )
 
     @property
     def latency_frames(self) -> int:
@@ -136,7 +139,7 @@ class McbRotCodec(Codec):
                 f"(they move joints by up to {discrepancy:.3g} cm)."
             )
         target = motion.positions()
-        cuts = detect_cuts(target, config.cut_ratio, config.cut_min_cm)
+        cuts = find_cuts(target, ratio=config.cut_ratio, min_jump_cm=config.cut_min_cm) if config.cut_ratio > 0 else np.zeros(0, np.int64)
         starts = segment_starts(motion.num_frames, cuts, config.segment_frames)
         layout = SegmentLayout(motion.num_frames, starts, config.chunk_frames)
         quats = quat.sign_continuous(motion.rotations)

@@ -1,10 +1,9 @@
-"""Segments of ``mcb-rot``: where they start (a fixed grid, restarted at every detected cut) and their DCTs.
+"""Segments of ``mcb-rot``: where they start (a fixed grid, restarted at every cut) and their DCTs.
 
-A segment is the unit of the temporal transform and of random access: its coefficients are coded on their own, so
-any frame range is decoded from the segments that hold it. A *cut* is a jump between two frames far larger than the
-motion around it (the T-pose reference frame at the start of the CMU BVH files, or the seam between two takes
-joined into one file). A transform across a cut spends most of its rate on the jump; starting a new segment there
-makes the two sides cost what they would cost coded apart.
+A segment is the unit of the temporal transform; consecutive segments are grouped into chunks, the unit of random
+access. A *cut* (found by the shared :func:`mocapbench.codecs.segments.find_cuts`: the T-pose reference frame at
+the start of the CMU BVH files, the seam between two takes joined into one file) starts a new segment, so that no
+transform straddles the jump and the two sides cost what they would cost coded apart.
 """
 
 from __future__ import annotations
@@ -12,45 +11,14 @@ from __future__ import annotations
 import numpy as np
 import scipy  # scipy.fft loads on first use (see mocapbench.lazy_imports)
 
-__all__ = ["detect_cuts", "segment_starts", "SegmentLayout", "forward", "inverse"]
+from mocapbench.codecs.segments import window_lengths
 
-_CUT_WINDOW = 8  # frames on each side whose median motion a jump is compared with
-
-
-def detect_cuts(positions: np.ndarray, ratio: float, min_jump_cm: float) -> np.ndarray:
-    """Frames ``t`` where a new take starts: the largest joint move from ``t - 1`` to ``t`` is a jump.
-
-    Parameters
-    ----------
-    positions : ndarray, shape (F, J, 3), cm
-    ratio : float
-        A move is a jump when it exceeds ``ratio`` times the median largest move of the ``_CUT_WINDOW`` frames on
-        each side (and ``min_jump_cm``); 0 disables cut detection.
-    min_jump_cm : float
-
-    Returns
-    -------
-    ndarray, shape (N,), int64, ascending, in [1, F)
-    """
-    if ratio <= 0 or len(positions) < 2:
-        return np.zeros(0, dtype=np.int64)
-    moves = np.sqrt(np.sum(np.diff(positions, axis=0) ** 2, axis=-1)).max(axis=1)  # moves[t - 1]: t-1 -> t
-    padded = np.pad(moves, _CUT_WINDOW, constant_values=np.nan)
-    windows = np.lib.stride_tricks.sliding_window_view(padded, 2 * _CUT_WINDOW + 1)
-    # The median of the neighbours, the move itself left out (it sits in the middle of its window).
-    neighbours = np.delete(windows, _CUT_WINDOW, axis=1)
-    valid = ~np.all(np.isnan(neighbours), axis=1)
-    typical = np.full(len(moves), np.inf)
-    typical[valid] = np.nanmedian(neighbours[valid], axis=1)
-    jumps = (moves > ratio * typical) & (moves > min_jump_cm)
-    return (np.flatnonzero(jumps) + 1).astype(np.int64)
-
+__all__ = ["segment_starts", "SegmentLayout", "forward", "inverse"]
 
 def segment_starts(num_frames: int, cuts: np.ndarray, segment_frames: int) -> np.ndarray:
     """First frame of every segment, (S,) int64: a grid of ``segment_frames`` restarted at every cut."""
-    bounds = np.concatenate([[0], np.asarray(cuts, dtype=np.int64), [num_frames]])
-    starts = [np.arange(low, high, segment_frames) for low, high in zip(bounds[:-1], bounds[1:]) if high > low]
-    return np.concatenate(starts).astype(np.int64)
+    lengths = window_lengths(num_frames, segment_frames, cuts)
+    return np.concatenate([[0], np.cumsum(lengths)[:-1]]).astype(np.int64)
 
 
 class SegmentLayout:

@@ -33,6 +33,7 @@ from mocapbench.codecs.mcb_rot import quaternions as quat
 from mocapbench.codecs.mcb_rot.axes import axes_from_codes
 from mocapbench.codecs.mcb_rot.budgets import Budgets, joint_budgets
 from mocapbench.codecs.mcb_rot.segments import SegmentLayout, inverse, segment_starts
+from mocapbench.codecs.segments import read_cuts, write_cuts
 from mocapbench.codecs.skeleton_blob import unpack_skeleton_compact
 from mocapbench.entropy.ans import ClassTables, decode_classed, encode_classed
 from mocapbench.entropy.bitio import ByteReader, ByteWriter
@@ -315,8 +316,7 @@ def write_payload(info: StreamInfo, skeleton_blob: bytes, coefficients: dict, co
     writer = ByteWriter()
     settings.write(writer)
     writer.write_bytes(skeleton_blob)
-    writer.write_varint(len(info.cuts))
-    writer.write_varints(np.diff(info.cuts, prepend=0))
+    write_cuts(writer, info.cuts)
     writer.write_varint(len(info.overrides))
     for (segment, joint), reference in sorted(info.overrides.items()):
         writer.write_varint(segment)
@@ -351,12 +351,7 @@ def read_info(header: Header, payload: memoryview) -> StreamInfo:
     num_frames, num_joints = header.num_frames, header.num_joints
     if skeleton.num_joints != num_joints:
         raise BitstreamError(f"mcb-rot: the skeleton has {skeleton.num_joints} joints, the header says {num_joints}.")
-    num_cuts = reader.read_varint("cut count")
-    if num_cuts >= num_frames:
-        raise BitstreamError(f"mcb-rot: expected fewer than {num_frames} cuts, found {num_cuts}.")
-    cuts = np.cumsum(reader.read_varints(num_cuts, "cuts").astype(np.int64))
-    if num_cuts and (np.any(np.diff(cuts) <= 0) or cuts[0] < 1 or cuts[-1] >= num_frames):
-        raise BitstreamError("mcb-rot: cuts must be increasing frames inside the motion.")
+    cuts = read_cuts(reader, num_frames, "mcb-rot")
     layout = SegmentLayout(num_frames, segment_starts(num_frames, cuts, settings.segment_frames), settings.chunk_frames)
     num_segments = layout.num_segments
     num_overrides = reader.read_varint("re-reference count")
