@@ -44,6 +44,7 @@ import numpy as np
 
 from mocapbench.codecs import container
 from mocapbench.codecs.base import Codec, CodecConfig, Decoded, Header, param
+from mocapbench.codecs.limits import DecodeLimits, using_limits
 from mocapbench.codecs.mcb_rot import kinematics
 from mocapbench.codecs.mcb_rot import quaternions as quat
 from mocapbench.codecs.mcb_rot.axes import axes_from_codes, principal_axes, to_axes
@@ -177,11 +178,11 @@ class McbRotCodec(Codec):
         roots, quats = decode_chunks(info, payload, np.arange(info.layout.num_chunks))
         return kinematics.positions(quats, roots, info.skeleton), Motion(info.skeleton, header.fps, roots, quats)
 
-    def decode_frames(self, data: bytes, start: int, stop: int) -> Decoded:
-        """Frames ``start:stop`` of a stream, decoding only the segments that hold them.
+    def decode_frames(self, data: bytes, start: int, stop: int, *, limits: DecodeLimits | None = None) -> Decoded:
+        """Frames ``start:stop`` of a stream, decoding only the chunks (groups of segments) that hold them.
 
         Returns a :class:`Decoded` whose positions (``stop - start``, J, 3) and motion cover those frames only (the
-        header still describes the whole stream).
+        header still describes the whole stream). ``limits`` as in :meth:`decode`, applied to the frames asked for.
 
         Raises
         ------
@@ -193,6 +194,8 @@ class McbRotCodec(Codec):
         header, payload = container.unpack(data, self.name)
         if not 0 <= start < stop <= header.num_frames:
             raise ValueError(f"mcb-rot: frame range {start}:{stop} is outside 0:{header.num_frames} or empty.")
+        with using_limits(limits) as active:
+            active.check_header(stop - start, header.num_joints, self.codes_rotations)
         try:
             info = read_info(header, payload)
             chunks = info.layout.chunks_of_frames(start, stop)
