@@ -203,3 +203,42 @@ def test_decompress_writes_bvh(tmp_path, synthetic_motion):
     assert main(["decompress", str(stream), str(out)]) == 0
     error = metrics.max_joint_error(read_bvh(source).positions(), read_bvh(out).positions())
     assert error <= 0.5 + 1e-3  # the bound, plus the BVH text's rounding of angles
+
+
+def test_bound_holds_on_a_real_clip_and_beats_quant_rot_zstd(cmu_09_06):
+    for eps in (0.05, 1.0):
+        data = create("mcb-rot", eps_cm=eps).encode(cmu_09_06)
+        decoded = create("mcb-rot").decode(data)
+        assert metrics.max_joint_error(cmu_09_06.positions(), decoded.positions) <= eps
+    assert len(data) < len(create("quant-rot-zstd").encode(cmu_09_06)) / 5
+
+
+def _every_fifth(motion: Motion) -> Motion:
+    return Motion(motion.skeleton, motion.fps / 5, motion.root_positions[::5], motion.rotations[::5], motion.name)
+
+
+@pytest.mark.cmu
+@pytest.mark.parametrize("split", ["cmu_test", "cmu_all"])
+def test_bound_holds_on_every_frame_of_every_cmu_clip(split, cmu_full_dir):
+    from mocapbench.datasets.cmu import load_split
+
+    for motion in load_split(split, data_dir=cmu_full_dir):
+        for clip in (motion, _every_fifth(motion)):  # 120 fps and 24 fps
+            for eps in (0.05, 0.1, 0.5, 1.0):
+                decoded = create("mcb-rot").decode(create("mcb-rot", eps_cm=eps).encode(clip))
+                error = metrics.joint_errors(clip.positions(), decoded.positions).max()
+                assert error <= eps, f"{split} {clip.name} at {clip.fps} fps: {error} cm > {eps} cm"
+
+
+@pytest.mark.cmu
+def test_the_t_pose_frame_of_the_cmu_bvh_files_costs_at_most_ten_percent(cmu_full_dir):
+    from mocapbench.datasets.cmu import CMU_CM_PER_UNIT
+    from mocapbench.io import read_bvh
+
+    codec = create("mcb-rot", eps_cm=0.5)
+    for name in ("02_01", "09_06", "16_07"):
+        with_pose = read_bvh(cmu_full_dir / "bvh" / f"{name}.bvh", length_unit_cm=CMU_CM_PER_UNIT)
+        joined = len(codec.encode(with_pose))
+        assert codec.last_encode_stats["cuts"] >= 1, name
+        apart = len(codec.encode(with_pose.slice(0, 1))) + len(codec.encode(with_pose.slice(1, with_pose.num_frames)))
+        assert joined <= 1.10 * apart, f"{name}: {joined} bytes joined, {apart} apart"
