@@ -98,6 +98,17 @@ def test_every_format_and_level_decodes(acl_codec, synthetic_motion):
         assert metrics.max_joint_error(motion.positions(), decoded.positions) <= 0.02, params
 
 
+def test_decode_frames_matches_the_full_decode(acl_codec, synthetic_motion):
+    codec = acl_codec(precision_cm=0.05)
+    data = codec.encode(synthetic_motion)
+    full = codec.decode(data)
+    part = codec.decode_frames(data, 100, 137)
+    np.testing.assert_array_equal(part.positions, full.positions[100:137])
+    np.testing.assert_array_equal(part.motion.rotations, full.motion.rotations[100:137])
+    with pytest.raises(ValueError, match=r"acl: frame range 200:300 is outside 0:240"):
+        codec.decode_frames(data, 200, 300)
+
+
 def test_single_frame_motion(acl_codec, synthetic_motion):
     motion = synthetic_motion.slice(5, 6)
     codec = acl_codec(precision_cm=0.01)

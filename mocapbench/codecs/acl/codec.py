@@ -33,7 +33,7 @@ import numpy as np
 from mocapbench.codecs.acl.binding import LEVELS, ROTATION_FORMATS, TRANSLATION_FORMATS, AclError, load_library
 from mocapbench.codecs.acl.build import AclSetupError
 from mocapbench.codecs import container
-from mocapbench.codecs.base import Codec, CodecConfig, Header, param
+from mocapbench.codecs.base import Codec, CodecConfig, Decoded, Header, param
 from mocapbench.codecs.registry import CodecUnavailableError
 from mocapbench.codecs.skeleton_blob import pack_skeleton, unpack_skeleton
 from mocapbench.entropy.bitio import ByteReader, ByteWriter
@@ -74,7 +74,7 @@ class AclCodec(Codec):
     name = "acl"
     codes_rotations = True
     family = "production"
-    random_access = True  # ACL seeks any sample in O(1); this adapter decodes the whole clip per call
+    random_access = True  # ACL seeks any sample directly: decode_frames decompresses only the frames asked for
     smoke_params = {"precision_cm": 0.01, "shell_cm": 3.0}
     smoke_max_error_cm = 0.05
 
@@ -164,10 +164,11 @@ class AclCodec(Codec):
             raise BitstreamError(f"acl: ACL buffer holds {info.num_samples} samples, header says {header.num_frames} frames.")
         return skeleton, buffer, info, library
 
-    def decode_payload(self, header: Header, payload: memoryview):
+    def _decode_range(self, header: Header, payload: memoryview, start: int, stop: int):
+        """Positions and Motion of frames ``start:stop`` through ACL's decompression context."""
         skeleton, buffer, _, library = self._read(header, payload)
         try:
-            rotations, translations = library.decompress(buffer, header.num_joints, 0, header.num_frames)
+            rotations, translations = library.decompress(buffer, header.num_joints, start, stop)
         except AclError as error:
             raise BitstreamError(f"acl: {error}.") from error
         rotations = rotations.astype(np.float64)
@@ -178,6 +179,28 @@ class AclCodec(Codec):
         motion = Motion(skeleton=skeleton, fps=header.fps, root_positions=translations[:, 0].astype(np.float64),
                         rotations=rotations)
         return motion.positions(), motion
+
+    def decode_payload(self, header: Header, payload: memoryview):
+        return self._decode_range(header, payload, 0, header.num_frames)
+
+    def decode_frames(self, data: bytes, start: int, stop: int) -> Decoded:
+        """Frames ``start:stop`` only: ACL seeks each sample directly, nothing else is decompressed.
+
+        Returns a :class:`Decoded` whose positions (``stop - start``, J, 3) and motion cover those frames (the header
+        still describes the whole stream).
+
+        Raises
+        ------
+        ValueError
+            If ``start:stop`` is empty or outside the stream's frames.
+        BitstreamError
+            If the stream is corrupt.
+        """
+        header, payload = container.unpack(data, self.name)
+        if not 0 <= start < stop <= header.num_frames:
+            raise ValueError(f"acl: frame range {start}:{stop} is outside 0:{header.num_frames} or empty.")
+        positions, motion = self._decode_range(header, payload, start, stop)
+        return Decoded(positions=positions, motion=motion, header=header)
 
     def describe_payload(self, header: Header, payload: memoryview) -> dict[str, Any]:
         _, buffer, info, library = self._read(header, payload)
