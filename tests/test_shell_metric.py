@@ -39,7 +39,7 @@ def test_chain_by_hand_through_forward_kinematics():
 
 
 @settings(max_examples=30, deadline=None)
-@given(st.integers(0, 2**32 - 1), st.floats(0.0, 50.0))
+@given(st.integers(0, 2**32 - 2), st.floats(0.0, 50.0))  # Rotation.random also takes seed + 1
 def test_shell_error_is_joint_error_at_zero_and_grows_with_distance(seed, shell):
     rng = np.random.default_rng(seed)
     ref_r = Rotation.random(12, random_state=seed).as_matrix().reshape(3, 4, 3, 3)
