@@ -73,21 +73,21 @@ def _codec_for_stream(data: bytes):
 
 
 def _compress(args) -> None:
-    from mocapbench.codecs import create
+    from mocapbench.cli_fit import compress_motion
     from mocapbench.io.safe_output import check_output, write_bytes
     from mocapbench.io.units import unit_label
     from mocapbench.metrics import compression_ratio, raw_position_bytes
 
     output = check_output(args.output, force=args.force)
     motion = _load_motion(args)
-    codec = create(args.codec, **_parse_settings(args.set))
-    data = codec.encode(motion)
+    codec, data, worst, mean, note = compress_motion(args, motion)
     write_bytes(output, data, force=args.force)
     raw = raw_position_bytes(motion.num_joints, motion.num_frames)
     print(
         f"{output}: {len(data)} bytes, {motion.num_frames} frames x {motion.num_joints} joints, "
         f"{compression_ratio(raw, len(data)):.1f}:1 against float32 positions ({args.codec}); "
-        f"source unit {unit_label(motion.source_unit_cm)}, {motion.up_axis} up"
+        f"source unit {unit_label(motion.source_unit_cm)}, {motion.up_axis} up; "
+        f"L-inf {worst:.3f} cm, mean {mean:.3f} cm{note}"
     )
 
 
@@ -107,6 +107,10 @@ def _decompress(args) -> None:
     limits = DecodeLimits.from_settings(args.limit)
     data = Path(args.input).read_bytes()
     codec, header = _codec_for_stream(data)
+    if args.model:
+        from mocapbench.cli_fit import decoding_codec
+
+        codec = decoding_codec(args, header)
     decoded = codec.decode(data, limits=limits)
     # Written in the source unit recorded in the stream unless --units says otherwise.
     unit_cm = parse_units(args.units) if args.units is not None else canonical_unit_cm(header.source_unit_cm)
@@ -222,6 +226,8 @@ def _parser() -> argparse.ArgumentParser:
     compress.add_argument("--fps", type=float, help="sampling rate of a glTF animation / frame rate of an AMC file")
     compress.add_argument("--drop-first-frame", action="store_true", help="drop BVH frame 0 (CMU reference pose)")
     compress.add_argument("--force", action="store_true", help="overwrite OUT if it exists")
+    compress.add_argument("--model", help="MODEL.npz written by `mocapbench fit` (learned codecs)")
+    compress.add_argument("--max-error-cm", type=float, help="smallest stream with L-inf <= this (a rate search)")
     compress.set_defaults(run=_compress)
 
     decompress = commands.add_parser(
@@ -238,6 +244,7 @@ def _parser() -> argparse.ArgumentParser:
         metavar="NAME=N",
         help="raise or lower a decode limit: frames, joints, output_bytes (default 2 GiB), ik_iterations",
     )
+    decompress.add_argument("--model", help="MODEL.npz the stream was coded with (`compress --model`)")
     decompress.set_defaults(run=_decompress)
 
     inspect = commands.add_parser(
@@ -254,7 +261,20 @@ def _parser() -> argparse.ArgumentParser:
     from mocapbench.experiments.plot_command import add_parser as add_plot_parser  # argparse only; plots load later
 
     add_plot_parser(commands)
+    from mocapbench.cli_fit import add_fit_parser  # argparse only; codecs load when the command runs
+
+    add_fit_parser(commands, _motion_options)
     return parser
+
+
+def _motion_options(parser: argparse.ArgumentParser) -> None:
+    """The motion reader's options (as on ``compress``), for sub-commands that read many clips."""
+    from mocapbench.cli_units import add_motion_arguments
+
+    parser.add_argument("--asf", help="skeleton of AMC inputs (default: the .asf beside each)")
+    add_motion_arguments(parser)
+    parser.add_argument("--fps", type=float, help="sampling rate of glTF animations / frame rate of AMC files")
+    parser.add_argument("--drop-first-frame", action="store_true", help="drop BVH frame 0 (CMU reference pose)")
 
 
 def _user_error_message(error: Exception) -> str | None:
@@ -262,6 +282,7 @@ def _user_error_message(error: Exception) -> str | None:
 
     The error classes are imported here, after the failure, so that a successful command never pays for them.
     """
+    from mocapbench.codecs.base import NotFittedError
     from mocapbench.codecs.registry import CodecUnavailableError
     from mocapbench.entropy.errors import BitstreamError
     from mocapbench.motion import MotionFormatError
@@ -270,8 +291,8 @@ def _user_error_message(error: Exception) -> str | None:
         return str(error.args[0])
     # OSError: the safe-output refusals (an existing path or link, a missing folder) and the system's own
     # (a full disk, no permission), whose str() is one line naming the file.
-    one_line = (CliError, BitstreamError, MotionFormatError, CodecUnavailableError, OSError, KeyError, TypeError,
-                ValueError)  # fmt: skip
+    one_line = (CliError, BitstreamError, MotionFormatError, CodecUnavailableError, NotFittedError, OSError, KeyError,
+                TypeError, ValueError)  # fmt: skip
     return str(error) if isinstance(error, one_line) else None
 
 

@@ -751,6 +751,19 @@ class _LsdtBases:
         self._trained = bases
         return self
 
+    def model_state(self) -> dict[str, np.ndarray]:
+        """The learned bases as arrays, for a model file (:mod:`mocapbench.codecs.model_file`)."""
+        if self._trained is None:
+            raise NotFittedError(
+                f"{self.name}: no learned bases to save (basis='{self.config.basis}' on the committed skeleton); "
+                f"use basis='fit'."
+            )
+        return {"bases": self._trained}
+
+    def load_model_state(self, arrays):
+        """Hold the bases stored by :meth:`model_state`."""
+        return self.set_bases(arrays["bases"])
+
     def _bases(self, num_joints: int) -> np.ndarray:
         if self._trained is not None and (self.config.basis == "fit" or self._trained.shape[-1] == num_joints):
             return self._trained

@@ -338,6 +338,23 @@ class McbLinfCodec(Codec):
         )
         return self
 
+    def model_state(self) -> dict[str, np.ndarray]:
+        """The fitted model as arrays, for a model file (:mod:`mocapbench.codecs.model_file`)."""
+        if self._model is None:
+            raise NotFittedError("mcb-linf: no fitted model to save; call fit() on training motions first.")
+        return self._model.arrays()
+
+    def load_model_state(self, arrays) -> "McbLinfCodec":
+        """Hold the model stored by :meth:`model_state` (its representation must be this config's)."""
+        model = TrainedModel.from_arrays(arrays)
+        if model.representation != self.config.representation:
+            raise ValueError(
+                f"mcb-linf: the model was fit for representation='{model.representation}', the codec is set to "
+                f"'{self.config.representation}'."
+            )
+        self._model = model
+        return self
+
     def _held_model(self, representation: str) -> TrainedModel | None:
         """The fitted model, else the package's (only for ``"pca"``), else None."""
         if self._model is not None:

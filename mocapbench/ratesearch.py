@@ -1,0 +1,236 @@
+"""Rate search: the smallest stream of a codec whose worst joint error stays within a bound (``--max-error-cm``).
+
+Every codec has one main knob (:data:`KNOBS`): the bound itself for the codecs that guarantee it (``mcb-linf``,
+``mcb-rot``: exact, one encode), a quantization step with a known worst case for ``quant-delta-zstd`` (exact, one
+encode), otherwise a step, a bit depth, a rank or a frequency count searched by bisection: each try encodes,
+decodes and measures the L-inf error in cm; the smallest stream that meets the bound wins. A codec with no knob
+(``raw-zstd``, lossless) is coded once. If no setting in the knob's range meets the bound, the result says so
+(``met`` is False) and holds the setting with the smallest error.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any, Callable
+
+from mocapbench import metrics
+from mocapbench.codecs.base import Codec
+from mocapbench.codecs.registry import create
+from mocapbench.motion import Motion
+
+__all__ = ["KNOBS", "Knob", "SearchResult", "ratio", "search"]
+
+
+@dataclass(frozen=True)
+class Knob:
+    """The main rate-distortion knob of a codec.
+
+    Attributes
+    ----------
+    field : str
+        Config field searched.
+    low, high : float, or a callable of the motion for ``high``
+        Range searched (inclusive).
+    error_grows : bool
+        True when a larger value gives a larger error (a step); False for a bit depth, a rank, a count.
+    integer : bool
+        The field is an int.
+    exact : callable or None
+        ``bound_cm -> value`` for codecs with a guarantee: one encode, no search.
+    fixed : mapping
+        Other fields set with the knob (e.g. ``threshold_unit="cm"``); values may be callables of the bound.
+    """
+
+    field: str
+    low: float
+    high: float | Callable[[Motion], float]
+    error_grows: bool = True
+    integer: bool = False
+    exact: Callable[[float], float] | None = None
+    fixed: Mapping[str, Any] = field(default_factory=dict)
+
+
+_STEP = dict(low=1e-3, high=50.0)
+# Margin under the bound for the exact knobs: the worst case is met with float rounding to spare.
+_EXACT_MARGIN = 1.0 - 1e-9
+
+KNOBS: dict[str, Knob | None] = {
+    "raw-zstd": None,
+    "mcb-linf": Knob("eps_cm", 1e-3, 100.0, exact=lambda bound: bound),
+    "mcb-rot": Knob("eps_cm", 1e-3, 100.0, exact=lambda bound: bound),
+    # per coordinate <= step / 2, so per joint <= step sqrt(3) / 2
+    "quant-delta-zstd": Knob("step_cm", 1e-4, 100.0, exact=lambda bound: 2.0 * bound / math.sqrt(3.0) * _EXACT_MARGIN),
+    "quant-rot-zstd": Knob("rotation_bits", 2, 24, error_grows=False, integer=True,
+                           fixed={"translation_step_cm": lambda bound: min(100.0, bound / 4.0)}),
+    "lsdt-frame": Knob("step_cm", **_STEP),
+    "lsdt-clip": Knob("step_cm", **_STEP),
+    "dct-spatial-frame": Knob("step_cm", **_STEP),
+    "dct-spatial-clip": Knob("step_cm", **_STEP),
+    "dwt-spatial-frame": Knob("step_cm", **_STEP),
+    "dwt-spatial-clip": Knob("step_cm", **_STEP),
+    # ranks above min(F, 3 J) and geodesics above 3 J change nothing: the search range stops there
+    "svd": Knob("rank", 1, lambda motion: min(4096, motion.num_frames, 3 * motion.num_joints), error_grows=False,
+                integer=True),
+    "pga-ik": Knob("num_geodesics", 1, lambda motion: min(300, 3 * motion.num_joints), error_grows=False,
+                   integer=True, fixed={"root_levels_dropped": 0, "end_levels_dropped": 0}),
+    "fourier-mlp-dct": Knob("threshold", 1e-3, 100.0, fixed={"threshold_unit": "cm"}),
+    "fourier-mlp-int": Knob("K", 0, 64, error_grows=False, integer=True),
+}
+
+
+@dataclass(frozen=True, eq=False)
+class SearchResult:
+    """The outcome of :func:`search`.
+
+    Attributes
+    ----------
+    codec : Codec
+        The codec (config at the chosen setting) that wrote ``data``.
+    data : bytes
+        The chosen stream.
+    settings : dict
+        The config fields the search set.
+    max_error_cm, mean_error_cm : float
+        Of the decoded stream against the motion.
+    met : bool
+        ``max_error_cm <= bound``.
+    exact : bool
+        The setting came from the codec's guarantee (no search).
+    tries : int
+        Encodes run.
+    """
+
+    codec: Codec
+    data: bytes
+    settings: dict[str, Any]
+    max_error_cm: float
+    mean_error_cm: float
+    met: bool
+    exact: bool
+    tries: int
+
+
+def _try(name: str, base: Mapping[str, Any], knob_settings: dict[str, Any], motion: Motion, prepare, reference):
+    codec = create(name, **{**base, **knob_settings})
+    if prepare is not None:
+        codec = prepare(codec)
+    data = codec.encode(motion)
+    decoded = codec.decode(data).positions
+    return codec, data, metrics.max_joint_error(reference, decoded), metrics.mean_joint_error(reference, decoded)
+
+
+def search(
+    name: str,
+    motion: Motion,
+    bound_cm: float,
+    settings: Mapping[str, Any] | None = None,
+    *,
+    prepare: Callable[[Codec], Codec] | None = None,
+    max_tries: int = 12,
+) -> SearchResult:
+    """The smallest stream of codec ``name`` on ``motion`` with L-inf error <= ``bound_cm``.
+
+    Parameters
+    ----------
+    name : str
+        Registry name.
+    motion : Motion
+    bound_cm : float, cm, > 0
+    settings : mapping, optional
+        Other config fields (``--set``); the knob's field, if given here, is overridden by the search.
+    prepare : callable, optional
+        Applied to every codec built (e.g. load a model, fit), before it encodes.
+    max_tries : int, keyword-only
+        Encodes a bisection may run (after the two ends of the range).
+
+    Raises
+    ------
+    ValueError
+        A bound that is not a positive finite number.
+    """
+    if not (isinstance(bound_cm, (int, float)) and math.isfinite(bound_cm) and bound_cm > 0):
+        raise ValueError(f"--max-error-cm must be a positive number of cm, got {bound_cm!r}.")
+    base = dict(settings or {})
+    knob = KNOBS.get(name, "unknown")
+    reference = motion.positions()
+    if knob == "unknown":
+        raise ValueError(f"codec {name!r} has no rate knob known to the rate search; set its config with --set.")
+    if knob is None:
+        codec, data, worst, mean = _try(name, base, {}, motion, prepare, reference)
+        return SearchResult(codec, data, {}, worst, mean, worst <= bound_cm, True, 1)
+    fixed = {key: value(bound_cm) if callable(value) else value for key, value in knob.fixed.items()}
+    if knob.exact is not None:
+        chosen = {knob.field: knob.exact(bound_cm), **fixed}
+        codec, data, worst, mean = _try(name, base, chosen, motion, prepare, reference)
+        return SearchResult(codec, data, chosen, worst, mean, worst <= bound_cm, True, 1)
+    if callable(knob.high):
+        knob = dataclasses.replace(knob, high=max(knob.low, knob.high(motion)))
+    return _bisect(name, base, knob, fixed, motion, bound_cm, prepare, reference, max_tries)
+
+
+def _bisect(name, base, knob: Knob, fixed, motion, bound_cm, prepare, reference, max_tries) -> SearchResult:
+    """Bisection over the knob (log scale for floats, whose error grows with the value: steps, thresholds).
+
+    Returns the smallest stream among the tries within the bound, else the try with the smallest error.
+    """
+    tries = 0
+    best = None  # (bytes, result) within the bound
+    closest = None  # the try with the smallest error, if none meets the bound
+
+    def attempt(value):
+        nonlocal tries, best, closest
+        value = int(round(value)) if knob.integer else float(value)
+        chosen = {knob.field: value, **fixed}
+        codec, data, worst, mean = _try(name, base, chosen, motion, prepare, reference)
+        tries += 1
+        result = SearchResult(codec, data, chosen, worst, mean, worst <= bound_cm, False, 0)
+        if result.met and (best is None or len(data) < len(best.data)):
+            best = result
+        if closest is None or worst < closest.max_error_cm:
+            closest = result
+        return result.met
+
+    # "safe" end: the smallest error; "coarse" end: the largest.
+    safe, coarse = (knob.low, knob.high) if knob.error_grows else (knob.high, knob.low)
+    if knob.integer:
+        coarse_met = attempt(coarse)
+        if not coarse_met and attempt(safe):
+            lo, hi = sorted((int(safe), int(coarse)))
+            while hi - lo > 1 and tries < max_tries + 2:
+                middle = (lo + hi) // 2
+                meets = attempt(middle)
+                # keep the met end on the safe side
+                if meets == knob.error_grows:
+                    lo = middle
+                else:
+                    hi = middle
+    else:
+        # Start near the bound (a step about the bound is a good first guess), then bisect in log scale.
+        guess = min(max(bound_cm, knob.low), knob.high)
+        low_value, high_value = math.log(knob.low), math.log(knob.high)
+        met = attempt(guess)
+        if met:
+            low_value = math.log(guess)
+        else:
+            high_value = math.log(guess)
+            met_low = attempt(knob.low)
+            if not met_low:
+                high_value = low_value
+        while high_value - low_value > math.log(1.05) and tries < max_tries + 2:
+            middle = 0.5 * (low_value + high_value)
+            if attempt(math.exp(middle)):
+                low_value = middle
+            else:
+                high_value = middle
+    chosen = best if best is not None else closest
+    return SearchResult(chosen.codec, chosen.data, chosen.settings, chosen.max_error_cm, chosen.mean_error_cm,
+                        chosen.met, False, tries)
+
+
+def ratio(motion: Motion, data: bytes) -> float:
+    """Compression ratio of ``data`` against the motion's float32 positions."""
+    return metrics.compression_ratio(metrics.raw_position_bytes(motion.num_joints, motion.num_frames), len(data))
+
