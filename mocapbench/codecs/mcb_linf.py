@@ -499,13 +499,14 @@ class McbLinfCodec(Codec):
         if model is None:
             raise BitstreamError(
                 f"mcb-linf: the stream was coded with a model fit for representation '{representation}' (tag "
-                f"{tag:#010x}); this decoder holds none (call fit() on the same training motions)."
+                f"{tag:#010x}); this decoder holds none (pass the model it was coded with: `decompress --model "
+                f"MODEL`, or fit() on the same training motions)."
             )
         if model.tag != tag or model.num_joints != num_joints or model.representation != representation:
             raise BitstreamError(
                 f"mcb-linf: the stream was coded with model {tag:#010x} ({representation}, {num_joints} joints); "
                 f"this decoder holds model {model.tag:#010x} ({model.representation}, {model.num_joints} joints): "
-                f"fit it on the same training motions."
+                f"pass the model it was coded with (`decompress --model MODEL`)."
             )
         return model
 
