@@ -168,8 +168,23 @@ def test_load_folder_pairs_amc_with_subject_asf(tmp_path):
     write_bvh(sinusoidal_motion(num_frames=7), tmp_path / "walk.bvh")
     motions = load_folder(tmp_path)
     assert [(m.name, m.num_frames, m.num_joints) for m in motions] == [("07_01", 3, 3), ("walk", 7, 31)]
+
+
+
+def test_load_folder_skips_an_unreadable_file_naming_it(tmp_path, caplog):
+    """One bad file (an AMC with no ASF, a broken BVH) is skipped with one line; the rest of the folder loads."""
+    write_bvh(sinusoidal_motion(num_frames=7), tmp_path / "walk.bvh")
     (tmp_path / "09_01.amc").write_text((FIXTURES / "chain.amc").read_text())
-    with pytest.raises(DataNotFoundError, match=r"09_01\.amc: no skeleton: expected one \.asf .* or 09\.asf"):
+    (tmp_path / "broken.bvh").write_text("HIERARCHY\nROOT Hips\n")
+    with caplog.at_level("WARNING", logger="mocapbench.datasets.cmu"):
+        motions = load_folder(tmp_path)
+    assert [m.name for m in motions] == ["walk"]
+    lines = [record.getMessage() for record in caplog.records]
+    assert len(lines) == 2 and all("\n" not in line for line in lines)
+    assert lines[0].startswith(f"skipped {tmp_path / '09_01.amc'}: ") and "no skeleton" in lines[0]
+    assert lines[1].startswith(f"skipped {tmp_path / 'broken.bvh'}: ")
+    (tmp_path / "walk.bvh").unlink()
+    with pytest.raises(DataNotFoundError, match="none of its 2 motion file"):
         load_folder(tmp_path)
 
 

@@ -700,32 +700,40 @@ class _LsdtBases:
 
     # The bases are learned for one skeleton (31 CMU joints committed; basis='fit' for another).
     needs_model = True
-    _trained: np.ndarray | None = None
+    _trained: np.ndarray | None = None  # the main learned bases (the skeleton with the most training frames)
+    _trained_by_joints: dict[int, np.ndarray] = {}  # every learned basis set, by joint count (replaced in fit)
 
     def fit(self, motions: Sequence[Motion]):
         """Run Algorithm 1 on the frames of ``motions`` (DCT init) with ``basis='fit'``, or with ``basis='cmu-v1'``
-        when the motions' skeleton is not the committed bases' (31 joints); otherwise do nothing.
+        for the motions whose skeleton is not the committed bases' (31 joints); otherwise do nothing.
 
-        The committed bases (``basis='cmu-v1'``) were produced from ``cmu_train`` by
-        ``python -m mocapbench.benchmarks.train_lsdt``; refitting on the CMU training motions of a run would only
-        repeat that. Any number of motions of any length (1 frame upwards) fits.
+        Motions of several joint counts get one basis set each. The committed bases (``basis='cmu-v1'``) were
+        produced from ``cmu_train`` by ``python -m mocapbench.benchmarks.train_lsdt``; refitting on the CMU
+        training motions of a run would only repeat that. Any number of motions of any length (1 frame) fits.
         """
         if not motions:
             raise ValueError(f"{self.name}: fit() needs at least one training motion.")
-        joints = {motion.num_joints for motion in motions}
-        if len(joints) != 1:
-            raise ValueError(f"{self.name}: fit() needs motions of one joint count, got {sorted(joints)}.")
-        num_joints = joints.pop()
-        if self.config.basis != "fit" and num_joints == load_committed_bases(self.config.sparsity).shape[-1]:
-            self._trained = None
-            return self
-        if self.config.sparsity > num_joints:
-            raise ValueError(f"{self.name}: sparsity={self.config.sparsity} exceeds the {num_joints} joints of the motions.")
-        positions = np.concatenate([motion.positions() for motion in motions])
-        self._trained, results = train_lsdt_bases(
-            positions, self.config.sparsity, init="dct", max_iterations=self.config.train_iterations
-        )
-        self.training_objective = [result.objective for result in results]
+        groups: dict[int, list[Motion]] = {}
+        for motion in motions:
+            groups.setdefault(motion.num_joints, []).append(motion)
+        committed = None if self.config.basis == "fit" else load_committed_bases(self.config.sparsity).shape[-1]
+        trained, frames = {}, {}
+        self.training_objective = []
+        for num_joints, group in groups.items():
+            if num_joints == committed:
+                continue
+            if self.config.sparsity > num_joints:
+                raise ValueError(
+                    f"{self.name}: sparsity={self.config.sparsity} exceeds the {num_joints} joints of the motions."
+                )
+            positions = np.concatenate([motion.positions() for motion in group])
+            trained[num_joints], results = train_lsdt_bases(
+                positions, self.config.sparsity, init="dct", max_iterations=self.config.train_iterations
+            )
+            frames[num_joints] = len(positions)
+            self.training_objective += [result.objective for result in results]
+        self._trained_by_joints = trained
+        self._trained = trained[max(frames, key=frames.get)] if trained else None
         return self
 
     def set_bases(self, bases: np.ndarray):
@@ -749,6 +757,7 @@ class _LsdtBases:
         if max(np.abs(b @ b.T - identity).max() for b in bases) >= 1e-10:
             raise ValueError(f"{self.name}: the bases must be orthogonal (||B Bᵀ − I|| < 1e-10).")
         self._trained = bases
+        self._trained_by_joints = {bases.shape[-1]: bases}
         return self
 
     def model_state(self) -> dict[str, np.ndarray]:
@@ -765,6 +774,9 @@ class _LsdtBases:
         return self.set_bases(arrays["bases"])
 
     def _bases(self, num_joints: int) -> np.ndarray:
+        self._used_joints = num_joints
+        if num_joints in self._trained_by_joints:
+            return self._trained_by_joints[num_joints]
         if self._trained is not None and (self.config.basis == "fit" or self._trained.shape[-1] == num_joints):
             return self._trained
         if self.config.basis == "fit":
@@ -776,12 +788,18 @@ class _LsdtBases:
 
     @property
     def model_bytes(self) -> int:
-        """Bytes of the three J × J float64 bases a decoder needs beside the stream (31 joints: 23,064)."""
-        if self._trained is not None:
-            return int(self._trained.nbytes)
-        if self.config.basis == "fit":
-            return 0
-        return int(load_committed_bases(self.config.sparsity).nbytes)
+        """Bytes of the three J × J float64 bases a decoder needs beside the stream (31 joints: 23,064).
+
+        With bases for several skeletons: those of the last coded motion's skeleton.
+        """
+        joints = getattr(self, "_used_joints", None)
+        try:
+            bases = self._bases(joints) if joints is not None else self._trained
+        except NotFittedError:
+            bases = None
+        if bases is None and self.config.basis != "fit":
+            bases = load_committed_bases(self.config.sparsity)
+        return 0 if bases is None else int(bases.nbytes)
 
 
 class _FixedBases:

@@ -325,17 +325,33 @@ class McbLinfCodec(Codec):
 
     def __init__(self, config=None) -> None:
         super().__init__(config)
-        self._model: TrainedModel | None = None
+        self._model: TrainedModel | None = None  # the main model (the skeleton with the most training frames)
+        self._models: dict[int, TrainedModel] = {}  # every fitted model, by joint count
         self._untrained_reason = ""  # why the last encode used the untrained mode ("" if it did not)
+        self._used_joints: int | None = None  # joint count of the last encoded motion
 
     # -- learned state ---------------------------------------------------------------------------------
     def fit(self, motions: Sequence[Motion]) -> "McbLinfCodec":
-        """Learn the basis (``representation="pca"``) and the trained entropy model from ``motions``."""
+        """Learn the basis (``representation="pca"``) and the trained entropy model from ``motions``.
+
+        Motions of several skeletons (joint counts) get one model each; a motion is coded with its skeleton's.
+        Any number of motions of any length (1 frame upwards) fits.
+        """
         config = self.config
-        self._model = fit_model(
-            motions, config.representation, config.clip_frames, config.frequency_slope, config.root_step_rel,
-            config.rounding,
-        )
+        if not motions:
+            raise ValueError("mcb-linf: fit needs at least one training motion, got none.")
+        groups: dict[int, list[Motion]] = {}
+        for motion in motions:
+            groups.setdefault(motion.num_joints, []).append(motion)
+        self._models = {
+            joints: fit_model(
+                group, config.representation, config.clip_frames, config.frequency_slope, config.root_step_rel,
+                config.rounding,
+            )
+            for joints, group in groups.items()
+        }
+        main = max(groups, key=lambda joints: sum(motion.num_frames for motion in groups[joints]))
+        self._model = self._models[main]
         return self
 
     def model_state(self) -> dict[str, np.ndarray]:
@@ -353,10 +369,13 @@ class McbLinfCodec(Codec):
                 f"'{self.config.representation}'."
             )
         self._model = model
+        self._models = {model.num_joints: model}
         return self
 
-    def _held_model(self, representation: str) -> TrainedModel | None:
-        """The fitted model, else the package's (only for ``"pca"``), else None."""
+    def _held_model(self, representation: str, num_joints: int | None = None) -> TrainedModel | None:
+        """The fitted model for ``num_joints`` joints, else the main fitted one, else the package's (``"pca"``)."""
+        if num_joints in self._models:
+            return self._models[num_joints]
         if self._model is not None:
             return self._model
         return load_default_model() if representation == "pca" else None
@@ -369,9 +388,10 @@ class McbLinfCodec(Codec):
         """
         config = self.config
         self._untrained_reason = ""
+        self._used_joints = num_joints
         if not _needs_model(config.representation, config.entropy):
             return config.representation, config.entropy, None
-        model = self._held_model(config.representation)
+        model = self._held_model(config.representation, num_joints)
         if model is None:
             problem = (
                 f"entropy='{config.entropy}' with representation='{config.representation}' needs a model and none "
@@ -405,7 +425,7 @@ class McbLinfCodec(Codec):
         config = self.config
         if not _needs_model(config.representation, config.entropy) or self._untrained_reason:
             return 0
-        model = self._held_model(config.representation)
+        model = self._held_model(config.representation, self._used_joints)
         return model.stored_bytes if model is not None else 0
 
     # -- encoding --------------------------------------------------------------------------------------
@@ -495,7 +515,7 @@ class McbLinfCodec(Codec):
     # -- decoding --------------------------------------------------------------------------------------
     def _decoding_model(self, representation: str, tag: int, num_joints: int) -> TrainedModel:
         """The model a stream was coded with (its tag), or a BitstreamError saying which model it needs."""
-        model = self._held_model(representation)
+        model = self._held_model(representation, num_joints)
         if model is None:
             raise BitstreamError(
                 f"mcb-linf: the stream was coded with a model fit for representation '{representation}' (tag "

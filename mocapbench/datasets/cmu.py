@@ -9,12 +9,15 @@ reference frame 0 dropped and its ASF units converted, so both give motions in c
 from __future__ import annotations
 
 import csv
+import logging
 import os
 from pathlib import Path
 
 from mocapbench.io.asf_amc import CMU_CM_PER_UNIT, AsfSkeleton, find_asf, read_amc, read_asf
 from mocapbench.io.bvh import read_bvh
 from mocapbench.motion import Motion, MotionFormatError
+
+log = logging.getLogger(__name__)
 
 __all__ = [
     "DataNotFoundError",
@@ -183,7 +186,8 @@ def load_folder(
     Raises
     ------
     DataNotFoundError
-        ``path`` is not a folder, holds no motion file, or an AMC has no matching ASF.
+        ``path`` is not a folder, holds no motion file, or none of its files can be read. A file that cannot be
+        read (malformed, an AMC with no matching ASF) is skipped with one warning line naming it.
     """
     folder = Path(path)
     if not folder.is_dir():
@@ -194,14 +198,17 @@ def load_folder(
     cache: dict[Path, AsfSkeleton] = {}
     motions = []
     for file in files:
-        if file.suffix.lower() == ".bvh":
-            motions.append(read_bvh(file, length_unit_cm=length_unit_cm, drop_first_frame=drop_first_frame))
-            continue
         try:
+            if file.suffix.lower() == ".bvh":
+                motions.append(read_bvh(file, length_unit_cm=length_unit_cm, drop_first_frame=drop_first_frame))
+                continue
             asf_path = find_asf(file)
-        except MotionFormatError as error:
-            raise DataNotFoundError(str(error)) from None
-        if asf_path not in cache:
-            cache[asf_path] = read_asf(asf_path)
-        motions.append(read_amc(file, cache[asf_path], fps=fps))
+            if asf_path not in cache:
+                cache[asf_path] = read_asf(asf_path)
+            motions.append(read_amc(file, cache[asf_path], fps=fps))
+        except (MotionFormatError, OSError, ValueError) as error:
+            # One unreadable file must not fail the whole benchmark: it is named and skipped.
+            log.warning("skipped %s: %s", file, error)
+    if not motions:
+        raise DataNotFoundError(f"{folder}: none of its {len(files)} motion file(s) could be read.")
     return motions

@@ -130,3 +130,31 @@ def test_lsdt_with_committed_bases_fits_its_own_on_another_skeleton():
     decoded = codec.decode(codec.encode(motion)).positions
     assert metrics.max_joint_error(motion.positions(), decoded) < 0.5
     assert create("lsdt-clip").fit([sinusoidal_motion(num_frames=20)]).model_bytes == 3 * 31 * 31 * 8
+
+
+@pytest.mark.parametrize("name", ["mcb-linf", "lsdt-clip"])
+def test_a_training_set_of_two_skeletons_fits_one_model_each(name):
+    """A folder of mixed rigs: each skeleton gets its model, each clip is coded with its own skeleton's."""
+    from mocapbench.motion import Motion, Skeleton
+    from scipy.spatial.transform import Rotation
+
+    rng = np.random.default_rng(2)
+    joints, frames = 10, 80
+    skeleton = Skeleton(
+        names=tuple(f"j{i}" for i in range(joints)), parents=np.array([-1, 0, 1, 2, 0, 4, 5, 0, 7, 8]),
+        offsets=np.vstack([[0, 0, 0], rng.normal(0, 10, (joints - 1, 3))]),
+    )
+    rotations = Rotation.from_rotvec(np.cumsum(rng.normal(0, 0.01, (frames * joints, 3)), axis=0)).as_quat()
+    small = Motion(skeleton, 60.0, np.zeros((frames, 3)), rotations.reshape(frames, joints, 4))
+    cmu_like = sinusoidal_motion(num_frames=120, seed=7)
+    settings = {"eps_cm": 0.5} if name == "mcb-linf" else {"basis": "fit", "step_cm": 0.2, "train_iterations": 10}
+    codec = create(name, **settings).fit([small, cmu_like, sinusoidal_motion(num_frames=60, seed=8)])
+    for motion in (small, cmu_like):
+        data = codec.encode(motion)
+        if name == "mcb-linf":
+            assert codec.last_encode_stats["model_mode"] == "model"
+        assert codec.model_bytes > 0
+        error = metrics.max_joint_error(motion.positions(), codec.decode(data).positions)
+        assert error <= (0.5 if name == "mcb-linf" else 1.0)
+    if name == "lsdt-clip":
+        assert codec._bases(joints).shape == (3, joints, joints) and codec._bases(31).shape == (3, 31, 31)
