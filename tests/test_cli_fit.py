@@ -23,7 +23,8 @@ def _small_rig(frames: int, seed: int):
     joints = 9
     skeleton = Skeleton(
         names=tuple(f"j{i}" for i in range(joints)), parents=np.array([-1, 0, 1, 2, 0, 4, 5, 0, 7]),
-        offsets=np.vstack([[0, 0, 0], np.random.default_rng(0).normal(0, 12, (joints - 1, 3))]),
+        offsets=np.array([[0, 0, 0], [9, -5, 0], [0, -40, 2], [0, -40, 0], [-9, -5, 0], [0, -40, 2], [0, -40, 0],
+                          [0, 30, 0], [0, 30, 3.0]]),  # two legs and a spine, 145 cm tall
     )
     angles = np.cumsum(rng.normal(0, 0.02, (frames, joints, 3)), axis=0)
     rotations = Rotation.from_rotvec(angles.reshape(-1, 3)).as_quat().reshape(frames, joints, 4)
