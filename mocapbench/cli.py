@@ -262,8 +262,10 @@ def _parser() -> argparse.ArgumentParser:
 
     add_plot_parser(commands)
     from mocapbench.cli_fit import add_fit_parser  # argparse only; codecs load when the command runs
+    from mocapbench.compare import add_compare_parser
 
     add_fit_parser(commands, _motion_options)
+    add_compare_parser(commands, _motion_options)
     return parser
 
 

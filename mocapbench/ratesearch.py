@@ -10,6 +10,7 @@ decodes and measures the L-inf error in cm; the smallest stream that meets the b
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import math
 from collections.abc import Mapping
@@ -21,7 +22,7 @@ from mocapbench.codecs.base import Codec
 from mocapbench.codecs.registry import create
 from mocapbench.motion import Motion
 
-__all__ = ["KNOBS", "Knob", "SearchResult", "ratio", "search"]
+__all__ = ["KNOBS", "Knob", "SearchResult", "ratio", "search", "with_config"]
 
 
 @dataclass(frozen=True)
@@ -111,6 +112,15 @@ class SearchResult:
     met: bool
     exact: bool
     tries: int
+
+
+def with_config(fitted: Codec, codec: Codec) -> Codec:
+    """A copy of ``fitted`` (its learned state shared, read-only) with ``codec``'s config: a ``prepare`` for
+    :func:`search` when the knob is not a field the fit depends on (a step, a bound), so one fit serves every try."""
+    clone = copy.copy(fitted)
+    clone.config = codec.config
+    clone.last_encode_stats = {}
+    return clone
 
 
 def _try(name: str, base: Mapping[str, Any], knob_settings: dict[str, Any], motion: Motion, prepare, reference):

@@ -143,3 +143,34 @@ def test_model_files_round_trip_and_are_checked(tmp_path):
         fit_codec("quant-delta-zstd", {}, motions)
     with pytest.raises(ValueError, match="9 joints: rig4, rig5; 31 joints"):
         fit_codec("mcb-linf", {}, [*motions, sinusoidal_motion(num_frames=10)])
+
+
+def test_compare_ranks_the_codecs_at_the_bound_and_names_the_failures(tmp_path, capsys):
+    from mocapbench.compare import compare, format_table
+
+    clips = [sinusoidal_motion(num_frames=80, seed=seed) for seed in (1, 2)]
+    outcomes = compare(clips, 1.0, ["quant-delta-zstd", "mcb-linf", "dct-spatial-clip", "raw-zstd", "nonsense"])
+    ranked = [o.codec for o in outcomes]
+    assert ranked[-1] == "nonsense" and "unknown codec" in outcomes[-1].reason
+    ratios = [o.ratio for o in outcomes if o.rows]
+    assert ratios == sorted(ratios, reverse=True) and len(ratios) == 4
+    for outcome in outcomes[:4]:
+        assert len(outcome.rows) == 2 and all(row["max_err_cm"] <= 1.0 for row in outcome.rows)
+    assert ranked.index("raw-zstd") == 3  # lossless is last of the four
+    table = format_table(outcomes, 1.0)
+    assert "ratio at L-inf <= 1 cm" in table and "unknown codec" in table and "480 frames" in table
+
+
+@pytest.mark.slow
+def test_compare_command_writes_rows_and_a_report(tmp_path, bvh_walk, capsys):
+    broken = tmp_path / "broken.bvh"
+    broken.write_text("HIERARCHY\n")
+    runs, reports = tmp_path / "runs", tmp_path / "reports"
+    assert main(["compare", str(bvh_walk), str(broken), "--codecs", "quant-delta-zstd,dct-spatial-frame", "--max-error-cm", "0.5",
+                 "--runs", str(runs), "--reports", str(reports), "--name", "mine"]) == 0
+    captured = capsys.readouterr()
+    assert f"skipped {broken}" in captured.err
+    lines = captured.out.splitlines()
+    assert lines[1].split()[:2] == ["1", "quant-delta-zstd"] and lines[2].split()[:2] == ["2", "dct-spatial-frame"]
+    assert len(list(runs.rglob("results.jsonl"))) == 2
+    assert len(list(reports.glob("*-mine/report.md"))) == 1

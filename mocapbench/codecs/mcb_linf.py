@@ -330,6 +330,11 @@ class McbLinfCodec(Codec):
         self._untrained_reason = ""  # why the last encode used the untrained mode ("" if it did not)
         self._used_joints: int | None = None  # joint count of the last encoded motion
 
+    @property
+    def latency_frames(self) -> int:
+        """The DCT window, ``clip_frames``."""
+        return self.config.clip_frames
+
     # -- learned state ---------------------------------------------------------------------------------
     def fit(self, motions: Sequence[Motion]) -> "McbLinfCodec":
         """Learn the basis (``representation="pca"``) and the trained entropy model from ``motions``.
