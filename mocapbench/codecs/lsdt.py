@@ -762,21 +762,37 @@ class _LsdtBases:
         if max(np.abs(b @ b.T - identity).max() for b in bases) >= 1e-10:
             raise ValueError(f"{self.name}: the bases must be orthogonal (||B Bᵀ − I|| < 1e-10).")
         self._trained = bases
-        self._trained_by_joints = {bases.shape[-1]: bases}
+        self._trained_by_joints = {**self._trained_by_joints, bases.shape[-1]: bases}
         return self
 
     def model_state(self) -> dict[str, np.ndarray]:
-        """The learned bases as arrays, for a model file (:mod:`mocapbench.codecs.model_file`)."""
+        """The learned bases as arrays, for a model file or a sweep's shared state (:mod:`.model_file`).
+
+        Empty when nothing was learned (``basis='cmu-v1'`` fit on the committed skeleton); bases of other
+        skeletons than the main one under ``j<joints>__`` keys.
+        """
+        from mocapbench.codecs.model_file import join_states
+
         if self._trained is None:
-            raise NotFittedError(
-                f"{self.name}: no learned bases to save (basis='{self.config.basis}' on the committed skeleton); "
-                f"use basis='fit'."
-            )
-        return {"bases": self._trained}
+            return {}
+        others = {joints: {"bases": bases} for joints, bases in self._trained_by_joints.items()
+                  if bases is not self._trained}
+        return join_states({"bases": self._trained}, others)
 
     def load_model_state(self, arrays):
-        """Hold the bases stored by :meth:`model_state`."""
-        return self.set_bases(arrays["bases"])
+        """Hold the bases stored by :meth:`model_state` (nothing for an empty state)."""
+        from mocapbench.codecs.model_file import split_states
+
+        main, others = split_states(arrays)
+        if not main:
+            self._trained, self._trained_by_joints = None, {}
+            return self
+        self.set_bases(main["bases"])
+        for state in others.values():
+            self.set_bases(state["bases"])
+        self._trained = np.array(main["bases"], dtype=np.float64)
+        self._trained_by_joints = {**self._trained_by_joints, self._trained.shape[-1]: self._trained}
+        return self
 
     def _bases(self, num_joints: int) -> np.ndarray:
         self._used_joints = num_joints

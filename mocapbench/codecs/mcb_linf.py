@@ -360,21 +360,31 @@ class McbLinfCodec(Codec):
         return self
 
     def model_state(self) -> dict[str, np.ndarray]:
-        """The fitted model as arrays, for a model file (:mod:`mocapbench.codecs.model_file`)."""
+        """The fitted models as arrays, for a model file or a sweep's shared state (:mod:`.model_file`).
+
+        The main model's arrays as stored; the models of other skeletons under ``j<joints>__`` keys.
+        """
+        from mocapbench.codecs.model_file import join_states
+
         if self._model is None:
             raise NotFittedError("mcb-linf: no fitted model to save; call fit() on training motions first.")
-        return self._model.arrays()
+        others = {joints: model.arrays() for joints, model in self._models.items() if model is not self._model}
+        return join_states(self._model.arrays(), others)
 
     def load_model_state(self, arrays) -> "McbLinfCodec":
-        """Hold the model stored by :meth:`model_state` (its representation must be this config's)."""
-        model = TrainedModel.from_arrays(arrays)
-        if model.representation != self.config.representation:
-            raise ValueError(
-                f"mcb-linf: the model was fit for representation='{model.representation}', the codec is set to "
-                f"'{self.config.representation}'."
-            )
-        self._model = model
-        self._models = {model.num_joints: model}
+        """Hold the models stored by :meth:`model_state` (their representation must be this config's)."""
+        from mocapbench.codecs.model_file import split_states
+
+        main, others = split_states(arrays)
+        models = [TrainedModel.from_arrays(state) for state in (main, *others.values())]
+        for model in models:
+            if model.representation != self.config.representation:
+                raise ValueError(
+                    f"mcb-linf: the model was fit for representation='{model.representation}', the codec is set to "
+                    f"'{self.config.representation}'."
+                )
+        self._model = models[0]
+        self._models = {model.num_joints: model for model in models}
         return self
 
     def _held_model(self, representation: str, num_joints: int | None = None) -> TrainedModel | None:

@@ -22,7 +22,17 @@ from mocapbench.codecs.base import Codec
 from mocapbench.codecs.registry import CODECS, create
 from mocapbench.motion import Motion
 
-__all__ = ["MODEL_FORMAT", "ModelFileError", "fit_codec", "fittable_codecs", "load_model", "model_bytes", "save_model"]
+__all__ = [
+    "MODEL_FORMAT",
+    "ModelFileError",
+    "fit_codec",
+    "fittable_codecs",
+    "join_states",
+    "load_model",
+    "model_bytes",
+    "save_model",
+    "split_states",
+]
 
 #: Format number of model files (append-only).
 MODEL_FORMAT = 1
@@ -69,6 +79,8 @@ def fit_codec(name: str, settings: Mapping[str, Any], motions: Sequence[Motion])
 def model_bytes(codec: Codec) -> bytes:
     """The model file's bytes for a fitted ``codec``."""
     state = codec.model_state()
+    if not state:
+        raise ValueError(f"{codec.name}: nothing was learned from these clips (the committed state serves them).")
     num_joints = _state_joints(codec.name, state)
     arrays = {
         "mcb_format": np.array(MODEL_FORMAT),
@@ -126,6 +138,28 @@ def load_model(path: str | Path, settings: Mapping[str, Any] | None = None, code
         return codec.load_model_state(state)
     except (KeyError, ValueError) as error:
         raise ModelFileError(f"{path}: {error}") from None
+
+
+def join_states(main: Mapping[str, np.ndarray], others: Mapping[int, Mapping[str, np.ndarray]]) -> dict:
+    """One flat state for models of several skeletons: the main model's arrays as they are, every other model's
+    under ``j<joints>__<name>`` (a state of one skeleton is unchanged, so single-model files stay as they were)."""
+    flat = dict(main)
+    for joints, state in others.items():
+        flat.update({f"j{joints}__{key}": value for key, value in state.items()})
+    return flat
+
+
+def split_states(flat: Mapping[str, np.ndarray]) -> tuple[dict[str, np.ndarray], dict[int, dict[str, np.ndarray]]]:
+    """Inverse of :func:`join_states`: ``(main state, {joints: state})``."""
+    main: dict[str, np.ndarray] = {}
+    others: dict[int, dict[str, np.ndarray]] = {}
+    for key, value in flat.items():
+        prefix, sep, rest = key.partition("__")
+        if sep and prefix.startswith("j") and prefix[1:].isdigit():
+            others.setdefault(int(prefix[1:]), {})[rest] = value
+        else:
+            main[key] = value
+    return main, others
 
 
 def _state_joints(name: str, state: Mapping[str, np.ndarray]) -> int:

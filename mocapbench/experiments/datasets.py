@@ -30,13 +30,16 @@ from __future__ import annotations
 
 import csv
 import json
+import logging
 import re
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
 from typing import Any, Iterator, Mapping, Sequence
 
-from mocapbench.motion import Motion
+from mocapbench.motion import Motion, MotionFormatError
+
+log = logging.getLogger(__name__)
 
 __all__ = [
     "DatasetError",
@@ -291,11 +294,17 @@ def iter_clips(spec: Mapping[str, Any], names: Sequence[str] | None = None) -> I
         for file in _folder_files(spec, where):
             if file.stem not in keep:
                 continue
-            if file.suffix.lower() == ".bvh":
-                yield read_bvh(file, length_unit_cm=float(spec.get("length_unit_cm", 1.0)),
-                               drop_first_frame=bool(spec.get("drop_first_frame", False)))
-            else:
-                yield amc(file, find_asf(file), file.stem, float(spec.get("fps", 120.0)))
+            try:
+                if file.suffix.lower() == ".bvh":
+                    motion = read_bvh(file, length_unit_cm=float(spec.get("length_unit_cm", 1.0)),
+                                      drop_first_frame=bool(spec.get("drop_first_frame", False)))
+                else:
+                    motion = amc(file, find_asf(file), file.stem, float(spec.get("fps", 120.0)))
+            except (MotionFormatError, OSError, ValueError) as error:
+                # One unreadable file must not fail every job: it is named in one line and the rest runs.
+                log.warning("skipped %s: %s", file, " ".join(str(error).split()))
+                continue
+            yield motion
     elif kind == "cmu_tree":
         for name, file, asf_path in _tree_files(spec, where):
             if name not in keep:

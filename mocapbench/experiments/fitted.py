@@ -5,7 +5,8 @@ in each of its jobs (half of its wall time) and got a model tag different from t
 streams needed that job's refit model to decode. Now :func:`prepare` gives a job's codec its learned state by,
 in order:
 
-1. nothing, when the config learns nothing (``lsdt-*`` with the committed bases, ``mcb-linf`` with
+1. nothing, when the config learns nothing (``lsdt-*`` with the committed bases on a CMU or synthetic training
+   set, whose skeleton they fit; on a folder they learn bases for its other skeletons; ``mcb-linf`` with
    ``representation`` not ``pca`` and ``entropy`` not ``trained``, every codec without ``fit``);
 2. the **shipped model**, when the codec config and the training set are the ones it was fit with (``mcb-linf``
    with its default fit settings on the ``cmu_train`` split: the streams carry the shipped model's tag);
@@ -51,7 +52,7 @@ class Adapter:
     ----------
     fields : tuple of str
         Config fields the fit depends on (the rest, e.g. a quantization step, share one fit).
-    needs_fit : callable(codec) -> bool
+    needs_fit : callable(codec, training spec) -> bool
     export : callable(codec) -> dict of str to ndarray
     load : callable(codec, arrays) -> None
     shipped : callable(codec, training spec) -> bool
@@ -59,7 +60,7 @@ class Adapter:
     """
 
     fields: tuple[str, ...]
-    needs_fit: Callable[[Codec], bool]
+    needs_fit: Callable[[Codec, Mapping[str, Any]], bool]
     export: Callable[[Codec], dict[str, np.ndarray]]
     load: Callable[[Codec, Mapping[str, np.ndarray]], None]
     shipped: Callable[[Codec, Mapping[str, Any]], bool] = lambda codec, train: False
@@ -93,29 +94,30 @@ def _mcb_shipped(codec: Codec, train: Mapping[str, Any]) -> bool:
     return same and codec.config.representation == "pca" and _is_cmu_train(train)
 
 
-def _mcb_load(codec: Codec, arrays: Mapping[str, np.ndarray]) -> None:
-    from mocapbench.codecs.mcb_linf_model import TrainedModel
+def _load_state(codec: Codec, arrays: Mapping[str, np.ndarray]) -> None:
+    """The codec's own loader (every model of a training set of several skeletons, see ``model_state``)."""
+    codec.load_model_state(arrays)
 
-    codec._model = TrainedModel.from_arrays(arrays)
 
-
-def _lsdt_load(codec: Codec, arrays: Mapping[str, np.ndarray]) -> None:
-    codec.set_bases(arrays["bases"])
+def _lsdt_needs_fit(codec: Codec, train: Mapping[str, Any]) -> bool:
+    """basis='fit', or a training set that may hold other skeletons than the committed bases' 31-joint one (a
+    folder): there ``fit`` learns bases for every other skeleton (an empty state when there is none)."""
+    return codec.config.basis == "fit" or train.get("kind") not in ("synthetic", "cmu", "cmu_tree")
 
 
 _LSDT = Adapter(
     fields=("sparsity", "train_iterations", "basis"),
-    needs_fit=lambda codec: codec.config.basis == "fit",
-    export=lambda codec: {"bases": np.asarray(codec._bases(0))},
-    load=_lsdt_load,
+    needs_fit=_lsdt_needs_fit,
+    export=lambda codec: codec.model_state(),
+    load=_load_state,
 )
 
 ADAPTERS: dict[str, Adapter] = {
     "mcb-linf": Adapter(
         fields=_MCB_FIT_FIELDS,
-        needs_fit=_mcb_needs_fit,
-        export=lambda codec: codec._model.arrays(),
-        load=_mcb_load,
+        needs_fit=lambda codec, train: _mcb_needs_fit(codec),
+        export=lambda codec: codec.model_state(),
+        load=_load_state,
         shipped=_mcb_shipped,
     ),
     "lsdt-frame": _LSDT,
@@ -189,9 +191,9 @@ def prepare(codec: Codec, dataset: Mapping[str, Any], folder: Path | None,
     if adapter is None or folder is None:
         codec.fit(training())
         return {"fit_s": time.perf_counter() - start, "fit_source": "job", "fit_file": None}
-    if not adapter.needs_fit(codec):
-        return {"fit_s": 0.0, "fit_source": "none", "fit_file": None}
     train = datasets.training_spec(dataset)
+    if not adapter.needs_fit(codec, train):
+        return {"fit_s": 0.0, "fit_source": "none", "fit_file": None}
     if adapter.shipped(codec, train):
         return {"fit_s": 0.0, "fit_source": "shipped", "fit_file": None}
     path = Path(folder) / f"{codec.name}-{state_key(codec, adapter, train)}.npz"
