@@ -2,7 +2,7 @@
 
 Every codec has one main knob (:data:`KNOBS`): the bound itself for the codecs that guarantee it (``mcb-linf``,
 ``mcb-rot``: exact, one encode), a quantization step with a known worst case for ``quant-delta-zstd`` (exact, one
-encode), otherwise a step, a bit depth, a rank or a frequency count searched by bisection: each try encodes,
+encode; ``fourier-mlp-dct``: its own stopping threshold, one encode), otherwise a step, a bit depth, a rank or a frequency count searched by bisection: each try encodes,
 decodes and measures the L-inf error in cm; the smallest stream that meets the bound wins. A codec with no knob
 (``raw-zstd``, lossless) is coded once. If no setting in the knob's range meets the bound, the result says so
 (``met`` is False) and holds the setting with the smallest error.
@@ -77,7 +77,8 @@ KNOBS: dict[str, Knob | None] = {
                 integer=True),
     "pga-ik": Knob("num_geodesics", 1, lambda motion: min(300, 3 * motion.num_joints), error_grows=False,
                    integer=True, fixed={"root_levels_dropped": 0, "end_levels_dropped": 0}),
-    "fourier-mlp-dct": Knob("threshold", 1e-3, 100.0, fixed={"threshold_unit": "cm"}),
+    # its own stopping rule is the L-inf error in cm: one encode (the measured error still decides `met`)
+    "fourier-mlp-dct": Knob("threshold", 1e-3, 100.0, exact=lambda bound: bound, fixed={"threshold_unit": "cm"}),
     "fourier-mlp-int": Knob("K", 0, 64, error_grows=False, integer=True),
 }
 
@@ -140,6 +141,7 @@ def search(
     *,
     prepare: Callable[[Codec], Codec] | None = None,
     max_tries: int = 12,
+    knob: Knob | None = None,
 ) -> SearchResult:
     """The smallest stream of codec ``name`` on ``motion`` with L-inf error <= ``bound_cm``.
 
@@ -155,6 +157,8 @@ def search(
         Applied to every codec built (e.g. load a model, fit), before it encodes.
     max_tries : int, keyword-only
         Encodes a bisection may run (after the two ends of the range).
+    knob : Knob, optional, keyword-only
+        Search this knob instead of the codec's entry in :data:`KNOBS` (e.g. a narrower range).
 
     Raises
     ------
@@ -164,7 +168,7 @@ def search(
     if not (isinstance(bound_cm, (int, float)) and math.isfinite(bound_cm) and bound_cm > 0):
         raise ValueError(f"--max-error-cm must be a positive number of cm, got {bound_cm!r}.")
     base = dict(settings or {})
-    knob = KNOBS.get(name, "unknown")
+    knob = KNOBS.get(name, "unknown") if knob is None else knob
     reference = motion.positions()
     if knob == "unknown":
         raise ValueError(f"codec {name!r} has no rate knob known to the rate search; set its config with --set.")
@@ -207,7 +211,7 @@ def _bisect(name, base, knob: Knob, fixed, motion, bound_cm, prepare, reference,
     safe, coarse = (knob.low, knob.high) if knob.error_grows else (knob.high, knob.low)
     if knob.integer:
         coarse_met = attempt(coarse)
-        if not coarse_met and attempt(safe):
+        if not coarse_met and safe != coarse and attempt(safe):
             lo, hi = sorted((int(safe), int(coarse)))
             while hi - lo > 1 and tries < max_tries + 2:
                 middle = (lo + hi) // 2
