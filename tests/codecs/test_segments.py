@@ -12,26 +12,12 @@ from mocapbench.codecs import BitstreamError, create
 from mocapbench.codecs.segments import find_cuts, read_cuts, segment_bounds, window_lengths, write_cuts
 from mocapbench.entropy.bitio import ByteReader, ByteWriter
 from mocapbench.synthetic import sinusoidal_motion
-
-
-def _tpose_first(motion):
-    """``motion`` with an identity-rotation (T-pose) frame put before frame 0, as every CMU BVH file has."""
-    identity = np.zeros((1, motion.num_joints, 4))
-    identity[..., 3] = 1.0
-    return dataclasses.replace(
-        motion,
-        root_positions=np.concatenate([motion.root_positions[:1], motion.root_positions]),
-        rotations=np.concatenate([identity, motion.rotations]),
-    )
+from mocapbench.synthetic_rigs import concatenate_takes, with_tpose_first_frame
 
 
 def _two_takes(first, second, shift_cm=(300.0, 0.0, 0.0)):
     """Two takes one after the other, the second 3 m to the side: a cut between them."""
-    return dataclasses.replace(
-        first,
-        root_positions=np.concatenate([first.root_positions, second.root_positions + np.asarray(shift_cm)]),
-        rotations=np.concatenate([first.rotations, second.rotations]),
-    )
+    return concatenate_takes(first, dataclasses.replace(second, root_positions=second.root_positions + shift_cm))
 
 
 @pytest.fixture(scope="module")
@@ -46,10 +32,10 @@ def test_a_continuous_motion_has_no_cut(walk):
 
 
 def test_a_tpose_frame_is_isolated_and_a_cut_between_takes_found(walk):
-    assert find_cuts(_tpose_first(walk).positions()).tolist() == [1]
+    assert find_cuts(with_tpose_first_frame(walk).positions()).tolist() == [1]
     takes = _two_takes(walk, sinusoidal_motion(num_frames=200, seed=4))
     assert find_cuts(takes.positions()).tolist() == [480]
-    both = _tpose_first(takes)
+    both = with_tpose_first_frame(takes)
     assert find_cuts(both.positions()).tolist() == [1, 481]
 
 
@@ -86,7 +72,7 @@ def test_a_tpose_frame_costs_a_clip_codec_at_most_ten_percent(name, walk):
     Without cut detection the same frame costs far more (the check that the test can fail).
     """
     codec = create(name, **CLIP_CODECS[name])
-    with_tpose = _tpose_first(walk)
+    with_tpose = with_tpose_first_frame(walk)
     tpose_alone = dataclasses.replace(
         with_tpose, root_positions=with_tpose.root_positions[:1], rotations=with_tpose.rotations[:1]
     )
