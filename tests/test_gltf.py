@@ -254,3 +254,11 @@ def test_cli_gltf_in_and_out(tmp_path, capsys):
     assert main(["compress", str(bvh), str(tmp_path / "b.mcb"), "--codec", "quant-rot-zstd", "--units", "mm"]) == 0
     assert main(["decompress", str(tmp_path / "b.mcb"), str(tmp_path / "b.glb")]) == 0
     assert metrics.max_joint_error(expected, _independent_joint_positions(tmp_path / "b.glb") * 100.0) < 1.0
+
+
+@pytest.mark.parametrize(("num_frames", "fps"), [(142, 120.0), (4839, 120.0), (20_000, 29.97), (2, 24.0)])
+def test_frame_count_and_rate_survive_float32_key_times(tmp_path, num_frames, fps):
+    motion = rig_motion(num_joints=15, num_frames=num_frames, fps=fps, seed=1)
+    back = read_gltf(write_gltf(motion, tmp_path / "m.glb"))
+    assert back.num_frames == num_frames
+    assert back.fps == pytest.approx(fps, rel=1e-6)

@@ -62,7 +62,7 @@ def read_fbx(
     Returns
     -------
     Motion
-        F = ``floor((end - begin) * fps + 1e-6) + 1`` frames over the stack's time span (the keys' span when the
+        F = ``floor((end - begin) * fps + 0.01) + 1`` frames over the stack's time span (the keys' span when the
         stack declares none), J bones in depth-first order, cm, ``source_unit_cm`` and ``up_axis`` from the file.
 
     Raises
@@ -125,7 +125,7 @@ def read_fbx(
         if curves:
             begin, end = min(curve.min_time for curve in curves), max(curve.max_time for curve in curves)
     rate = fps or (scene.settings.frames_per_second if scene.settings.frames_per_second > 0 else 30.0)
-    num_frames = int(math.floor(max(end - begin, 0.0) * rate + 1e-6)) + 1
+    num_frames = int(math.floor(max(end - begin, 0.0) * rate + 0.01)) + 1
     if num_frames > _MAX_FRAMES:
         raise error(f"{num_frames} frames at {rate} fps exceed the limit of {_MAX_FRAMES}")
     times = begin + np.arange(num_frames) / rate

@@ -224,12 +224,20 @@ def _sample(times: np.ndarray, values: np.ndarray, interpolation: str, at: np.nd
 
 
 def _frames_per_second(key_times: list[np.ndarray]) -> float:
-    """The key rate of the animation: 1 / the median key spacing, snapped to an integer rate within 0.1 %."""
-    spacings = np.concatenate([np.diff(t) for t in key_times if len(t) > 1] or [np.zeros(0)])
-    spacings = spacings[spacings > 1e-6]
-    if spacings.size == 0:
+    """The key rate of the animation, snapped to an integer rate within 0.1 %.
+
+    From the evenly keyed track with the most keys: (K - 1) / its span, which float32 key times give to ~1e-7;
+    with no evenly keyed track, 1 / the median key spacing. 30 when no track has two keys.
+    """
+    tracks = [t for t in key_times if len(t) > 1]
+    if not tracks:
         return 30.0
-    fps = 1.0 / float(np.median(spacings))
+    even = [t for t in tracks if np.ptp(np.diff(t)) <= 0.01 * np.median(np.diff(t))]  # float32 times jitter
+    if even:
+        longest = max(even, key=len)
+        fps = (len(longest) - 1) / float(longest[-1] - longest[0])
+    else:
+        fps = 1.0 / float(np.median(np.concatenate([np.diff(t) for t in tracks])))
     return float(round(fps)) if abs(fps - round(fps)) < 1e-3 * fps else fps
 
 
@@ -250,7 +258,7 @@ def read_gltf(
     length_unit_cm : float, keyword-only
         cm per file unit, > 0. Default 100 (glTF lengths are metres).
     fps : float, optional, keyword-only
-        Sampling rate in Hz; default the key rate (1 / median key spacing, snapped to an integer rate).
+        Sampling rate in Hz; default the key rate (of the longest evenly keyed track, snapped to an integer rate).
     skin, animation : int, keyword-only
         Which skin and which animation. Default the first of each.
     name : str, optional, keyword-only
@@ -259,7 +267,7 @@ def read_gltf(
     Returns
     -------
     Motion
-        F = ``floor((t_last - t_first) * fps + 1e-6) + 1`` frames starting at the first key, J = the skin's joints
+        F = ``floor((t_last - t_first) * fps + 0.01) + 1`` frames starting at the first key, J = the skin's joints
         (depth-first), lengths in cm, identity rest rotations, ``source_unit_cm`` = ``length_unit_cm``,
         ``up_axis`` = ``"y"``.
 
@@ -367,7 +375,8 @@ def read_gltf(
     start = min(t[0] for t, _, _ in tracks.values())
     stop = max(t[-1] for t, _, _ in tracks.values())
     rate = fps or _frames_per_second([t for t, _, _ in tracks.values()])
-    num_frames = int(math.floor((stop - start) * rate + 1e-6)) + 1
+    # Key times are float32: a span a hair short of a whole number of frames still counts that frame.
+    num_frames = int(math.floor((stop - start) * rate + 0.01)) + 1
     if num_frames > _MAX_FRAMES:
         raise reader.error(f"{num_frames} frames at {rate} fps exceed the limit of {_MAX_FRAMES}")
     at = start + np.arange(num_frames) / rate
