@@ -105,7 +105,7 @@ def slug(text: str, taken: set[str] | None = None) -> str:
 
 
 def _html_table(frame: pd.DataFrame) -> dict:
-    """Header and rows of a table for the template: cells as ``(text, css class: "num", "short" or "")``."""
+    """Header and rows of a table for the template: cells as ``(text, css class: "num", "short" or "long")``."""
     columns = [str(c) for c in frame.columns]
     numeric = [_numeric(frame[c]) for c in frame.columns]
     cells = [format_column(frame[c]) for c in frame.columns]
@@ -116,7 +116,7 @@ def _html_table(frame: pd.DataFrame) -> dict:
             value = frame.iloc[i, j]
             number = numeric[j] or (isinstance(value, (int, float)) and not isinstance(value, bool))
             # Numbers and short text (codec names, configs) stay on one line; long notes wrap.
-            row.append((cells[j][i], "num" if number else "short" if len(cells[j][i]) <= 32 else ""))
+            row.append((cells[j][i], "num" if number else "short" if len(cells[j][i]) <= 32 else "long"))
         rows.append(row)
     return {"columns": columns, "rows": rows}
 

@@ -137,7 +137,9 @@ def headline_table(
     DataFrame
         ``dataset, L∞ bound, rank, codec, config, CR, bits/joint/frame, L∞ cm, mean cm, encode frames/s,
         decode frames/s, rotations (BVH/glTF), needs model, model bytes, latency frames, random access, family,
-        clips, note``; ranked rows first (rank 1 = highest ratio), then the rows without a rank.
+        clips, note``; ranked rows first (rank 1 = highest ratio), then the rows without a rank, whose ``config``
+        cell says why (no config under the bound, failed, unavailable here); ``note`` holds failures of ranked
+        codecs' other jobs.
     """
     if unavailable is None:
         from mocapbench.codecs.registry import UNAVAILABLE
@@ -164,7 +166,7 @@ def headline_table(
                     if (dataset, codec) in failures:
                         note += "; " + failures[(dataset, codec)]
                     unranked.append({"codec": codec, **_traits(codec, best.iloc[0] if not best.empty else None),
-                                     "note": note})
+                                     "config": note})
                     continue
                 best = ok.loc[ok["compression_ratio"].idxmax()]
                 row = {"codec": codec, "config": config_text(best)}
@@ -176,10 +178,11 @@ def headline_table(
                 ranked.append(row)
             for codec in failed_only:
                 reason = failures.get((dataset, codec)) or failures.get(("", codec), "failed")
-                unranked.append({"codec": codec, **_traits(codec, None), "note": reason})
+                unranked.append({"codec": codec, **_traits(codec, None), "config": reason})
             for codec, reason in sorted(unavailable.items()):
                 if codec not in measured and codec not in failed_only:
-                    unranked.append({"codec": codec, **_traits(codec, None), "note": f"unavailable here: {reason}"})
+                    unranked.append({"codec": codec, **_traits(codec, None),
+                                     "config": f"unavailable here: {reason}"})
             ranked.sort(key=lambda r: -float(r["CR"]))
             for rank, row in enumerate(ranked, 1):
                 out.append({"dataset": dataset, "L∞ bound": f"< {bound:g} cm", "rank": rank, **row})

@@ -123,9 +123,10 @@ def headline_text(rows: pd.DataFrame, points: pd.DataFrame, errors: pd.DataFrame
         lines += [note, ""]
     lines += [f"- {sentence}" for sentence in winner_sentences(table)]
     shown = ["rank", "codec", "config", "CR", "bits/joint/frame", "L∞ cm", "decode frames/s", "rotations (BVH/glTF)",
-             "needs model", "latency frames", "note"]
+             "needs model", "latency frames"]
     for (dataset, bound), group in table.groupby(["dataset", "L∞ bound"], sort=False):
-        lines += ["", f"{dataset}, L∞ {bound}:", "", markdown_table(group[shown])]
+        notes = ["note"] if group["note"].fillna("").astype(str).str.len().gt(0).any() else []
+        lines += ["", f"{dataset}, L∞ {bound}:", "", markdown_table(group[shown + notes])]
     return "\n".join(lines)
 
 
@@ -313,7 +314,8 @@ def build_report(
     shown = [c for c in headline.columns if c not in ("dataset", "L∞ bound")]
     for (dataset, bound), group in headline.groupby(["dataset", "L∞ bound"], sort=False):
         doc.heading(f"{dataset}, L∞ {bound}", 3)
-        doc.table(group[shown])
+        empty_notes = not group["note"].fillna("").astype(str).str.len().gt(0).any()
+        doc.table(group[[c for c in shown if not (c == "note" and empty_notes)]])
     doc.paragraph("Published reference points, quoted and not measured here (their raw-size definitions differ "
                   "from ours, so their ratios are not directly comparable; the figures convert them to bits per "
                   "joint per frame):")

@@ -34,7 +34,7 @@ def test_codecs_are_ranked_by_ratio_under_each_bound_and_the_rest_keep_a_reason(
     assert list(one["codec"]) == ["mcb-linf", "quant-delta-zstd", "quant-rot-zstd", "svd", "pga-ik", "acl"]
     assert list(one["rank"]) == [1, 2, 3, "–", "–", "–"]
     assert list(one["CR"].iloc[:3]) == [90.0, 30.0, 5.0]
-    notes = dict(zip(one["codec"], one["note"]))
+    notes = dict(zip(one["codec"], one["config"]))
     assert notes["svd"] == "no config under 1 cm (lowest L∞ 4 cm)"
     assert notes["pga-ik"] == "failed 3x: ValueError: IK diverged"
     assert notes["acl"] == "unavailable here: no C++ compiler (apt install g++)"
