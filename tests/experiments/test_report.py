@@ -105,7 +105,8 @@ def test_report_writes_tables_and_figures_and_never_overwrites(sweep_dir, tmp_pa
     figures = sorted(p.name for p in (first / "figures").glob("*.png"))
     assert figures == ["clips_synthetic_1cm.png", "clips_synthetic_3cm.png", "heatmap_synthetic.png",
                        "overlay_synthetic.png", "rd_kg_percent_synthetic.png", "rd_max_err_cm_synthetic.png",
-                       "rd_mean_err_cm_synthetic.png", "rd_per_clip_synthetic.png"]
+                       "rd_mean_err_cm_synthetic.png", "rd_per_clip_synthetic.png",
+                       "rd_shell_max_err_cm_synthetic.png"]  # ACL's shell error: quant-rot-zstd returns rotations
     for name in figures:
         assert f"figures/{name}" in markdown and f"figures/{name}" in html
         assert (first / "figures" / name).stat().st_size > 5000
