@@ -112,6 +112,7 @@ class McbRotCodec(Codec):
         free_angle_deg: float = param(
             1.0, low=1e-3, high=30.0, unit="deg", doc="budget of joints whose rotation moves no joint (leaves)"
         )
+        principal_axes: bool = param(True, doc="turn the channels of joints with < 3 degrees of freedom onto their axes")
         cut_ratio: float = param(
             CUT_RATIO, low=0.0, high=1e6, doc="a jump this many times the median frame move starts a segment (0: off)"
         )
@@ -146,7 +147,7 @@ class McbRotCodec(Codec):
         quats = quat.sign_continuous(motion.rotations)
         signal, overrides = _signal(quats, motion.root_positions, layout)
         rotvecs = signal[:, 3:].reshape(motion.num_frames, motion.num_joints, 3)
-        axis_codes = principal_axes(rotvecs)
+        axis_codes = principal_axes(rotvecs) if config.principal_axes else np.zeros((motion.num_joints, 3), np.int64)
         signal[:, 3:] = to_axes(rotvecs, axes_from_codes(axis_codes)).reshape(motion.num_frames, -1)
         spectra = forward(signal, layout)
         settings = Settings.create(config.eps_cm, bound, 1.0, config.frequency_slope, config.rounding,
