@@ -1,6 +1,6 @@
 # Two entry points on a fresh machine with only Python 3.11: `make run` and `make test`.
-# Each creates .venv if missing and installs the package with its pinned dependencies,
-# CPU torch first so that nothing later can pull a CUDA build.
+# Each creates .venv if missing and installs the package (editable, with the neural, cluster and test extras)
+# at the exact versions of constraints.txt, CPU torch first so that nothing later can pull a CUDA build.
 PYTHON ?= $(shell command -v python3.11 || command -v python3)
 VENV := .venv
 PY := $(VENV)/bin/python
@@ -10,10 +10,10 @@ TORCH_PIP_ARGS ?=
 
 .PHONY: run test bench test-cmu test-fuzz test-browser clean-venv
 
-$(STAMP): pyproject.toml
+$(STAMP): pyproject.toml constraints.txt
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet torch==2.13.0 $(TORCH_PIP_ARGS)
-	$(PY) -m pip install --quiet -e '.[test]'
+	$(PY) -m pip install --quiet -c constraints.txt -e '.[neural,cluster,test]'
 	touch $(STAMP)
 
 run: $(STAMP)

@@ -196,6 +196,10 @@ class Skeleton:
             and np.allclose(self.offsets, other.offsets, rtol=0, atol=1e-9)
         )
 
+    def __repr__(self) -> str:
+        """One line: ``Skeleton(31 joints, root 'Hips', 7 end sites)`` (the arrays are not printed)."""
+        return f"Skeleton({self.num_joints} joints, root {self.names[0]!r}, {len(self.end_site_parents)} end sites)"
+
 
 @dataclass(frozen=True, eq=False)
 class Motion:
@@ -341,6 +345,15 @@ class Motion:
             self.name,
             source_unit_cm=self.source_unit_cm,
             up_axis=self.up_axis,
+        )
+
+    def __repr__(self) -> str:
+        """One line: ``Motion('09_06', 141 frames at 120 fps = 1.18 s, Skeleton(31 joints, ...))``; no arrays."""
+        unit = "" if self.source_unit_cm == 1.0 else f", source unit {self.source_unit_cm:g} cm"
+        up = "" if self.up_axis == "y" else f", {self.up_axis}-up"
+        return (
+            f"Motion({self.name!r}, {self.num_frames} frames at {self.fps:g} fps = {self.num_frames / self.fps:.2f} s, "
+            f"{self.skeleton!r}{unit}{up})"
         )
 
 

@@ -125,6 +125,13 @@ class Decoded:
     motion: Motion | None
     header: Header
 
+    def __repr__(self) -> str:
+        """One line: ``Decoded('mcb-linf', 141 frames x 31 joints, positions only, 756 bytes)``; no arrays."""
+        header = self.header
+        what = "positions and rotations" if self.motion is not None else "positions only"
+        size = header.header_bytes + header.payload_bytes
+        return f"Decoded({header.codec!r}, {header.num_frames} frames x {header.num_joints} joints, {what}, {size} bytes)"
+
 
 def _longest_chain_cm(skeleton) -> float:
     """Largest sum of bone-offset lengths from the root to any joint (end sites included), cm."""

@@ -58,6 +58,7 @@ Where this departs from the paper, and why
 
 from __future__ import annotations
 
+import importlib.util
 import math
 import time
 from dataclasses import dataclass
@@ -77,7 +78,7 @@ from mocapbench.codecs.pose_params import (
     read_tensor,
     write_tensor,
 )
-from mocapbench.codecs.registry import register_codec
+from mocapbench.codecs.registry import register_codec, register_unavailable
 from mocapbench.codecs.skeleton_blob import pack_skeleton, unpack_skeleton
 from mocapbench.entropy.bitio import ByteReader, ByteWriter
 from mocapbench.entropy.errors import BitstreamError
@@ -466,7 +467,26 @@ class _FourierMlpCodec(Codec):
         }
 
 
-@register_codec
+TORCH_MISSING = "needs PyTorch, which is not installed: pip install 'mocapbench[neural]'"
+"""Why the two codecs are unavailable without torch (the one line ``mocapbench codecs`` prints)."""
+
+
+def _register_if_torch(cls: type[Codec]) -> type[Codec]:
+    """``register_codec`` when torch can be imported, else ``register_unavailable`` (torch is the ``[neural]`` extra).
+
+    Only the presence of torch is checked here (``find_spec``, no import), so listing codecs stays fast.
+    """
+    try:
+        missing = importlib.util.find_spec("torch") is None
+    except ImportError:  # a finder that refuses torch outright (as tests/codecs/test_neural_fourier.py simulates)
+        missing = True
+    if missing:
+        register_unavailable(cls.name, TORCH_MISSING)
+        return cls
+    return register_codec(cls)
+
+
+@_register_if_torch
 class FourierMlpIntCodec(_FourierMlpCodec):
     """The paper's naïve baseline: Fourier features at the integer angular velocities ``Ω = {1, …, K}`` (§4.1).
 
@@ -492,7 +512,7 @@ class FourierMlpIntCodec(_FourierMlpCodec):
         return omegas, stored, error, {}
 
 
-@register_codec
+@_register_if_torch
 class FourierMlpDctCodec(_FourierMlpCodec):
     """Frequency-adaptive Fourier features (Algorithm 1, §3.2): add the residual's dominant DCT frequency until
     the L∞ joint-position error is under the threshold.

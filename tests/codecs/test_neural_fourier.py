@@ -69,6 +69,7 @@ def adaptive_run():
 # -- Algorithm 1 ---------------------------------------------------------------------------------------------------
 
 
+@pytest.mark.torch
 def test_adaptive_step_finds_the_known_frequencies_within_one_dct_bin(adaptive_run):
     codec, motion, _ = adaptive_run
     found = codec.last_encode_stats["omegas"]
@@ -78,6 +79,7 @@ def test_adaptive_step_finds_the_known_frequencies_within_one_dct_bin(adaptive_r
         assert min(abs(f - true) for f in found) <= bin_width, f"{true} cycles not found: {found}"
 
 
+@pytest.mark.torch
 def test_off_grid_frequencies_are_found_within_one_dct_bin():
     motion = known_frequency_motion(cycles=(3.0, 7.0))
     codec = create("fourier-mlp-dct", K_max=2, threshold=0.3, threshold_unit="cm", iterations_per_round=400,
@@ -89,6 +91,7 @@ def test_off_grid_frequencies_are_found_within_one_dct_bin():
         assert min(abs(f - true) for f in found) <= bin_width, f"{true} cycles not found: {found}"
 
 
+@pytest.mark.torch
 def test_adaptive_codec_reaches_a_tight_error_on_the_known_motion(adaptive_run):
     codec, motion, data = adaptive_run
     decoded = create("fourier-mlp-dct", **FAST).decode(data)
@@ -101,6 +104,7 @@ def test_adaptive_codec_reaches_a_tight_error_on_the_known_motion(adaptive_run):
     assert codec.last_encode_stats["round_max_err_cm"][0] > 10 * error
 
 
+@pytest.mark.torch
 def test_warm_start_keeps_the_loss_from_jumping_back_up(adaptive_run):
     codec, _, _ = adaptive_run
     log = codec.last_training_log
@@ -114,6 +118,7 @@ def test_warm_start_keeps_the_loss_from_jumping_back_up(adaptive_run):
     assert log[-1][-1] < 0.05 * log[0][-1]
 
 
+@pytest.mark.torch
 def test_a_cold_start_would_jump_back_up(adaptive_run):
     """Control for the test above: a fresh network of the final size starts far above the warm-started one."""
     codec, motion, _ = adaptive_run
@@ -127,6 +132,7 @@ def test_a_cold_start_would_jump_back_up(adaptive_run):
     assert trainer.loss_history[0][0] > 10 * codec.last_training_log[-1][0]
 
 
+@pytest.mark.torch
 def test_stream_meets_the_threshold_it_reports(adaptive_run):
     codec, motion, data = adaptive_run
     stats = codec.last_encode_stats
@@ -160,6 +166,7 @@ def test_dct_index_convention_matches_the_feature():
 # -- the naive baseline ---------------------------------------------------------------------------------------------
 
 
+@pytest.mark.torch
 def test_int_codec_uses_integer_frequencies_and_counts_parameters():
     motion = sinusoidal_motion(num_frames=120, seed=2)
     codec = create("fourier-mlp-int", K=3, iterations_per_round=50)
@@ -174,6 +181,7 @@ def test_int_codec_uses_integer_frequencies_and_counts_parameters():
     assert described["K"] == 3 and described["omegas_cycles_per_clip"] == [1.0, 2.0, 3.0]
 
 
+@pytest.mark.torch
 def test_uniform_weight_format_round_trips_and_is_smaller():
     motion = sinusoidal_motion(num_frames=120, seed=2)
     half = create("fourier-mlp-int", K=2, iterations_per_round=50)
@@ -195,6 +203,7 @@ def _split(codec, data):
 # -- configs ----------------------------------------------------------------------------------------------------------
 
 
+@pytest.mark.torch
 @pytest.mark.parametrize(
     ("name", "params", "message"),
     [
@@ -215,6 +224,7 @@ def test_bad_config_values_are_rejected(name, params, message):
         create(name, **params)
 
 
+@pytest.mark.torch
 def test_unknown_parameter_is_rejected():
     with pytest.raises(TypeError, match="K_max"):
         create("fourier-mlp-int", K_max=3)
@@ -223,6 +233,7 @@ def test_unknown_parameter_is_rejected():
 # -- decoder robustness -------------------------------------------------------------------------------------------------
 
 
+@pytest.mark.torch
 def test_payload_with_a_wrong_frequency_count_is_a_bitstream_error(adaptive_run):
     from mocapbench.codecs import container
 
@@ -324,6 +335,7 @@ def test_float16_tensor_round_trip_and_overflow_is_an_error():
 # -- real data (fast) --------------------------------------------------------------------------------------------------------
 
 
+@pytest.mark.torch
 def test_real_clip_round_trip_quick(cmu_09_06):
     codec = create("fourier-mlp-dct", K_max=2, threshold=5.0, iterations_per_round=200, learning_rate=0.01)
     data = codec.encode(cmu_09_06)
@@ -334,6 +346,7 @@ def test_real_clip_round_trip_quick(cmu_09_06):
     assert len(data) < metrics.raw_position_bytes(31, cmu_09_06.num_frames) / 2
 
 
+@pytest.mark.torch
 def test_a_larger_threshold_stops_at_the_recorded_round(adaptive_run):
     """Training does not depend on the threshold: the per-round record of one run gives every threshold's stream."""
     codec, motion, data = adaptive_run
@@ -348,6 +361,7 @@ def test_a_larger_threshold_stops_at_the_recorded_round(adaptive_run):
     assert len(stream) - len(data) == stats["round_payload_bytes"][1] - stats["round_payload_bytes"][2]
 
 
+@pytest.mark.torch
 @pytest.mark.slow
 def test_decoding_needs_no_torch(tmp_path):
     """The decoder is numpy only: a fresh process decodes a stream and never imports torch."""
