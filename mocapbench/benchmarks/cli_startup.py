@@ -31,6 +31,7 @@ import time
 from pathlib import Path
 
 import mocapbench
+from mocapbench.metrics.timing import load_average
 
 CODEC = "quant-delta-zstd"
 """The codec of the ``compress`` command: light to run, so the row is mostly start-up."""
@@ -118,13 +119,13 @@ def run(trees: dict[str, Path], *, repeats: int = 9, clip: Path | None = None, p
         for arguments in plan.values():  # warm-up: page cache, __pycache__
             for env in envs.values():
                 time_child([python, *arguments], env, workdir)
-        load_before = os.getloadavg()[0]
+        load_before = load_average()
         samples: dict[tuple[str, str], list[tuple[float, float]]] = {}
         for _ in range(repeats):
             for name, arguments in plan.items():
                 for label, env in envs.items():
                     samples.setdefault((name, label), []).append(time_child([python, *arguments], env, workdir))
-        load_after = os.getloadavg()[0]
+        load_after = load_average()
     rows = []
     for (name, label), values in samples.items():
         walls, cpus = [w for w, _ in values], [c for _, c in values]
