@@ -246,7 +246,7 @@ ABLATIONS = {
     "allocation p = 2 (was max lever)": {"allocation_power": 2.0},
     "segments of 64 frames (was 128)": {"segment_frames": 64},
     "segments of 256 frames": {"segment_frames": 256},
-    "chunks of 128 frames (was 512)": {"chunk_frames": 128},
+    "chunks of 512 frames (was 128)": {"chunk_frames": 512},
     "flat step over frequency (slope 0, was 1)": {"frequency_slope": 0.0},
     "nearest rounding (0.5, was 0.45)": {"rounding": 0.5},
 }

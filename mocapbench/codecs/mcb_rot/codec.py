@@ -98,7 +98,7 @@ class McbRotCodec(Codec):
         eps_cm: float = param(1.0, low=1e-3, high=100.0, unit="cm", doc="guaranteed L-inf bound on every joint")
         segment_frames: int = param(128, low=1, high=4096, unit="frames", doc="DCT segment length (the latency)")
         chunk_frames: int = param(
-            512, low=1, high=1 << 20, unit="frames", doc="random-access unit: segments are coded in chunks this long"
+            128, low=1, high=1 << 20, unit="frames", doc="random-access unit: segments are coded in chunks this long"
         )
         step_rel: float = param(
             0.0, low=0.0, high=1e4, unit="x budget", doc="base step over the error budget (0: rate search per stream)"
@@ -179,6 +179,16 @@ class McbRotCodec(Codec):
         roots, quats = decode_chunks(info, payload, np.arange(info.layout.num_chunks))
         return kinematics.positions(quats, roots, info.skeleton), Motion(info.skeleton, header.fps, roots, quats)
 
+    def _stream_info(self, header: Header, payload: memoryview) -> StreamInfo:
+        """The parsed payload header, kept for the last stream seen: an engine sampling one clip at many times
+        parses the skeleton, budgets and segment means once (the payload is compared byte for byte)."""
+        cached = getattr(self, "_last_info", None)
+        if cached is not None and cached[0] == payload:
+            return cached[1]
+        info = read_info(header, payload)
+        self._last_info = (bytes(payload), info)
+        return info
+
     def decode_frames(self, data: bytes, start: int, stop: int, *, limits: DecodeLimits | None = None) -> Decoded:
         """Frames ``start:stop`` of a stream, decoding only the chunks (groups of segments) that hold them.
 
@@ -198,7 +208,7 @@ class McbRotCodec(Codec):
         with using_limits(limits) as active:
             active.check_header(stop - start, header.num_joints, self.codes_rotations)
         try:
-            info = read_info(header, payload)
+            info = self._stream_info(header, payload)
             chunks = info.layout.chunks_of_frames(start, stop)
             roots, quats = decode_chunks(info, payload, chunks)
         except BitstreamError:
