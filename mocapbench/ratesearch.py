@@ -66,6 +66,7 @@ KNOBS: dict[str, Knob | None] = {
     "quant-delta-zstd": Knob("step_cm", 1e-4, 100.0, exact=lambda bound: 2.0 * bound / math.sqrt(3.0) * _EXACT_MARGIN),
     "quant-rot-zstd": Knob("rotation_bits", 2, 24, error_grows=False, integer=True,
                            fixed={"translation_step_cm": lambda bound: min(100.0, bound / 4.0)}),
+    "acl": Knob("precision_cm", 1e-5, 100.0),  # ACL's shell-error target; the joint error is measured
     "lsdt-frame": Knob("step_cm", **_STEP),
     "lsdt-clip": Knob("step_cm", **_STEP),
     "dct-spatial-frame": Knob("step_cm", **_STEP),

@@ -110,7 +110,7 @@ def case_table(cases, codecs: Sequence[str], bound_cm: float, log=print) -> list
                 else:
                     cell = f"not reached: best L-inf {result.max_error_cm:.3g} cm"
             except Exception as error:  # noqa: BLE001 - the table records why a codec cannot
-                cell = _one_line(error)
+                cell = _one_line(error).split(";")[0]  # the reason; the remedy is in the full message
             row[case.name] = cell
         row["seconds"] = f"{time.perf_counter() - start:.0f}"
         log(f"  {label}: {row['seconds']} s")
