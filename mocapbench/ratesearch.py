@@ -64,6 +64,7 @@ KNOBS: dict[str, Knob | None] = {
     "mcb-rot": Knob("eps_cm", 1e-3, 100.0, exact=lambda bound: bound),
     # per coordinate <= step / 2, so per joint <= step sqrt(3) / 2
     "quant-delta-zstd": Knob("step_cm", 1e-4, 100.0, exact=lambda bound: 2.0 * bound / math.sqrt(3.0) * _EXACT_MARGIN),
+    "quant-pred-zstd": Knob("step_cm", 1e-4, 100.0, exact=lambda bound: 2.0 * bound / math.sqrt(3.0) * _EXACT_MARGIN),
     "quant-rot-zstd": Knob("rotation_bits", 2, 24, error_grows=False, integer=True,
                            fixed={"translation_step_cm": lambda bound: min(100.0, bound / 4.0)}),
     "acl": Knob("precision_cm", 1e-5, 100.0),  # ACL's shell-error target; the joint error is measured

@@ -99,7 +99,8 @@ def bvh_walk(tmp_path, synthetic_motion):
     return path
 
 
-@pytest.mark.parametrize("codec, exact", [("quant-delta-zstd", True), ("mcb-linf", True), ("dct-spatial-clip", False),
+@pytest.mark.parametrize("codec, exact", [("quant-delta-zstd", True), ("quant-pred-zstd", True), ("mcb-linf", True),
+                                          ("dct-spatial-clip", False),
                                           ("quant-rot-zstd", False)])
 def test_max_error_cm_meets_the_bound(tmp_path, bvh_walk, capsys, codec, exact):
     stream = tmp_path / "a.mcb"
