@@ -316,11 +316,21 @@ class Motion:
     def positions(self) -> np.ndarray:
         """Global joint positions by forward kinematics.
 
+        Block by block, keeping only the positions: the global matrices (3x the positions' memory) are never
+        held for the whole motion, so a long capture needs its positions array and one block of temporaries.
+
         Returns
         -------
         ndarray, shape (F, J, 3), float, cm
         """
-        return self.global_transforms()[1]
+        levels, ancestors = _tree_levels(self.skeleton.parents)
+        positions = np.empty((self.num_frames, self.num_joints, 3))
+        for start in range(0, self.num_frames, _FK_BLOCK_FRAMES):
+            block = slice(start, start + _FK_BLOCK_FRAMES)
+            positions[block] = _forward_kinematics(
+                self.rotations[block], self.root_positions[block], self.skeleton, levels, ancestors
+            )[1]
+        return positions
 
     def end_site_positions(self) -> np.ndarray:
         """Global positions of the skeleton's end sites.

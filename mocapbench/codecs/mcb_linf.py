@@ -121,6 +121,11 @@ _MEAN_TARGET_STEPS = tuple(2.0 ** (i / 4) for i in range(0, 41))
 _SAFETY_MARGIN = 1e-6
 
 
+# Frames of a window of a long capture (64 s at 120 fps; a multiple of every usual clip length L): a stream of more
+# frames is a sequence of windows, each coded as a stream of its own (encode_payload), so memory stays bounded.
+WINDOW_FRAMES = 7680
+
+
 _CODING_HUFFMAN, _CODING_ZSTD, _CODING_EMPTY = 0, 1, 2
 
 
@@ -445,6 +450,33 @@ class McbLinfCodec(Codec):
 
     # -- encoding --------------------------------------------------------------------------------------
     def encode_payload(self, motion: Motion) -> bytes:
+        """One window (the format of every clip up to :data:`WINDOW_FRAMES` frames), else a sequence of windows.
+
+        A longer capture is coded window by window (each window's payload prefixed by its length, each with its
+        own rate search and its own check of the bound), so the encoder holds one window's positions and
+        temporaries and the decoder one window's temporaries beside its output, whatever the length.
+        """
+        if motion.num_frames <= WINDOW_FRAMES:
+            return self._encode_window(motion)
+        writer = ByteWriter()
+        stats = []
+        for start in range(0, motion.num_frames, WINDOW_FRAMES):
+            window = self._encode_window(motion.slice(start, min(motion.num_frames, start + WINDOW_FRAMES)))
+            writer.write_varint(len(window))
+            writer.write_bytes(window)
+            stats.append(self.last_encode_stats)
+        self.last_encode_stats = {
+            "windows": len(stats),
+            "base_step_cm": float(np.median([w["base_step_cm"] for w in stats])),
+            "bound_slack_cm": min(w["bound_slack_cm"] for w in stats),
+            "mean_error_cm": float(np.mean([w["mean_error_cm"] for w in stats])),
+            "corrected_joints": sum(w["corrected_joints"] for w in stats),
+            "cuts": sum(w["cuts"] for w in stats),
+            "model_mode": stats[0]["model_mode"],
+        }
+        return writer.getvalue()
+
+    def _encode_window(self, motion: Motion) -> bytes:
         positions = motion.positions()
         config = self.config
         representation, entropy, model = self._encoding_mode(motion.num_joints)
@@ -466,7 +498,7 @@ class McbLinfCodec(Codec):
             best = min((attempt(step) for step in steps), key=lambda candidate: len(candidate.payload))
         # The guarantee: decode what we are about to return and check it.
         header = Header(self.name, motion.num_frames, motion.num_joints, motion.fps)
-        decoded = self.decode_payload(header, memoryview(best.payload))[0]
+        decoded = self._decode_window(header, memoryview(best.payload))
         worst = float(np.linalg.norm(decoded - positions, axis=-1).max())
         if worst > config.eps_cm:
             raise RuntimeError(f"mcb-linf: decoded L-inf {worst} cm exceeds eps {config.eps_cm} cm; not writing.")
@@ -546,6 +578,24 @@ class McbLinfCodec(Codec):
         return model
 
     def decode_payload(self, header: Header, payload: memoryview):
+        num_frames, num_joints = header.num_frames, header.num_joints
+        if num_frames <= WINDOW_FRAMES:
+            return self._decode_window(header, payload), None
+        reader = ByteReader(payload)
+        windows = []
+        for start in range(0, num_frames, WINDOW_FRAMES):  # every window's extent is checked before any decoding
+            size = reader.read_varint("window length")
+            windows.append((start, min(num_frames, start + WINDOW_FRAMES), reader.offset, size))
+            reader.read_bytes(size, "window")
+        reader.expect_end()
+        positions = np.empty((num_frames, num_joints, 3))
+        for start, stop, offset, size in windows:
+            window = Header(header.codec, stop - start, num_joints, header.fps)
+            positions[start:stop] = self._decode_window(window, payload[offset : offset + size])
+        return positions, None
+
+    def _decode_window(self, header: Header, payload: memoryview) -> np.ndarray:
+        """Positions (F, J, 3) cm of one window's payload (a whole stream up to :data:`WINDOW_FRAMES` frames)."""
         reader = ByteReader(payload)
         eps, step, slope, root_step_rel, clip_frames, representation, entropy, has_cuts = _read_settings(reader)
         num_frames, num_joints = header.num_frames, header.num_joints
@@ -581,13 +631,18 @@ class McbLinfCodec(Codec):
         reader.expect_end()
         half_cell = 2.0 * eps * (1.0 - _SAFETY_MARGIN) / np.sqrt(5.0)
         positions[corrected] += lattice * half_cell
-        return positions.reshape(num_frames, num_joints, 3), None
+        return positions.reshape(num_frames, num_joints, 3)
 
     def describe_payload(self, header: Header, payload: memoryview):
         reader = ByteReader(payload)
+        windows = {}
+        if header.num_frames > WINDOW_FRAMES:  # a sequence of windows: describe the first
+            reader.read_varint("window length")
+            windows = {"windows of frames": f"{-(-header.num_frames // WINDOW_FRAMES)} x {WINDOW_FRAMES} (first shown)"}
         eps, step, slope, root_step_rel, clip_frames, representation, entropy, has_cuts = _read_settings(reader)
-        cuts = read_cuts(reader, header.num_frames, "mcb-linf") if has_cuts else []
-        return {"eps_cm (guaranteed L-inf)": eps, "base step cm": step, "frequency slope": slope,
+        frames = min(header.num_frames, WINDOW_FRAMES)
+        cuts = read_cuts(reader, frames, "mcb-linf") if has_cuts else []
+        return {**windows,"eps_cm (guaranteed L-inf)": eps, "base step cm": step, "frequency slope": slope,
                 "root step (x base step)": root_step_rel, "clip frames": clip_frames,
                 "representation": representation, "entropy coder": entropy,
                 "cuts (frames starting a segment)": list(map(int, cuts))}
