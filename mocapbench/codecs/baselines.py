@@ -27,7 +27,14 @@ import numpy as np
 from mocapbench.codecs.base import Codec, CodecConfig, Header, param
 from mocapbench.codecs.registry import register_codec
 from mocapbench.codecs.skeleton_blob import pack_skeleton, unpack_skeleton
-from mocapbench.entropy.backend import zstd_compress, zstd_decompress, zstd_pack_ints, zstd_unpack_ints
+from mocapbench.entropy.backend import (
+    zstd_compress,
+    zstd_compress_chunks,
+    zstd_decompress,
+    zstd_decompress_chunks,
+    zstd_pack_ints,
+    zstd_unpack_ints,
+)
 from mocapbench.entropy.bitio import ByteReader, ByteWriter
 from mocapbench.entropy.errors import BitstreamError
 from mocapbench.entropy.quantize import quantize
@@ -38,22 +45,73 @@ __all__ = ["RawZstdCodec", "QuantDeltaZstdCodec", "QuantPredZstdCodec", "QuantRo
 _ZSTD_LEVEL_DOC = "zstd compression level (higher: smaller and slower to encode; decode speed barely changes)"
 
 
+# Frames per block when a long capture is turned into positions or integers block by block.
+_BLOCK_FRAMES = 8192
+
+
+def _block_positions(motion: Motion, start: int) -> np.ndarray:
+    """Positions (b, J, 3) cm of frames ``start .. start + _BLOCK_FRAMES`` (forward kinematics of that block)."""
+    return motion.slice(start, min(motion.num_frames, start + _BLOCK_FRAMES)).positions()
+
+
+def _track_codes(values: np.ndarray, channel: int) -> np.ndarray:
+    """Zigzag codes of the deltas along time of one channel (the first delta is against 0)."""
+    from mocapbench.entropy.bitio import zigzag_encode
+
+    column = values[:, channel].astype(np.int64)
+    return zigzag_encode(np.diff(column, prepend=np.int64(0)))
+
+
 def _pack_int_tracks(values: np.ndarray, level: int) -> bytes:
-    """Delta-code int64 tracks along time and zstd them channel by channel.
+    """Delta-code integer tracks along time and zstd them channel by channel (the layout of ``zstd_pack_ints`` of the
+    channel-major deltas: a width byte, then one zstd frame).
+
+    One channel is coded at a time (two passes: the width, then the bytes), so nothing beside ``values`` is
+    F x C sized.
 
     Parameters
     ----------
-    values : ndarray, shape (F, C), int64
+    values : ndarray, shape (F, C), integer
         C integer tracks of F samples.
     """
-    deltas = np.diff(values, axis=0, prepend=np.zeros((1, values.shape[1]), dtype=np.int64))
-    return zstd_pack_ints(deltas.T, level=level)
+    num_frames, num_channels = values.shape
+    peak = max((int(_track_codes(values, c).max()) for c in range(num_channels)), default=0) if num_frames else 0
+    width = next(w for w in (1, 2, 4, 8) if peak < 1 << (8 * w))
+    chunks = (_track_codes(values, c).astype(f"<u{width}").tobytes() for c in range(num_channels))
+    return bytes([width]) + zstd_compress_chunks(chunks, num_frames * num_channels * width, level=level)
 
 
-def _unpack_int_tracks(blob: bytes, num_frames: int, num_channels: int) -> np.ndarray:
-    """Inverse of :func:`_pack_int_tracks`: ``(F, C)`` int64."""
-    deltas = zstd_unpack_ints(blob, num_frames * num_channels, "integer tracks")
-    return np.cumsum(deltas.reshape(num_channels, num_frames).T, axis=0)
+def _unpack_int_tracks(blob: bytes, num_frames: int, num_channels: int, sink=None) -> np.ndarray | None:
+    """Inverse of :func:`_pack_int_tracks`: ``(F, C)`` int64, or each channel handed to ``sink(channel, values)``.
+
+    With a ``sink``, one channel at a time is held (a long capture is never held as F x C integers).
+    """
+    from mocapbench.entropy.bitio import zigzag_decode
+
+    blob = memoryview(blob).cast("B")
+    if len(blob) < 1 or blob[0] not in (1, 2, 4, 8):
+        raise BitstreamError(f"integer tracks: expected a width byte of 1, 2, 4 or 8, found {bytes(blob[:1])!r}")
+    width = blob[0]
+    out = None
+    if sink is None:
+        out = np.empty((num_frames, num_channels), dtype=np.int64)
+
+        def sink(channel: int, column: np.ndarray) -> None:
+            out[:, channel] = column
+
+    track_bytes = num_frames * width
+    pending, channel = bytearray(), 0
+    for piece in zstd_decompress_chunks(blob[1:], num_frames * num_channels * width):
+        pending += piece
+        while len(pending) >= track_bytes and channel < num_channels:
+            codes = np.frombuffer(bytes(pending[:track_bytes]), dtype=f"<u{width}").astype(np.uint64)
+            del pending[:track_bytes]
+            sink(channel, np.cumsum(zigzag_decode(codes).astype(np.int64)))
+            channel += 1
+    if num_frames == 0:
+        for channel in range(num_channels):
+            sink(channel, np.zeros(0, dtype=np.int64))
+    return out
 
 
 @register_codec
@@ -71,16 +129,25 @@ class RawZstdCodec(Codec):
         zstd_level: int = param(19, low=1, high=22, doc=_ZSTD_LEVEL_DOC)
 
     def encode_payload(self, motion: Motion) -> bytes:
-        positions = motion.positions().astype("<f4")
-        return zstd_compress(positions.tobytes(), level=self.config.zstd_level)
+        # Block by block into one zstd frame: a long capture's positions are never held whole.
+        chunks = (_block_positions(motion, start).astype("<f4").tobytes()
+                  for start in range(0, motion.num_frames, _BLOCK_FRAMES))
+        return zstd_compress_chunks(chunks, motion.num_frames * motion.num_joints * 12, level=self.config.zstd_level)
 
     def decode_payload(self, header: Header, payload: memoryview):
         expected = header.num_frames * header.num_joints * 12
-        raw = zstd_decompress(bytes(payload), expected)
-        if len(raw) != expected:
-            raise BitstreamError(f"raw-zstd: expected {expected} bytes of positions, found {len(raw)}.")
-        positions = np.frombuffer(raw, dtype="<f4").reshape(header.num_frames, header.num_joints, 3)
-        return positions.astype(np.float64), None
+        positions = np.empty((header.num_frames, header.num_joints, 3))
+        flat, done, pending = positions.reshape(-1), 0, b""
+        for piece in zstd_decompress_chunks(payload, expected):  # straight into the output, no float32 copy
+            pending += piece
+            usable = len(pending) - len(pending) % 4
+            values = np.frombuffer(pending[:usable], dtype="<f4")
+            flat[done : done + values.size] = values
+            done += values.size
+            pending = pending[usable:]
+        if done * 4 != expected:
+            raise BitstreamError(f"raw-zstd: expected {expected} bytes of positions, found {done * 4}.")
+        return positions, None
 
 
 @register_codec
@@ -98,9 +165,11 @@ class QuantDeltaZstdCodec(Codec):
         zstd_level: int = param(19, low=1, high=22, doc=_ZSTD_LEVEL_DOC)
 
     def encode_payload(self, motion: Motion) -> bytes:
-        positions = motion.positions()
         step = self.config.step_cm
-        indices = quantize(positions.reshape(motion.num_frames, -1), step)
+        indices = np.empty((motion.num_frames, 3 * motion.num_joints), dtype=np.int64)
+        for start in range(0, motion.num_frames, _BLOCK_FRAMES):  # positions block by block, never whole
+            block = _block_positions(motion, start)
+            indices[start : start + len(block)] = quantize(block.reshape(len(block), -1), step)
         writer = ByteWriter()
         writer.write_array(np.array([step]), np.float64)
         writer.write_blob(_pack_int_tracks(indices, self.config.zstd_level))
@@ -111,9 +180,15 @@ class QuantDeltaZstdCodec(Codec):
         step = float(reader.read_array(1, np.float64, "step")[0])
         if not (step > 0 and np.isfinite(step)):
             raise BitstreamError(f"quant-delta-zstd: expected a positive step, found {step}.")
-        indices = _unpack_int_tracks(reader.read_blob("positions"), header.num_frames, header.num_joints * 3)
+        blob = reader.read_blob("positions")
         reader.expect_end()
-        return (indices * step).reshape(header.num_frames, header.num_joints, 3), None
+        positions = np.empty((header.num_frames, 3 * header.num_joints))
+
+        def dequantize(channel: int, indices: np.ndarray) -> None:
+            positions[:, channel] = indices * step
+
+        _unpack_int_tracks(blob, header.num_frames, header.num_joints * 3, dequantize)
+        return positions.reshape(header.num_frames, header.num_joints, 3), None
 
     def describe_payload(self, header: Header, payload: memoryview):
         return {"step_cm": float(ByteReader(payload).read_array(1, np.float64, "step")[0])}
@@ -212,23 +287,30 @@ class QuantRotZstdCodec(Codec):
         zstd_level: int = param(19, low=1, high=22, doc=_ZSTD_LEVEL_DOC)
 
     def encode_payload(self, motion: Motion) -> bytes:
-        quats = motion.rotations * np.where(motion.rotations[..., 3:] < 0, -1.0, 1.0)  # w >= 0
-        xyz = quats[..., :3].reshape(motion.num_frames, -1)  # (F, 3J)
+        num_frames = motion.num_frames
+
+        def xyz_block(start: int) -> np.ndarray:  # (b, 3J) x, y, z of the quaternions with w >= 0
+            quats = motion.rotations[start : start + _BLOCK_FRAMES]
+            return (quats * np.where(quats[..., 3:] < 0, -1.0, 1.0))[..., :3].reshape(len(quats), -1)
+
+        blocks = range(0, num_frames, _BLOCK_FRAMES)
         # Bounds rounded to float32 first: the decoder sees exactly the grid the encoder used.
-        low = xyz.min(axis=0).astype(np.float32).astype(np.float64)
-        high = xyz.max(axis=0).astype(np.float32).astype(np.float64)
+        low = np.min([xyz_block(start).min(axis=0) for start in blocks], axis=0).astype(np.float32).astype(np.float64)
+        high = np.max([xyz_block(start).max(axis=0) for start in blocks], axis=0).astype(np.float32).astype(np.float64)
         levels = (1 << self.config.rotation_bits) - 1
         scale = np.where(high > low, (high - low) / levels, 1.0)
-        rotation_indices = np.rint((xyz - low) / scale).astype(np.int64)
         step = self.config.translation_step_cm
-        root_indices = quantize(motion.root_positions, step)
+        tracks = np.empty((num_frames, 3 + low.size), dtype=np.int64)
+        tracks[:, :3] = quantize(motion.root_positions, step)
+        for start in blocks:
+            tracks[start : start + _BLOCK_FRAMES, 3:] = np.rint((xyz_block(start) - low) / scale)
         writer = ByteWriter()
         writer.write_bytes(pack_skeleton(motion.skeleton))
         writer.write_array(np.array([step]), np.float64)
         writer.write_varint(self.config.rotation_bits)
         writer.write_array(low, np.float32)
         writer.write_array(high, np.float32)
-        writer.write_blob(_pack_int_tracks(np.concatenate([root_indices, rotation_indices], axis=1), self.config.zstd_level))
+        writer.write_blob(_pack_int_tracks(tracks, self.config.zstd_level))
         return writer.getvalue()
 
     def decode_payload(self, header: Header, payload: memoryview):
@@ -243,17 +325,25 @@ class QuantRotZstdCodec(Codec):
         channels = 3 * header.num_joints
         low = reader.read_array(channels, np.float32, "rotation minima").astype(np.float64)
         high = reader.read_array(channels, np.float32, "rotation maxima").astype(np.float64)
-        tracks = _unpack_int_tracks(reader.read_blob("tracks"), header.num_frames, 3 + channels)
+        blob = reader.read_blob("tracks")
         reader.expect_end()
         scale = np.where(high > low, (high - low) / ((1 << bits) - 1), 1.0)
-        xyz = (low + tracks[:, 3:] * scale).reshape(header.num_frames, header.num_joints, 3)
-        w = np.sqrt(np.clip(1.0 - np.sum(xyz**2, axis=-1, keepdims=True), 0.0, None))
-        motion = Motion(
-            skeleton=skeleton,
-            fps=header.fps,
-            root_positions=tracks[:, :3] * step,
-            rotations=np.concatenate([xyz, w], axis=-1),
-        )
+        num_frames = header.num_frames
+        roots = np.empty((num_frames, 3))
+        quats = np.empty((num_frames, header.num_joints, 4))
+
+        def dequantize(channel: int, indices: np.ndarray) -> None:  # one track at a time, into the motion's arrays
+            if channel < 3:
+                roots[:, channel] = indices * step
+            else:
+                c = channel - 3
+                quats[:, c // 3, c % 3] = low[c] + indices * scale[c]
+
+        _unpack_int_tracks(blob, num_frames, 3 + channels, dequantize)
+        for start in range(0, num_frames, _BLOCK_FRAMES):
+            xyz = quats[start : start + _BLOCK_FRAMES, :, :3]
+            quats[start : start + _BLOCK_FRAMES, :, 3] = np.sqrt(np.clip(1.0 - np.sum(xyz**2, axis=-1), 0.0, None))
+        motion = Motion(skeleton=skeleton, fps=header.fps, root_positions=roots, rotations=quats)
         return motion.positions(), motion
 
     def describe_payload(self, header: Header, payload: memoryview):

@@ -50,6 +50,7 @@ What is the paper's and what is ours
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from typing import Any
 
@@ -57,7 +58,7 @@ import numpy as np
 from mocapbench.lazy_imports import Rotation
 
 from mocapbench.codecs.base import Codec, CodecConfig, Header, param
-from mocapbench.codecs.limits import current_limits
+from mocapbench.codecs.limits import current_limits, using_limits
 from mocapbench.codecs.registry import register_codec
 from mocapbench.codecs.skeleton_blob import pack_skeleton, unpack_skeleton
 from mocapbench.entropy.bitio import ByteReader, ByteWriter
@@ -381,16 +382,24 @@ class PgaIkCodec(Codec):
         roots = np.empty((num_frames, 3))
         rotations = np.empty((num_frames, header.num_joints, 4))
         skeleton = None
+        limits = current_limits()
+        work = 0  # IK iterations of the windows decoded so far: the limit holds for the whole stream
         for start, stop, offset, size in windows:
             window = Header(header.codec, stop - start, header.num_joints, header.fps)
-            part_positions, part = self._decode_window(window, payload[offset : offset + size])
+            left = dataclasses.replace(limits, max_ik_iterations=max(0, limits.max_ik_iterations - work))
+            with using_limits(left):
+                parsed = self._read(window, payload[offset : offset + size])
+                part_positions, part = self._decode_parsed(window, parsed)
+            work += (stop - start) * parsed["iterations"]
             positions[start:stop], roots[start:stop], rotations[start:stop] = (
                 part_positions, part.root_positions, part.rotations)
             skeleton = skeleton or part.skeleton
         return positions, Motion(skeleton=skeleton, fps=header.fps, root_positions=roots, rotations=rotations)
 
     def _decode_window(self, header: Header, payload: memoryview):
-        parsed = self._read(header, payload)
+        return self._decode_parsed(header, self._read(header, payload))
+
+    def _decode_parsed(self, header: Header, parsed: dict[str, Any]):
         num_frames = header.num_frames
         spaces = (EUCLIDEAN, ROTATIONS, EUCLIDEAN)
         tracks = []

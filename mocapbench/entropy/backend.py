@@ -33,6 +33,8 @@ __all__ = [
     "zstd_decompress",
     "zstd_pack_ints",
     "zstd_unpack_ints",
+    "zstd_compress_chunks",
+    "zstd_decompress_chunks",
 ]
 
 #: Dictionary size of the raw LZMA2 filter, bytes. Fixed because a raw stream does not record it.
@@ -126,6 +128,69 @@ def zstd_decompress(data, max_output_size: int, dictionary: bytes | None = None)
     if len(out) != size:
         raise BitstreamError(f"zstd: expected {size} decompressed bytes as declared, found {len(out)}")
     return out
+
+
+def zstd_compress_chunks(chunks, content_size: int, level: int = 19) -> bytes:
+    """:func:`zstd_compress` of the concatenation of ``chunks``, without ever holding the concatenation.
+
+    The frame declares ``content_size`` (what :func:`zstd_decompress` needs); the chunks must add up to it.
+
+    Raises
+    ------
+    ValueError
+        If the chunks do not add up to ``content_size``.
+    """
+    level = _check_level("level", level, 1, zstandard.MAX_COMPRESSION_LEVEL)
+    compressor = zstandard.ZstdCompressor(level=level, write_content_size=True, write_checksum=False, threads=0)
+    stream = compressor.compressobj(size=int(content_size))
+    parts, total = [], 0
+    for chunk in chunks:
+        total += len(memoryview(chunk).cast("B"))
+        parts.append(stream.compress(chunk))
+    if total != content_size:
+        raise ValueError(f"zstd: the chunks hold {total} bytes, {content_size} were declared")
+    parts.append(stream.flush())
+    return b"".join(parts)
+
+
+def zstd_decompress_chunks(data, expected_size: int, input_chunk: int = 1 << 16):
+    """The content of one frame written by :func:`zstd_compress` (or :func:`zstd_compress_chunks`), in pieces.
+
+    Yields bytes objects whose concatenation is the content; memory is one piece at a time, not the content.
+    The frame must declare exactly ``expected_size`` bytes (checked before anything is decompressed).
+
+    Raises
+    ------
+    BitstreamError
+        As :func:`zstd_decompress`, and if the frame declares another size than ``expected_size``.
+    """
+    data = memoryview(data).cast("B")
+    try:
+        params = zstandard.get_frame_parameters(bytes(data[:18]))
+    except zstandard.ZstdError as exc:
+        raise BitstreamError(f"expected a zstd frame header in {len(data)} bytes, found none: {exc}") from None
+    if params.content_size != expected_size:
+        raise BitstreamError(f"expected a zstd frame of {expected_size} bytes, the frame declares {params.content_size}")
+    decompressor = zstandard.ZstdDecompressor().decompressobj()
+    produced = 0
+    for start in range(0, len(data), input_chunk):
+        if decompressor.eof:
+            break
+        try:
+            piece = decompressor.decompress(bytes(data[start : start + input_chunk]))
+        except zstandard.ZstdError as exc:
+            raise BitstreamError(f"zstd: corrupt frame: {exc}") from None
+        produced += len(piece)
+        if produced > expected_size:
+            raise BitstreamError(f"zstd: the frame holds more than the {expected_size} bytes it declares")
+        if piece:
+            yield piece
+    if not decompressor.eof:
+        raise BitstreamError(f"zstd: expected a complete frame of {expected_size} bytes, the data ended after {produced}")
+    if decompressor.unused_data or start + input_chunk < len(data):
+        raise BitstreamError("zstd: expected the end of data after the frame, found more bytes")
+    if produced != expected_size:
+        raise BitstreamError(f"zstd: expected {expected_size} decompressed bytes as declared, found {produced}")
 
 
 def _lzma_filters(preset: int | None = None) -> list[dict]:

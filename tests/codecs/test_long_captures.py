@@ -49,6 +49,11 @@ def test_pga_ik_fits_one_pose_model_per_window(monkeypatch):
     assert codec.describe_payload(header, payload)["num_geodesics"] == 12
     with pytest.raises(BitstreamError):
         codec.decode(stream[:-5])
+    # The IK work limit holds for the whole stream, not per window (each window alone is under it).
+    from mocapbench.codecs.limits import DecodeLimitError, DecodeLimits
+
+    with pytest.raises(DecodeLimitError, match="max_ik_iterations"):
+        codec.decode(stream, limits=DecodeLimits(max_ik_iterations=600 * 2 - 1))
 
 
 def test_svd_of_a_long_capture_uses_the_gram_matrix_with_the_same_result(monkeypatch):
