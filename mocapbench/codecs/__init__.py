@@ -20,7 +20,7 @@ from mocapbench.codecs.registry import (
     register_unavailable,
 )
 
-_INFRASTRUCTURE = {"base", "registry", "container", "skeleton_blob", "limits"}
+_INFRASTRUCTURE = {"base", "registry", "container", "skeleton_blob", "limits", "windows"}
 for _module in pkgutil.iter_modules(__path__):
     if _module.name not in _INFRASTRUCTURE and not _module.name.startswith("_"):
         importlib.import_module(f"{__name__}.{_module.name}")

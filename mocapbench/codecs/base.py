@@ -280,6 +280,23 @@ class Codec(abc.ABC):
             raise BitstreamError(f"{self.name}: decoded positions hold non-finite values.")
         return Decoded(positions=positions, motion=motion, header=header)
 
+    def _unpack_frame_range(self, data: bytes, start: int, stop: int) -> tuple[Header, memoryview]:
+        """The container of a random-access stream and a check that ``start:stop`` is a non-empty frame range in it.
+
+        For codecs with ``random_access`` (their ``decode_frames(data, start, stop)`` starts here).
+
+        Raises
+        ------
+        ValueError
+            If ``start:stop`` is empty or outside the stream's frames.
+        BitstreamError
+            If the container is corrupt.
+        """
+        header, payload = container.unpack(data, self.name)
+        if not 0 <= start < stop <= header.num_frames:
+            raise ValueError(f"{self.name}: frame range {start}:{stop} is outside 0:{header.num_frames} or empty.")
+        return header, payload
+
     @abc.abstractmethod
     def encode_payload(self, motion: Motion) -> bytes:
         """The codec's payload for ``motion`` (the container header is added by :meth:`encode`)."""

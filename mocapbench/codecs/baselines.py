@@ -28,9 +28,7 @@ from mocapbench.codecs.base import Codec, CodecConfig, Header, param
 from mocapbench.codecs.registry import register_codec
 from mocapbench.codecs.skeleton_blob import pack_skeleton, unpack_skeleton
 from mocapbench.entropy.backend import (
-    zstd_compress,
     zstd_compress_chunks,
-    zstd_decompress,
     zstd_decompress_chunks,
     zstd_pack_ints,
     zstd_unpack_ints,

@@ -466,11 +466,6 @@ class _SpatialTransformCodec(Codec):
     # Per-coordinate error <= ||c - ĉ||_2 <= sqrt(J) Δ/2 in the worst case; in practice a few Δ at most.
     smoke_max_error_cm = 0.5
 
-    @property
-    def latency_frames(self) -> int:
-        """0 for the frame scheme, L (``clip_length``) for the clip scheme."""
-        return 0 if self.scheme == "frame" else self.config.clip_length
-
     # -- the spatial transform -------------------------------------------------------------------------
     @property
     def latency_frames(self) -> int:

@@ -85,6 +85,7 @@ from mocapbench.codecs.registry import register_codec
 from mocapbench.codecs.segments import find_cuts, read_cuts, write_cuts
 from mocapbench.entropy.ans import TOKEN_COUNT, ClassTables, decode_classed, encode_classed, tokenize
 from mocapbench.entropy.backend import zstd_pack_ints, zstd_unpack_ints
+from mocapbench.codecs.windows import encode_windows, split_windows
 from mocapbench.entropy.bitio import ByteReader, ByteWriter
 from mocapbench.entropy.errors import BitstreamError
 from mocapbench.entropy.huffman import decode_symbols, encode_symbols
@@ -335,11 +336,6 @@ class McbLinfCodec(Codec):
         self._untrained_reason = ""  # why the last encode used the untrained mode ("" if it did not)
         self._used_joints: int | None = None  # joint count of the last encoded motion
 
-    @property
-    def latency_frames(self) -> int:
-        """The DCT window, ``clip_frames``."""
-        return self.config.clip_frames
-
     # -- learned state ---------------------------------------------------------------------------------
     def fit(self, motions: Sequence[Motion]) -> "McbLinfCodec":
         """Learn the basis (``representation="pca"``) and the trained entropy model from ``motions``.
@@ -458,13 +454,7 @@ class McbLinfCodec(Codec):
         """
         if motion.num_frames <= WINDOW_FRAMES:
             return self._encode_window(motion)
-        writer = ByteWriter()
-        stats = []
-        for start in range(0, motion.num_frames, WINDOW_FRAMES):
-            window = self._encode_window(motion.slice(start, min(motion.num_frames, start + WINDOW_FRAMES)))
-            writer.write_varint(len(window))
-            writer.write_bytes(window)
-            stats.append(self.last_encode_stats)
+        payload, stats = encode_windows(motion, WINDOW_FRAMES, self._encode_window_with_stats)
         self.last_encode_stats = {
             "windows": len(stats),
             "base_step_cm": float(np.median([w["base_step_cm"] for w in stats])),
@@ -474,7 +464,10 @@ class McbLinfCodec(Codec):
             "cuts": sum(w["cuts"] for w in stats),
             "model_mode": stats[0]["model_mode"],
         }
-        return writer.getvalue()
+        return payload
+
+    def _encode_window_with_stats(self, motion: Motion) -> tuple[bytes, dict]:
+        return self._encode_window(motion), self.last_encode_stats
 
     def _encode_window(self, motion: Motion) -> bytes:
         positions = motion.positions()
@@ -581,17 +574,11 @@ class McbLinfCodec(Codec):
         num_frames, num_joints = header.num_frames, header.num_joints
         if num_frames <= WINDOW_FRAMES:
             return self._decode_window(header, payload), None
-        reader = ByteReader(payload)
-        windows = []
-        for start in range(0, num_frames, WINDOW_FRAMES):  # every window's extent is checked before any decoding
-            size = reader.read_varint("window length")
-            windows.append((start, min(num_frames, start + WINDOW_FRAMES), reader.offset, size))
-            reader.read_bytes(size, "window")
-        reader.expect_end()
+        windows = split_windows(payload, num_frames, WINDOW_FRAMES)  # every extent checked before decoding
         positions = np.empty((num_frames, num_joints, 3))
-        for start, stop, offset, size in windows:
+        for start, stop, part in windows:
             window = Header(header.codec, stop - start, num_joints, header.fps)
-            positions[start:stop] = self._decode_window(window, payload[offset : offset + size])
+            positions[start:stop] = self._decode_window(window, part)
         return positions, None
 
     def _decode_window(self, header: Header, payload: memoryview) -> np.ndarray:

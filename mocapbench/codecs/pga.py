@@ -61,6 +61,7 @@ from mocapbench.codecs.base import Codec, CodecConfig, Header, param
 from mocapbench.codecs.limits import current_limits, using_limits
 from mocapbench.codecs.registry import register_codec
 from mocapbench.codecs.skeleton_blob import pack_skeleton, unpack_skeleton
+from mocapbench.codecs.windows import encode_windows, split_windows
 from mocapbench.entropy.bitio import ByteReader, ByteWriter
 from mocapbench.entropy.errors import BitstreamError
 from mocapbench.entropy.huffman import decode_symbols, encode_symbols
@@ -206,13 +207,7 @@ class PgaIkCodec(Codec):
         """
         if motion.num_frames <= WINDOW_FRAMES:
             return self._encode_window(motion)
-        writer = ByteWriter()
-        stats = []
-        for start in range(0, motion.num_frames, WINDOW_FRAMES):
-            window = self._encode_window(motion.slice(start, min(motion.num_frames, start + WINDOW_FRAMES)))
-            writer.write_varint(len(window))
-            writer.write_bytes(window)
-            stats.append(self.last_encode_stats)
+        payload, stats = encode_windows(motion, WINDOW_FRAMES, self._encode_window_with_stats)
         self.last_encode_stats = {
             "windows": len(stats),
             "K": stats[0]["K"],
@@ -222,7 +217,10 @@ class PgaIkCodec(Codec):
             "paper_compression_ratio": pga_raw_numbers(motion.num_joints - 1, motion.num_frames)
             / sum(w["paper_numbers_stored"] for w in stats),
         }
-        return writer.getvalue()
+        return payload
+
+    def _encode_window_with_stats(self, motion: Motion) -> tuple[bytes, dict]:
+        return self._encode_window(motion), self.last_encode_stats
 
     def _encode_window(self, motion: Motion) -> bytes:
         config = self.config
@@ -371,24 +369,18 @@ class PgaIkCodec(Codec):
         num_frames = header.num_frames
         if num_frames <= WINDOW_FRAMES:
             return self._decode_window(header, payload)
-        reader = ByteReader(payload)
-        windows = []
-        for start in range(0, num_frames, WINDOW_FRAMES):  # every window's extent is checked before decoding
-            size = reader.read_varint("window length")
-            windows.append((start, min(num_frames, start + WINDOW_FRAMES), reader.offset, size))
-            reader.read_bytes(size, "window")
-        reader.expect_end()
+        windows = split_windows(payload, num_frames, WINDOW_FRAMES)  # every extent checked before decoding
         positions = np.empty((num_frames, header.num_joints, 3))
         roots = np.empty((num_frames, 3))
         rotations = np.empty((num_frames, header.num_joints, 4))
         skeleton = None
         limits = current_limits()
         work = 0  # IK iterations of the windows decoded so far: the limit holds for the whole stream
-        for start, stop, offset, size in windows:
+        for start, stop, part in windows:
             window = Header(header.codec, stop - start, header.num_joints, header.fps)
             left = dataclasses.replace(limits, max_ik_iterations=max(0, limits.max_ik_iterations - work))
             with using_limits(left):
-                parsed = self._read(window, payload[offset : offset + size])
+                parsed = self._read(window, part)
                 part_positions, part = self._decode_parsed(window, parsed)
             work += (stop - start) * parsed["iterations"]
             positions[start:stop], roots[start:stop], rotations[start:stop] = (

@@ -27,7 +27,7 @@ from collections.abc import Sequence
 import numpy as np
 from mocapbench.lazy_imports import Rotation
 
-from mocapbench.geometry.so3 import rodrigues, skew
+from mocapbench.geometry.so3 import skew
 from mocapbench.motion import Skeleton
 
 __all__ = ["GeodesicIK", "to_root_frame", "from_root_frame"]

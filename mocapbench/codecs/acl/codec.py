@@ -196,9 +196,7 @@ class AclCodec(Codec):
         BitstreamError
             If the stream is corrupt.
         """
-        header, payload = container.unpack(data, self.name)
-        if not 0 <= start < stop <= header.num_frames:
-            raise ValueError(f"acl: frame range {start}:{stop} is outside 0:{header.num_frames} or empty.")
+        header, payload = self._unpack_frame_range(data, start, stop)
         positions, motion = self._decode_range(header, payload, start, stop)
         return Decoded(positions=positions, motion=motion, header=header)
 

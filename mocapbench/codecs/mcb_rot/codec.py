@@ -202,9 +202,7 @@ class McbRotCodec(Codec):
         BitstreamError
             If the stream is corrupt.
         """
-        header, payload = container.unpack(data, self.name)
-        if not 0 <= start < stop <= header.num_frames:
-            raise ValueError(f"mcb-rot: frame range {start}:{stop} is outside 0:{header.num_frames} or empty.")
+        header, payload = self._unpack_frame_range(data, start, stop)
         with using_limits(limits) as active:
             active.check_header(stop - start, header.num_joints, self.codes_rotations)
         try:

@@ -1,0 +1,51 @@
+"""Long captures coded as a sequence of length-prefixed windows of frames (bounded memory at any length).
+
+A codec whose working set grows with the clip (a rate search over a whole-clip transform, a pose model over every
+frame) codes a capture longer than its window as independent windows, each payload prefixed by its length, so
+the encoder holds one window's arrays and the decoder one window's temporaries beside its output.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+from mocapbench.entropy.bitio import ByteReader, ByteWriter
+from mocapbench.motion import Motion
+
+__all__ = ["encode_windows", "split_windows"]
+
+
+def encode_windows(
+    motion: Motion, window_frames: int, encode_window: Callable[[Motion], tuple[bytes, dict]]
+) -> tuple[bytes, list[dict]]:
+    """Payload of ``motion`` coded window by window, and the per-window stats ``encode_window`` returned.
+
+    ``encode_window(part) -> (payload, stats)`` codes one window of at most ``window_frames`` frames.
+    """
+    writer = ByteWriter()
+    stats = []
+    for start in range(0, motion.num_frames, window_frames):
+        window, window_stats = encode_window(motion.slice(start, min(motion.num_frames, start + window_frames)))
+        writer.write_varint(len(window))
+        writer.write_bytes(window)
+        stats.append(window_stats)
+    return writer.getvalue(), stats
+
+
+def split_windows(payload: memoryview, num_frames: int, window_frames: int) -> list[tuple[int, int, memoryview]]:
+    """``(start, stop, window payload)`` of every window; every extent is checked before anything is decoded.
+
+    Raises
+    ------
+    BitstreamError
+        If a window length runs past the payload or bytes are left over.
+    """
+    reader = ByteReader(payload)
+    windows = []
+    for start in range(0, num_frames, window_frames):
+        size = reader.read_varint("window length")
+        offset = reader.offset
+        reader.read_bytes(size, "window")
+        windows.append((start, min(num_frames, start + window_frames), payload[offset : offset + size]))
+    reader.expect_end()
+    return windows
