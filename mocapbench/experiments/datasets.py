@@ -315,8 +315,8 @@ def iter_clips(spec: Mapping[str, Any], names: Sequence[str] | None = None) -> I
                 yield amc(file, asf_path, name, float(spec.get("fps", 120.0)))
 
 
-def _cmu_files(spec: Mapping[str, Any], where: str) -> list[tuple[str, int, tuple[Path, Path | None]]]:
-    """(name, frames, (motion file, ASF or None)) of every clip of a ``kind: cmu`` spec."""
+def _cmu_selection(spec: Mapping[str, Any], where: str) -> tuple[Path, Any, Any, str]:
+    """(data folder, split, clips, format) of a ``kind: cmu`` spec; exactly one of split and clips is given."""
     from mocapbench.datasets import cmu
 
     data_dir = cmu.cmu_data_dir(_resolve_data_dir(spec.get("data_dir")))
@@ -325,7 +325,14 @@ def _cmu_files(spec: Mapping[str, Any], where: str) -> list[tuple[str, int, tupl
         raise DatasetError(
             f"dataset {where}: give exactly one of `split` or `clips`, got split={split!r}, clips={clips!r}."
         )
-    fmt = str(spec.get("format", "amc"))
+    return data_dir, split, clips, str(spec.get("format", "amc"))
+
+
+def _cmu_files(spec: Mapping[str, Any], where: str) -> list[tuple[str, int, tuple[Path, Path | None]]]:
+    """(name, frames, (motion file, ASF or None)) of every clip of a ``kind: cmu`` spec."""
+    from mocapbench.datasets import cmu
+
+    data_dir, split, clips, fmt = _cmu_selection(spec, where)
     names = cmu.clip_names(str(split), data_dir=data_dir) if split is not None else [str(c) for c in clips]
     counts = _manifest_frames(data_dir)
     out = []
@@ -435,13 +442,7 @@ def _resolve_data_dir(value: Any) -> Path | None:
 def _cmu(spec: Mapping[str, Any], where: str) -> list[Motion]:
     from mocapbench.datasets import cmu
 
-    data_dir = cmu.cmu_data_dir(_resolve_data_dir(spec.get("data_dir")))
-    split, clips = spec.get("split"), spec.get("clips")
-    if (split is None) == (clips is None):
-        raise DatasetError(
-            f"dataset {where}: give exactly one of `split` or `clips`, got split={split!r}, clips={clips!r}."
-        )
-    fmt = str(spec.get("format", "amc"))
+    data_dir, split, clips, fmt = _cmu_selection(spec, where)
     if split is not None:
         return list(cmu.load_split(str(split), fmt=fmt, data_dir=data_dir))
     return [cmu.load_clip(str(clip), fmt=fmt, data_dir=data_dir) for clip in clips]
