@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mocapbench.datasets.cmu import DataNotFoundError
+from mocapbench.datasets.cmu import DataNotFoundError, cmu_data_dir
 from mocapbench.experiments import datasets
 from mocapbench.experiments.main import cmu_available
 from mocapbench.io import write_bvh
