@@ -357,6 +357,22 @@ class Motion:
             up_axis=self.up_axis,
         )
 
+    def every(self, step: int) -> "Motion":
+        """Every ``step``-th frame from frame 0 as a new motion at ``fps / step`` (24 fps from 120 fps with 5)."""
+        if isinstance(step, bool) or not isinstance(step, (int, np.integer)) or step < 1:
+            raise ValueError(f"Frame step must be a positive integer, got {step!r}.")
+        if step == 1:
+            return self
+        return Motion(
+            self.skeleton,
+            self.fps / step,
+            self.root_positions[::step],
+            self.rotations[::step],
+            self.name,
+            source_unit_cm=self.source_unit_cm,
+            up_axis=self.up_axis,
+        )
+
     def __repr__(self) -> str:
         """One line: ``Motion('09_06', 141 frames at 120 fps = 1.18 s, Skeleton(31 joints, ...))``; no arrays."""
         unit = "" if self.source_unit_cm == 1.0 else f", source unit {self.source_unit_cm:g} cm"

@@ -92,3 +92,15 @@ def test_synthetic_moves_forward_and_feet_stay_near_floor():
 def test_synthetic_config_rejects_bad_values():
     with pytest.raises(ValueError, match=r"num_frames must be in \[1, 1000000\], got 0"):
         sinusoidal_motion(num_frames=0)
+
+
+def test_every_keeps_every_kth_frame_at_the_lower_rate_and_refuses_a_bad_step():
+    motion = sinusoidal_motion(num_frames=11, seed=3)
+    sub = motion.every(5)
+    assert sub.num_frames == 3 and sub.fps == pytest.approx(motion.fps / 5)
+    np.testing.assert_allclose(sub.positions(), motion.positions()[[0, 5, 10]], atol=1e-5)
+    assert sub.source_unit_cm == motion.source_unit_cm and sub.up_axis == motion.up_axis
+    assert motion.every(1) is motion
+    for step in (0, -1, 2.0, True):
+        with pytest.raises(ValueError, match="Frame step must be a positive integer"):
+            motion.every(step)

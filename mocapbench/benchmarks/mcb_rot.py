@@ -52,9 +52,7 @@ OTHERS = {
 
 def every(motions: list[Motion], step: int) -> list[Motion]:
     """Every ``step``-th frame of each motion (24 fps from 120 fps with step 5)."""
-    if step == 1:
-        return motions
-    return [Motion(m.skeleton, m.fps / step, m.root_positions[::step], m.rotations[::step], m.name) for m in motions]
+    return [m.every(step) for m in motions]
 
 
 def rd_points(name: str, motions: list[Motion], key: str, values, *, shell: bool = False, **fixed) -> list[dict]:

@@ -20,6 +20,9 @@ A dataset config is a plain mapping with a ``kind``:
     ``SS_TT.bvh`` instead (the cgspeed BVH release, CMU units, frame 0 dropped). ``clips`` keeps only the named
     clips, ``exclude`` leaves the named clips out (``cmu_full`` leaves out ``cmu_train``, its training set).
 
+Any kind takes ``frame_step: k`` (default 1): every k-th frame from frame 0, at fps / k (``cmu_test_24fps`` is
+``cmu_test`` at 24 fps with ``frame_step: 5``); the training set inherits it unless ``train`` sets its own.
+
 A job measures a shard, a list of clips (:mod:`mocapbench.experiments.shards`): :func:`catalogue` names every
 clip of a dataset with its frame count (read from ``manifest.csv``, a BVH header or estimated from the file size)
 without parsing any motion, and :func:`iter_clips` reads only the named clips, one at a time, so a job holds one
@@ -166,14 +169,32 @@ def _inherit(parent: Mapping[str, Any], train: Any) -> dict[str, Any]:
     """The training spec: a mapping that inherits ``kind`` and ``data_dir`` from the measured dataset."""
     if not isinstance(train, Mapping):
         raise DatasetError(f"dataset {parent.get('name')!r}: `train` must be a mapping or null, got {train!r}.")
-    merged = {key: parent[key] for key in ("kind", "data_dir") if key in parent}
+    merged = {key: parent[key] for key in ("kind", "data_dir", "frame_step") if key in parent}
     merged.update(train)
     merged["name"] = train.get("name", f"{parent.get('name', 'dataset')}-train")
     merged["train"] = None
     return merged
 
 
+def _frame_step(spec: Mapping[str, Any]) -> int:
+    """``frame_step`` of a dataset spec (1 when absent), checked: a positive integer."""
+    step = spec.get("frame_step", 1)
+    if step is None:
+        return 1
+    if isinstance(step, bool) or not isinstance(step, int) or step < 1:
+        raise DatasetError(
+            f"dataset {spec.get('name', '?')!r}: `frame_step` must be a positive integer, got {step!r}."
+        )
+    return step
+
+
 def _describe(spec: Mapping[str, Any]) -> str:
+    step = _frame_step(spec)
+    what = _describe_clips(spec)
+    return what if step == 1 else f"{what}, every {step}th frame"
+
+
+def _describe_clips(spec: Mapping[str, Any]) -> str:
     kind = spec.get("kind")
     if kind == "synthetic":
         clips = spec.get("clips", {})
@@ -207,7 +228,8 @@ def _load_cached(key: str) -> tuple[Motion, ...]:
         raise DatasetError(f"dataset {where}: `kind` must be one of {list(_KINDS)}, got {kind!r}.")
     if not motions:
         raise DatasetError(f"dataset {where}: no clips.")
-    return tuple(motions)
+    step = _frame_step(spec)
+    return tuple(motion.every(step) for motion in motions)
 
 
 _KINDS = ("synthetic", "cmu", "folder", "cmu_tree")
@@ -240,7 +262,8 @@ def catalogue(spec: Mapping[str, Any]) -> list[ClipRef]:
         raise DatasetError(f"dataset {where}: `kind` must be one of {list(_KINDS)}, got {kind!r}.")
     if not refs:
         raise DatasetError(f"dataset {where}: no clips.")
-    return refs
+    step = _frame_step(spec)
+    return [ClipRef(ref.name, -(-ref.frames // step)) for ref in refs] if step > 1 else refs
 
 
 def iter_clips(spec: Mapping[str, Any], names: Sequence[str] | None = None) -> Iterator[Motion]:
@@ -254,6 +277,13 @@ def iter_clips(spec: Mapping[str, Any], names: Sequence[str] | None = None) -> I
         A name that is not a clip of the dataset (the message lists a few that are).
     """
     spec = _plain(spec)
+    step = _frame_step(spec)
+    for motion in _iter_full_rate(spec, names):
+        yield motion.every(step)
+
+
+def _iter_full_rate(spec: Mapping[str, Any], names: Sequence[str] | None) -> Iterator[Motion]:
+    """:func:`iter_clips` before ``frame_step``."""
     where = repr(spec.get("name", "?"))
     kind = _require(spec, "kind", where)
     wanted = None if names is None else list(names)

@@ -84,7 +84,8 @@ def test_slurm_launcher_composes(compose_benchmark):
     assert getattr(importlib.import_module(module), cls)
 
 
-@pytest.mark.parametrize("dataset", ["synthetic", "cmu_train", "cmu_test", "cmu_all", "cmu_09_06", "cmu_full", "folder"])
+@pytest.mark.parametrize("dataset", ["synthetic", "cmu_train", "cmu_test", "cmu_test_24fps", "cmu_all", "cmu_09_06",
+                                     "cmu_full", "folder"])
 def test_dataset_configs_compose(compose_benchmark, dataset):
     cfg = compose_benchmark([f"dataset={dataset}"])
     assert cfg.dataset.name == dataset

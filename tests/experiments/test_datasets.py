@@ -28,6 +28,26 @@ def test_synthetic_clips_and_training_set_differ():
     assert not datasets.cmu_used(SYNTHETIC)
 
 
+def test_frame_step_keeps_every_kth_frame_in_clips_catalogue_and_training_set():
+    step3 = {**SYNTHETIC, "name": "synthetic-step3", "frame_step": 3}
+    full, = [m for m in datasets.load_clips(SYNTHETIC) if m.name == "synthetic-seed1"]
+    sub = datasets.load_clips(step3)[0]
+    assert sub.num_frames == 10 and sub.fps == pytest.approx(full.fps / 3)
+    # The same rotations (a quaternion up to its sign) and joint positions as frames 0, 3, 6, ... of the full clip.
+    np.testing.assert_allclose(np.abs(np.sum(sub.rotations * full.rotations[::3], axis=-1)), 1.0, atol=1e-6)
+    np.testing.assert_allclose(sub.positions(), full.positions()[::3], atol=1e-5)
+    assert [ref.frames for ref in datasets.catalogue(step3)] == [10, 10]
+    assert [m.num_frames for m in datasets.iter_clips(step3, ["synthetic-seed2"])] == [10]
+    assert datasets.load_training(step3)[0].num_frames == 7  # 20 frames, inherited step 3
+    assert "every 3th frame" in datasets.describe_dataset(step3)
+
+
+@pytest.mark.parametrize("step", [0, -5, 2.5, "5", True])
+def test_bad_frame_step_is_named(step):
+    with pytest.raises(datasets.DatasetError, match="`frame_step` must be a positive integer"):
+        datasets.catalogue({**SYNTHETIC, "name": f"bad-{step}", "frame_step": step})
+
+
 def test_cmu_dataset_without_data_is_a_clear_error(tmp_path):
     spec = {"name": "cmu_test", "kind": "cmu", "split": "cmu_test", "data_dir": str(tmp_path / "nowhere"),
             "train": {"split": "cmu_train"}}
