@@ -8,7 +8,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from mocapbench import metrics
-from mocapbench.codecs import BitstreamError, create
+from mocapbench.codecs import BitstreamError, container, create
 from mocapbench.codecs.mcb_rot import codec as mcb_rot_codec
 from mocapbench.codecs.mcb_rot.quaternions import exp_map, log_map, multiply, sign_continuous
 from mocapbench.motion import Motion, Skeleton
@@ -54,6 +54,48 @@ def test_bound_holds_on_sinusoidal_cmu_like_motions(seed, frames, amplitude):
     motion = sinusoidal_motion(num_frames=frames, seed=seed, amplitude_deg=amplitude, max_frequency_hz=6.0)
     codec = create("mcb-rot", eps_cm=0.2)
     assert metrics.max_joint_error(motion.positions(), codec.decode(codec.encode(motion)).positions) <= 0.2
+
+
+@settings(max_examples=12, deadline=None, derandomize=True, suppress_health_check=list(HealthCheck))
+@given(
+    seed=st.integers(0, 10_000),
+    joints=st.integers(15, 40),
+    topology=st.sampled_from(["biped", "quadruped", "random"]),
+    frames=st.integers(1, 150),
+    eps=st.sampled_from([0.02, 0.1, 1.0]),
+    shell=st.sampled_from([0.5, 3.0, 10.0]),
+)
+def test_shell_bound_holds_on_synthetic_rigs(seed, joints, topology, frames, eps, shell):
+    """With shell_cm > 0 ACL's virtual vertices at that distance stay within eps too, as do the joints."""
+    from mocapbench.synthetic import rig_motion
+
+    motion = rig_motion(num_joints=joints, topology=topology, num_frames=frames, seed=seed, amplitude_deg=60.0)
+    data = create("mcb-rot", eps_cm=eps, shell_cm=shell).encode(motion)
+    decoded = create("mcb-rot").decode(data)
+    assert metrics.motion_shell_errors(motion, decoded.motion, shell).max() <= eps
+    assert metrics.max_joint_error(motion.positions(), decoded.positions) <= eps
+
+
+def test_shell_option_bounds_the_shell_error_and_costs_little(synthetic_motion):
+    plain = create("mcb-rot", eps_cm=0.5)
+    shelled = create("mcb-rot", eps_cm=0.5, shell_cm=3.0)
+    plain_data, shell_data = plain.encode(synthetic_motion), shelled.encode(synthetic_motion)
+    shell_error = {name: metrics.motion_shell_errors(synthetic_motion, create("mcb-rot").decode(data).motion).max()
+                   for name, data in (("plain", plain_data), ("shell", shell_data))}
+    assert shell_error["shell"] <= 0.5 < shell_error["plain"], "without the option the shell is not bounded"
+    assert len(shell_data) < 1.3 * len(plain_data)
+    header, payload = container.unpack(shell_data, "mcb-rot")
+    assert create("mcb-rot").describe_payload(header, payload)["shell distance cm (bound also on vertices)"] == 3.0
+
+
+@pytest.mark.parametrize("value, message", [
+    (-1.0, r"shell_cm must be in \[0.0, 100.0\] cm, got -1.0"),
+    (float("nan"), "shell_cm must be finite, got nan"),
+    ("3", "shell_cm must be of type float, got '3'"),
+])
+def test_a_bad_shell_distance_gets_one_clear_line(value, message):
+    with pytest.raises(ValueError, match=message):
+        create("mcb-rot", shell_cm=value)
 
 
 def test_decodes_to_a_motion_on_the_same_skeleton_and_uses_the_bound(synthetic_motion):

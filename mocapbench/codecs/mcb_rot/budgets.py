@@ -13,6 +13,13 @@ error at the hips moves the hands 80 cm away, one at the wrist only the fingers)
 sum stays within the bound for every joint. Whenever every joint of a frame is within its budget the frame is within
 ε, whatever the pose: the closed-loop refinement of the encoder relies on it. Joints whose rotation moves no joint
 (leaves, zero-length subtrees) have no lever; they get the fixed budget ``free_angle_rad``.
+
+With a shell distance ``d > 0`` (ACL's virtual vertices, :mod:`mocapbench.metrics.shell`) the points to keep within ε
+are also the three vertices at distance ``d`` along each joint's axes. A vertex of joint ``k`` is a point rigidly
+carried by ``k``'s frame, so it is a virtual child of ``k`` with a bone of length ``d``: its chain from an ancestor
+``a`` is ``C(a, k) + d``, from ``k`` itself ``d``. The budgets are then computed over joints and vertices alike; every
+joint has a lever of at least ``d`` (leaves included: their budget follows the shell distance instead of
+``free_angle_rad``).
 """
 
 from __future__ import annotations
@@ -39,7 +46,12 @@ class Budgets:
     ancestors : ndarray, shape (J, J), bool
         ``ancestors[k, a]``: the rotation of joint ``a`` moves joint ``k`` (``a`` is a proper ancestor of ``k``).
     has_lever : ndarray, shape (J,), bool
-        The joint's rotation moves at least one joint.
+        The joint's rotation moves at least one joint (or, with a shell, its own vertices).
+    movers : ndarray, shape (J, J), bool
+        ``movers[k, a]``: the rotation of joint ``a`` moves a point checked at joint ``k`` (the joint itself, and its
+        shell vertices when ``shell_cm > 0``): the proper ancestors of ``k``, plus ``k`` itself with a shell.
+    shell_cm : float
+        Shell distance the budgets cover, cm (0: joint positions only).
     base_rad : ndarray, shape (J,), float, radians
         Relative base-layer step of each joint's rotation channels: ``w / W_a`` with ``W_a`` the p-norm of the
         chain lengths from the joint to its descendants (p = ``allocation_power``; p = inf gives the budgets).
@@ -50,6 +62,8 @@ class Budgets:
     root_cm: float
     ancestors: np.ndarray
     has_lever: np.ndarray
+    movers: np.ndarray
+    shell_cm: float = 0.0
 
 
 def _chains(skeleton: Skeleton) -> tuple[np.ndarray, np.ndarray]:
@@ -67,7 +81,12 @@ def _chains(skeleton: Skeleton) -> tuple[np.ndarray, np.ndarray]:
 
 
 def joint_budgets(
-    skeleton: Skeleton, bound_cm: float, root_share: float, free_angle_rad: float, allocation_power: float = 0.0
+    skeleton: Skeleton,
+    bound_cm: float,
+    root_share: float,
+    free_angle_rad: float,
+    allocation_power: float = 0.0,
+    shell_cm: float = 0.0,
 ) -> Budgets:
     """Angle budgets of every joint and the root translation budget for an L-inf bound of ``bound_cm``.
 
@@ -84,8 +103,17 @@ def joint_budgets(
         p of the p-norm lever of the base-layer steps (0 stands for infinity: the steps follow the budgets). The
         budgets guard the worst case, where every ancestor's error points the same way; the base layer's errors are
         closer to independent, and a finite p lets a joint that moves many joints take a finer step.
+    shell_cm : float, >= 0
+        Distance of the virtual vertices that must also stay within the bound, cm (0: joints only).
     """
     chain, ancestors = _chains(skeleton)
+    movers = ancestors.copy()
+    if shell_cm > 0:
+        # The vertices of joint k: virtual children of k at distance d (columns J..2J-1 of the chain matrix).
+        vertices = np.where(ancestors.T, chain + shell_cm, 0.0)
+        np.fill_diagonal(vertices, shell_cm)
+        chain = np.concatenate([chain, vertices], axis=1)
+        np.fill_diagonal(movers, True)
     lever = chain.max(axis=1)  # S_a
     has_lever = lever > 0
     relative = np.divide(chain, lever[:, None], out=np.zeros_like(chain), where=has_lever[:, None])
@@ -99,7 +127,8 @@ def joint_budgets(
     else:
         base = rotation
     return Budgets(
-        rotation_rad=rotation, base_rad=base, root_cm=bound_cm * root_share, ancestors=ancestors, has_lever=has_lever
+        rotation_rad=rotation, base_rad=base, root_cm=bound_cm * root_share, ancestors=ancestors, has_lever=has_lever,
+        movers=movers, shell_cm=float(shell_cm),
     )
 
 

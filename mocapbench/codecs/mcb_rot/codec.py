@@ -26,13 +26,18 @@ Design::
          root translation) by a correction quantized finely enough to bring it within its budget, repeating until
          no joint misses. A frame whose every joint is within budget is within ε in any pose (:mod:`.budgets`),
          so the loop always ends.
+      └─ shell (``shell_cm`` = d > 0): the bound also holds on ACL's virtual vertices at distance d along every
+         joint's axes (:mod:`mocapbench.metrics.shell`). Each vertex is a virtual child bone of length d in the
+         budgets, so every joint (leaves too) gets a budget from its lever plus d instead of a fixed angle; the
+         closed loop checks the larger of the joint and vertex errors (:mod:`.checks`) and the encoder refuses a
+         stream whose decoded shell error exceeds ε.
       └─ entropy coding: ANS with per-stream parametric classes (:mod:`.classes`): no trained model, any skeleton.
 
 The decoder is vectorized numpy: ANS decoding (constriction, one call per class and segment), a batched inverse
 DCT, the exponential map, one multiply per correction and forward kinematics.
 
-Departures from the issue's sketch: the shell bound (``shell_cm``) and a trained prior are not implemented; the
-stream needs no model (``model_bytes`` is 0).
+Departures from the issue's sketch: no trained prior (the stream needs no model, ``model_bytes`` is 0). Leaves
+(joints whose rotation moves no joint) get the fixed budget ``free_angle_deg`` unless ``shell_cm`` > 0.
 """
 
 from __future__ import annotations
@@ -49,6 +54,7 @@ from mocapbench.codecs.mcb_rot import kinematics
 from mocapbench.codecs.mcb_rot import quaternions as quat
 from mocapbench.codecs.mcb_rot.axes import axes_from_codes, principal_axes, to_axes
 from mocapbench.codecs.mcb_rot.budgets import joint_budgets, offset_discrepancy_cm
+from mocapbench.codecs.mcb_rot.checks import PointTargets
 from mocapbench.codecs.mcb_rot.classes import NUM_BANDS
 from mocapbench.codecs.mcb_rot.segments import SegmentLayout, forward, segment_starts
 from mocapbench.codecs.segments import CUT_MIN_JUMP_CM, CUT_RATIO, find_cuts
@@ -68,6 +74,7 @@ from mocapbench.codecs.registry import register_codec
 from mocapbench.codecs.skeleton_blob import pack_skeleton_compact, unpack_skeleton_compact
 from mocapbench.entropy.bitio import ByteReader
 from mocapbench.entropy.errors import BitstreamError
+from mocapbench.metrics.shell import motion_shell_errors
 from mocapbench.motion import Motion
 
 __all__ = ["McbRotCodec"]
@@ -119,6 +126,10 @@ class McbRotCodec(Codec):
         cut_min_cm: float = param(
             CUT_MIN_JUMP_CM, low=0.0, high=1e4, unit="cm", doc="smallest jump (RMS over joints) treated as a cut"
         )
+        shell_cm: float = param(
+            0.0, low=0.0, high=100.0, unit="cm",
+            doc="the bound also holds on ACL's virtual vertices at this distance from every joint (0: joints only)",
+        )
 
     @property
     def latency_frames(self) -> int:
@@ -152,23 +163,30 @@ class McbRotCodec(Codec):
         spectra = forward(signal, layout)
         settings = Settings.create(config.eps_cm, bound, 1.0, config.frequency_slope, config.rounding,
                                    config.root_share, np.deg2rad(config.free_angle_deg), config.allocation_power,
-                                   config.segment_frames, config.chunk_frames)
+                                   config.segment_frames, config.chunk_frames, config.shell_cm)
         budgets = joint_budgets(stored, settings.bound_cm, settings.root_share, settings.free_angle_rad,
-                                settings.allocation_power)
+                                settings.allocation_power, settings.shell_cm)
         channels = 3 + 3 * motion.num_joints
         info = StreamInfo(settings, stored, budgets, layout, cuts, overrides, axis_codes,
                           np.zeros(channels, np.int64), np.zeros(NUM_BANDS, np.int64))
-        encoder = _Encoder(config, motion, info, skeleton_blob, spectra, target)
+        points = PointTargets(target, motion.rotations, stored, settings.shell_cm)
+        encoder = _Encoder(config, motion, info, skeleton_blob, spectra, points)
         if config.step_rel > 0:
             payload = encoder.attempt(config.step_rel)
         else:
             payload = _search(encoder.attempt)
         # The guarantee: decode what we are about to return and check it.
         header = Header(self.name, motion.num_frames, motion.num_joints, motion.fps)
-        decoded = self.decode_payload(header, memoryview(payload))[0]
+        decoded, decoded_motion = self.decode_payload(header, memoryview(payload))
         worst = float(np.sqrt(np.sum((decoded - target) ** 2, axis=-1)).max())
         if not worst <= config.eps_cm:
             raise RuntimeError(f"mcb-rot: decoded L-inf {worst} cm exceeds eps {config.eps_cm} cm; not writing.")
+        if config.shell_cm > 0:
+            shell = float(motion_shell_errors(motion, decoded_motion, config.shell_cm).max())
+            if not shell <= config.eps_cm:
+                raise RuntimeError(f"mcb-rot: decoded shell error {shell} cm at {config.shell_cm} cm exceeds eps "
+                                   f"{config.eps_cm} cm; not writing.")
+            worst = max(worst, shell)
         self.last_encode_stats = {**encoder.stats[len(payload)], "bound_slack_cm": config.eps_cm - worst,
                                   "segments": layout.num_segments, "cuts": len(cuts)}
         return payload
@@ -222,6 +240,7 @@ class McbRotCodec(Codec):
         info = read_info(header, payload)
         settings = info.settings
         return {"eps_cm (guaranteed L-inf)": settings.eps_cm, "step multiplier (x budget)": settings.multiplier,
+                "shell distance cm (bound also on vertices)": settings.shell_cm,
                 "segment frames": settings.segment_frames, "chunk frames": settings.chunk_frames,
                 "segments": info.layout.num_segments, "cuts": len(info.cuts),
                 "re-referenced joint segments": len(info.overrides),
@@ -270,14 +289,15 @@ def _signal(quats: np.ndarray, roots: np.ndarray, layout: SegmentLayout) -> tupl
 class _Encoder:
     """One motion's fixed encoding state; :meth:`attempt` writes the stream for one step multiplier."""
 
-    def __init__(self, config, motion: Motion, info: StreamInfo, skeleton_blob: bytes, spectra, target) -> None:
+    def __init__(self, config, motion: Motion, info: StreamInfo, skeleton_blob: bytes, spectra,
+                 points: PointTargets) -> None:
         self.config = config
         self.motion = motion
         self.info = info
         self.layout = info.layout
         self.skeleton_blob = skeleton_blob
         self.spectra = spectra
-        self.target = target
+        self.points = points
         self.stats: dict[int, dict] = {}
 
     def attempt(self, multiplier: float) -> bytes:
@@ -296,35 +316,37 @@ class _Encoder:
         # Decode the base layer as the decoder will, then refine in closed loop.
         segments = np.arange(layout.num_segments)
         roots, quats = assemble(info, segments, base_signal(info, segments, coefficients))
-        corrections = _refine(info, self.motion, roots, quats, self.target, config.eps_cm * (1.0 - _SAFETY_MARGIN))
+        corrections = _refine(info, self.motion, roots, quats, self.points, config.eps_cm * (1.0 - _SAFETY_MARGIN))
         payload = write_payload(info, self.skeleton_blob, coefficients, corrections)
         self.stats[len(payload)] = {"step_multiplier": multiplier, "corrections": int(len(corrections[0]))}
         return payload
 
 
-def _refine(info: StreamInfo, motion: Motion, roots, quats, target, check_cm: float):
+def _refine(info: StreamInfo, motion: Motion, roots, quats, points: PointTargets, check_cm: float):
     """Closed-loop corrections (in place on ``roots``, ``quats``): returns (flat indices, values (N, 3)) sorted.
 
-    On every frame where a joint misses ``check_cm``, the over-budget ancestors of the missing joints (and the root
-    translation when it is over budget) are corrected to within budget; repeated until no joint misses. A frame
-    whose every joint and root is within budget cannot miss (:mod:`.budgets`), so the loop ends.
+    On every frame where a joint (or, with a shell, one of its vertices) misses ``check_cm``, the over-budget joints
+    that move the missing points (and the root translation when it is over budget) are corrected to within budget;
+    repeated until nothing misses. A frame whose every joint and root is within budget cannot miss
+    (:mod:`.budgets`), so the loop ends.
     """
     budgets = info.budgets
     steps = info.correction_steps
     slots = len(steps)
-    skeleton = info.skeleton
     true_quats, true_roots = motion.rotations, motion.root_positions
-    ancestors = budgets.ancestors.astype(np.float64)
+    movers = budgets.movers.astype(np.float64)
     corrected = np.zeros((motion.num_frames, slots), dtype=bool)
     values = np.zeros((motion.num_frames, slots, 3), dtype=np.int64)
-    positions = kinematics.positions(quats, roots, skeleton)
-    frames = np.flatnonzero(np.any(np.sum((positions - target) ** 2, axis=-1) > check_cm**2, axis=1))
+    everything = np.arange(motion.num_frames)
+    frames = np.flatnonzero(np.any(points.errors(everything, quats, roots) > check_cm, axis=1))
+    errors = None
     for _ in range(slots + 1):
         if frames.size == 0:
             break
-        errors = np.sqrt(np.sum((positions[frames] - target[frames]) ** 2, axis=-1))  # (n, J)
+        if errors is None:
+            errors = points.errors(frames, quats[frames], roots[frames])  # (n, J)
         missing = errors > check_cm
-        moves_missing = (missing.astype(np.float64) @ ancestors) > 0  # (n, J): joint a moves a missing joint
+        moves_missing = (missing.astype(np.float64) @ movers) > 0  # (n, J): joint a moves a missing point
         relative = quat.multiply(quat.conjugate(quats[frames]), true_quats[frames])
         over = quat.angle(relative) > budgets.rotation_rad
         root_over = np.sqrt(np.sum((true_roots[frames] - roots[frames]) ** 2, axis=-1)) > budgets.root_cm
@@ -349,9 +371,9 @@ def _refine(info: StreamInfo, motion: Motion, roots, quats, target, check_cm: fl
         corrected[at, slot] = True
         flat = at * slots + slot
         apply_corrections(info, roots, quats, flat, values[at, slot])
-        positions[frames] = kinematics.positions(quats[frames], roots[frames], skeleton)
-        still = np.any(np.sum((positions[frames] - target[frames]) ** 2, axis=-1) > check_cm**2, axis=1)
-        frames = frames[still]
+        errors = points.errors(frames, quats[frames], roots[frames])
+        still = np.any(errors > check_cm, axis=1)
+        frames, errors = frames[still], errors[still]
     if frames.size:
         raise RuntimeError("mcb-rot: refinement did not converge; not writing.")
     flat = np.flatnonzero(corrected.ravel())

@@ -2,7 +2,7 @@
 
 Layout (after the container header)::
 
-    u8 format | f32 eps | f64 bound | f32 x 6 settings | varint segment, chunk frames
+    u8 format | f32 eps | f64 bound | f32 x 6 settings | varint segment, chunk frames | f32 shell distance (format 3)
     skeleton (compact blob) | cuts (varint gaps) | re-referenced (segment, joint) pairs, f32 rotation vectors
     principal axes: J flag bits, int16 x 3 per flagged joint
     classes: u8 per channel (scale), u8 per band (tilt), u8 tilts of the segment means and significance counts,
@@ -43,7 +43,8 @@ from mocapbench.motion import Skeleton
 __all__ = ["Settings", "StreamInfo", "steps_of", "base_signal", "assemble", "apply_corrections", "write_payload",
            "read_info", "decode_chunks"]
 
-FORMAT = 2  # payload layout version; BE CAREFUL WHEN CHANGING: append only
+FORMAT = 3  # payload layout version; BE CAREFUL WHEN CHANGING: append only
+_READABLE = (2, 3)  # 3 appended the shell distance (f32, cm) to the settings; a format 2 stream has none
 _SQRT3 = np.sqrt(3.0)
 _SIDE = model.NUM_CLASSES  # classes >= this are coded with the nearest-rounding tables
 
@@ -66,12 +67,14 @@ class Settings:
     allocation_power: float
     segment_frames: int
     chunk_frames: int
+    shell_cm: float = 0.0  # the bound also holds on the virtual vertices at this distance (0: joints only)
 
     @classmethod
-    def create(cls, eps_cm, bound_cm, multiplier, slope, rounding, root_share, free_angle_rad, power, segment, chunk):
+    def create(cls, eps_cm, bound_cm, multiplier, slope, rounding, root_share, free_angle_rad, power, segment, chunk,
+               shell_cm=0.0):
         """Settings with every float32 field rounded as it will be read back."""
         return cls(_f32(eps_cm), float(bound_cm), _f32(multiplier), _f32(slope), _f32(rounding), _f32(root_share),
-                   _f32(free_angle_rad), _f32(power), int(segment), int(chunk))
+                   _f32(free_angle_rad), _f32(power), int(segment), int(chunk), _f32(shell_cm))
 
     def write(self, writer: ByteWriter) -> None:
         writer.write_u8(FORMAT)
@@ -82,28 +85,30 @@ class Settings:
             writer.write_f32(value)
         writer.write_varint(self.segment_frames)
         writer.write_varint(self.chunk_frames)
+        writer.write_f32(self.shell_cm)
 
     @classmethod
     def read(cls, reader: ByteReader) -> "Settings":
         version = reader.read_u8("mcb-rot format")
-        if version != FORMAT:
-            raise BitstreamError(f"mcb-rot: expected payload format {FORMAT}, found {version}.")
+        if version not in _READABLE:
+            raise BitstreamError(f"mcb-rot: expected payload format {' or '.join(map(str, _READABLE))}, found {version}.")
         eps = reader.read_f32("eps")
         bound = reader.read_f64("bound")
         multiplier, slope, rounding, root_share, free, power = (reader.read_f32("setting") for _ in range(6))
         segment_frames = reader.read_varint("segment frames")
         chunk_frames = reader.read_varint("chunk frames")
+        shell = reader.read_f32("shell distance") if version >= 3 else 0.0
         if not (
             0 < bound <= 100 and 0 < eps <= 101 and 0 < multiplier <= 1e6 and 0 <= slope <= 64
             and 0 <= rounding <= 0.5 and 0 < root_share < 1 and 0 < free <= np.pi and 0 <= power <= 64
-            and 1 <= segment_frames <= 4096 and 1 <= chunk_frames <= 1 << 20
+            and 1 <= segment_frames <= 4096 and 1 <= chunk_frames <= 1 << 20 and 0 <= shell <= 100
         ):
             raise BitstreamError(
                 f"mcb-rot: settings out of range: eps {eps}, bound {bound}, multiplier {multiplier}, slope {slope}, "
                 f"rounding {rounding}, root share {root_share}, free angle {free}, allocation power {power}, "
-                f"segment frames {segment_frames}, chunk frames {chunk_frames}."
+                f"segment frames {segment_frames}, chunk frames {chunk_frames}, shell distance {shell}."
             )
-        return cls(eps, bound, multiplier, slope, rounding, root_share, free, power, segment_frames, chunk_frames)
+        return cls(eps, bound, multiplier, slope, rounding, root_share, free, power, segment_frames, chunk_frames, shell)
 
 
 @dataclass(frozen=True, eq=False)
@@ -385,7 +390,7 @@ def read_info(header: Header, payload: memoryview) -> StreamInfo:
     if offsets[-1] != len(payload):
         raise BitstreamError(f"mcb-rot: the chunks end at byte {offsets[-1]}, the payload has {len(payload)}.")
     budgets = joint_budgets(skeleton, settings.bound_cm, settings.root_share, settings.free_angle_rad,
-                            settings.allocation_power)
+                            settings.allocation_power, settings.shell_cm)
     return StreamInfo(settings, skeleton, budgets, layout, cuts, overrides, axis_codes, scale, tilt, dc_tilt,
                       count_tilt, gap_class, value_class, dc, offsets)
 

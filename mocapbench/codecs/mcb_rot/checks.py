@@ -1,0 +1,53 @@
+"""What the ``mcb-rot`` encoder checks on every frame: joint position errors and, with a shell, ACL's vertex errors.
+
+The shell error of joint ``k`` is :mod:`mocapbench.metrics.shell`'s: the largest displacement of the three virtual
+vertices at distance ``d`` along ``k``'s global axes, ``|d (R_ref - R_dec) e_i + (p_ref - p_dec)|``. The encoder's
+closed loop keeps ``max(joint error, shell error)`` within the bound; the final check of the encoder is the metric
+itself on the decoded :class:`~mocapbench.motion.Motion`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from mocapbench.codecs.mcb_rot import kinematics
+from mocapbench.codecs.mcb_rot import quaternions as quat
+from mocapbench.motion import Skeleton
+
+__all__ = ["PointTargets", "global_quaternions"]
+
+
+def global_quaternions(quats: np.ndarray, parents: np.ndarray) -> np.ndarray:
+    """Global rotations (F, J, 4) of local rotations ``quats`` (F, J, 4), one product per tree depth."""
+    depth = np.zeros(len(parents), dtype=np.int64)
+    for joint in range(1, len(parents)):
+        depth[joint] = depth[parents[joint]] + 1
+    glob = np.array(quats, dtype=np.float64)
+    for level in range(1, int(depth.max(initial=0)) + 1):
+        joints = np.flatnonzero(depth == level)
+        glob[:, joints] = quat.multiply(glob[:, parents[joints]], quats[:, joints])
+    return glob
+
+
+class PointTargets:
+    """The original motion's checked points: joint positions (F, J, 3) cm and, with a shell of ``shell_cm`` > 0,
+    its vertices' offsets from their joints, ``d R e_i`` as (F, J, 3, 3) (column i: vertex i)."""
+
+    def __init__(self, positions: np.ndarray, rotations: np.ndarray, skeleton: Skeleton, shell_cm: float) -> None:
+        self.positions = positions
+        self.skeleton = skeleton
+        self.shell_cm = float(shell_cm)
+        self.vertices = None
+        if self.shell_cm > 0:
+            self.vertices = self.shell_cm * quat.as_matrix(global_quaternions(rotations, skeleton.parents))
+
+    def errors(self, frames: np.ndarray, quats: np.ndarray, roots: np.ndarray) -> np.ndarray:
+        """(n, J) error of every joint at ``frames`` (cm) for decoded ``quats`` (n, J, 4), ``roots`` (n, 3): the joint's
+        position error, or with a shell the larger of it and its vertices' errors."""
+        moved = self.positions[frames] - kinematics.positions(quats, roots, self.skeleton)  # (n, J, 3)
+        squared = np.sum(moved**2, axis=-1)
+        if self.vertices is not None:
+            decoded = self.shell_cm * quat.as_matrix(global_quaternions(quats, self.skeleton.parents))
+            displacement = self.vertices[frames] - decoded + moved[..., :, None]  # (n, J, 3 coords, 3 vertices)
+            squared = np.maximum(squared, np.sum(displacement**2, axis=-2).max(axis=-1))
+        return np.sqrt(squared)
