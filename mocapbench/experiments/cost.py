@@ -10,9 +10,10 @@ The estimate multiplies measured per-frame costs by the dataset's frames. Costs 
 ``--calibration-frames`` frames and reads every row's ``encode_cpu_s + decode_cpu_s``, plus the job's overhead per
 clip (reading, positions, metrics) and a per-frame memory measurement of each codec at 4,000 frames). Each codec
 config's clips are cut into shards the way the sweeper cuts them (:mod:`mocapbench.experiments.shards`), and the
-shards are scheduled on ``--workers`` workers, longest first, for the wall time. The peak memory of a worker is the
-process's resident baseline plus the longest clip's motion and the codec's measured peak per frame times the longest
-clip (a job holds one clip at a time).
+shards are scheduled on ``--workers`` workers, longest first, for the wall time. The peak memory of a job is the
+process's resident baseline plus the motion and the codec's measured peak per frame times the longest clip of its
+shard (a job holds one clip at a time); ``--mem-gb`` counts the jobs over a memory limit. ``--packing contiguous``
+estimates the shards of sweeps from before the ``balanced`` packing (one long clip made every shard thin).
 
 ``--layout config`` estimates the layout before shards (one job per codec config over the whole dataset, every job
 holding the whole dataset, its results file rewritten after every clip, ``mcb-linf`` refit in every job) from the
@@ -95,6 +96,8 @@ class Estimate:
     peak_gb : float
         The largest peak memory of one worker, GB.
     jobs : int
+    jobs_over_mem : int
+        Jobs whose peak is over ``mem_gb`` (0 when no ``mem_gb`` was given).
     """
 
     rows: list[dict[str, Any]]
@@ -102,6 +105,7 @@ class Estimate:
     wall_h: float
     peak_gb: float
     jobs: int
+    jobs_over_mem: int = 0
 
 
 def _makespan(durations: Sequence[float], workers: int) -> float:
@@ -114,7 +118,8 @@ def _makespan(durations: Sequence[float], workers: int) -> float:
 
 
 def estimate(costs: dict[str, Any], folders: Sequence[str], frames: Sequence[int], workers: int,
-             max_cpu_s: float | None = 1800.0, layout: str = "shards") -> Estimate:
+             max_cpu_s: float | None = 1800.0, layout: str = "shards", packing: str = "balanced",
+             mem_gb: float | None = None) -> Estimate:
     """Estimate a sweep of the job folders ``folders`` (``<codec>/<overrides>``) over clips of ``frames`` frames.
 
     Parameters
@@ -131,8 +136,13 @@ def estimate(costs: dict[str, Any], folders: Sequence[str], frames: Sequence[int
         The shard budget (``shard.max_cpu_s``).
     layout : {"shards", "config"}
         ``config``: one job per codec config over every clip, as before shards (see the module docstring).
+    packing : {"balanced", "contiguous"}
+        How clips are packed into shards (``shard.packing``, :mod:`mocapbench.experiments.shards`).
+    mem_gb : float or None
+        A job's memory limit (``hydra.launcher.mem_gb``): ``Estimate.jobs_over_mem`` counts the jobs whose peak
+        (set by the longest clip of the job) is over it.
     """
-    from mocapbench.experiments.shards import shard_count, split
+    from mocapbench.experiments.shards import pack, shard_count
 
     old = costs.get("old_layout", {})
     overhead = costs.get("job", {})
@@ -144,24 +154,29 @@ def estimate(costs: dict[str, Any], folders: Sequence[str], frames: Sequence[int
     total_frames = sum(frames)
     by_codec: dict[str, dict[str, Any]] = {}
     durations: list[float] = []
+    over_mem = 0
     for folder in folders:
         codec = folder.split("/", 1)[0]
         per_frame, per_clip = cpu_cost(costs, folder)
         per_frame += per_frame_job
         per_clip += per_clip_job
         cost = [per_frame * f + per_clip for f in frames]
-        peak = baseline + (motion_bytes + _peak_bytes_per_frame(costs, codec)) * longest
+        per_frame_bytes = motion_bytes + _peak_bytes_per_frame(costs, codec)
         if layout == "config":
             clips = len(frames)
             extra = float(old.get("rewrite_s_per_clip_squared", 0.0)) * clips * clips
             if codec == "mcb-linf":
                 extra += float(old.get("mcb_linf_fit_cpu_s", 0.0))
             jobs = [sum(cost) + extra]
-            peak = baseline + float(old.get("resident_bytes_per_frame", motion_bytes)) * total_frames + \
-                _peak_bytes_per_frame(costs, codec) * longest
-        else:
-            count = shard_count(frames, per_frame, max_cpu_s, per_clip)
-            jobs = [sum(cost[i] for i in r) for r in split(frames, count)]
+            peaks = [baseline + float(old.get("resident_bytes_per_frame", motion_bytes)) * total_frames
+                     + _peak_bytes_per_frame(costs, codec) * longest]
+        else:  # a job holds one clip at a time: its peak is set by its longest clip
+            shards = pack(frames, shard_count(frames, per_frame, max_cpu_s, per_clip, packing), packing)
+            jobs = [sum(cost[i] for i in shard) for shard in shards]
+            peaks = [baseline + per_frame_bytes * max(frames[i] for i in shard) for shard in shards]
+        if mem_gb:
+            over_mem += sum(1 for p in peaks if p > mem_gb * 1e9)
+        peak = max(peaks)
         durations.extend(jobs)
         row = by_codec.setdefault(codec, {"codec": codec, "configs": 0, "jobs": 0, "cpu_h": 0.0,
                                           "longest_job_h": 0.0, "peak_gb": 0.0})
@@ -173,7 +188,7 @@ def estimate(costs: dict[str, Any], folders: Sequence[str], frames: Sequence[int
     rows = sorted(by_codec.values(), key=lambda r: -r["cpu_h"])
     cpu_h = sum(r["cpu_h"] for r in rows)
     return Estimate(rows, cpu_h, _makespan(durations, workers) / 3600, max((r["peak_gb"] for r in rows), default=0.0),
-                    len(durations))
+                    len(durations), over_mem)
 
 
 # -- the configs of a sweep -------------------------------------------------------------------------------
@@ -360,7 +375,7 @@ def _dataset_frames(name: str, overrides: Sequence[str]) -> list[int]:
     return [ref.frames for ref in catalogue(OmegaConf.to_container(cfg.dataset, resolve=True))]
 
 
-def _print(result: Estimate, what: str, workers: int, layout: str) -> None:
+def _print(result: Estimate, what: str, workers: int, layout: str, mem_gb: float | None = None) -> None:
     print(f"{what}; {workers} workers; layout: {layout}")
     print("| codec | configs | jobs | CPU h | longest job h | peak GB per worker |")
     print("|---|---:|---:|---:|---:|---:|")
@@ -369,9 +384,13 @@ def _print(result: Estimate, what: str, workers: int, layout: str) -> None:
               f"{row['longest_job_h']:.2f} | {row['peak_gb']:.2f} |")
     print(f"total: {result.cpu_h:.1f} CPU h ({result.cpu_h / 24:.1f} CPU-days), {result.jobs} jobs, "
           f"wall {result.wall_h:.1f} h on {workers} workers, peak {result.peak_gb:.2f} GB per worker")
+    if mem_gb:
+        print(f"jobs over mem_gb {mem_gb:g}: {result.jobs_over_mem}")
 
 
 def main(argv: list[str] | None = None) -> int:
+    from mocapbench.experiments.shards import PACKINGS
+
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--sweep", default="all", help="the sweep whose configs are estimated (default: all)")
     parser.add_argument("--dataset", help="a dataset config (its catalogue gives the clips' frames)")
@@ -381,6 +400,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--workers", type=int, default=2, help="jobs at once (default 2)")
     parser.add_argument("--max-cpu-s", type=float, default=1800.0, help="shard budget, CPU s (shard.max_cpu_s)")
     parser.add_argument("--layout", choices=("shards", "config"), default="shards")
+    parser.add_argument("--packing", choices=PACKINGS, default=PACKINGS[0],
+                        help="clips into shards (shard.packing; contiguous: sweeps from before balanced packing)")
+    parser.add_argument("--mem-gb", type=float, help="count the jobs whose peak is over this (hydra.launcher.mem_gb)")
     parser.add_argument("--costs", help="costs file (default: the package's configs/costs.json)")
     parser.add_argument("--calibrate", action="store_true", help="measure the costs on this machine, write them")
     parser.add_argument("--calibration-frames", type=int, default=300)
@@ -409,8 +431,9 @@ def main(argv: list[str] | None = None) -> int:
     else:
         parser.error("give --dataset NAME or --frames N --clips C")
     folders = sweep_folders(args.sweep)
-    result = estimate(costs, folders, frames, args.workers, args.max_cpu_s, args.layout)
-    _print(result, f"sweep={args.sweep} ({len(folders)} configs) over {what}", args.workers, args.layout)
+    result = estimate(costs, folders, frames, args.workers, args.max_cpu_s, args.layout, args.packing, args.mem_gb)
+    layout = args.layout if args.layout == "config" else f"shards ({args.packing})"
+    _print(result, f"sweep={args.sweep} ({len(folders)} configs) over {what}", args.workers, layout, args.mem_gb)
     print(f"per-frame costs measured {costs.get('measured')} on {costs.get('machine')} ({costs.get('command')})")
     return 0
 

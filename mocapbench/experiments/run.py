@@ -116,6 +116,7 @@ def run_job(cfg: Any, output_dir: Path, fitted_dir: Path | None = None) -> dict[
     dataset_cfg = OmegaConf.to_container(cfg.dataset, resolve=True)
     shard = OmegaConf.to_container(cfg.shard, resolve=True) if cfg.get("shard") is not None else {}
     index, total = int(shard.get("index", 0)), int(shard.get("count", 1))
+    packing = str(shard.get("packing", "balanced"))
     context = {"codec": codec_cfg.get("name"), "config": {k: v for k, v in codec_cfg.items() if not k.startswith("_")}}
     errors = 0
 
@@ -133,7 +134,7 @@ def run_job(cfg: Any, output_dir: Path, fitted_dir: Path | None = None) -> dict[
     timing = TimingSettings(**OmegaConf.to_container(cfg.timing, resolve=True)) if cfg.get("timing") else None
     status, clips = "failed", []
     try:
-        clips = [ref.name for ref in shards.shard_clips(datasets.catalogue(dataset_cfg), index, total)]
+        clips = [ref.name for ref in shards.shard_clips(datasets.catalogue(dataset_cfg), index, total, packing)]
         todo = [name for name in clips if name not in done]
         if todo:
             codec = instantiate(cfg.codec)

@@ -14,8 +14,9 @@ launch them again; a half-finished job resumes clip by clip (:mod:`mocapbench.ex
 A job is a shard (:mod:`mocapbench.experiments.shards`): each codec config's clips are cut into the fewest shards
 whose estimated CPU time stays under ``shard.max_cpu_s`` (per-frame costs from
 :mod:`mocapbench.experiments.cost`), each in ``<config folder>/shard-<i>-of-<n>`` (the config folder itself when
-one shard is enough). The number of shards of each config is kept in ``<sweep dir>/shards.json`` and reused on
-resume, so a re-run finds the same folders whatever the cost file says by then.
+one shard is enough). The number of shards of each config and the packing (``shard.packing``) are kept in
+``<sweep dir>/shards.json`` and reused on resume, so a re-run finds the same folders and the same clips in each
+whatever the cost file says by then.
 
 Selected with ``override hydra/sweeper: mocapbench`` in ``configs/benchmark.yaml``.
 """
@@ -251,11 +252,21 @@ class RdSweeper(Sweeper):
         )
 
     def shard_jobs(self, sweep_dir: Path, jobs: list[tuple[str, list[str]]]) -> list[tuple[str, list[str]]]:
-        """Cut every job into shards (see the module docstring); ``shards.json`` keeps each config's count."""
+        """Cut every job into shards (see the module docstring); ``shards.json`` keeps each config's count.
+
+        ``shards.json`` is ``{"packing": ..., "counts": {folder: count}}``; a file of counts alone was written
+        before the ``balanced`` packing existed, and its sweep resumes with the ``contiguous`` one
+        (:mod:`mocapbench.experiments.shards`).
+        """
         from mocapbench.experiments import cost, datasets, shards
 
         plan_path = sweep_dir / SHARDS_FILE
-        plan: dict[str, int] = json.loads(plan_path.read_text()) if plan_path.exists() else {}
+        asked = [o.split("=", 1)[1] for _, overrides in jobs for o in overrides if o.startswith("shard.packing=")]
+        saved = json.loads(plan_path.read_text()) if plan_path.exists() else {"packing": (asked or shards.PACKINGS)[0]}
+        if "counts" in saved or set(saved) == {"packing"}:
+            packing, plan = saved["packing"], dict(saved.get("counts", {}))
+        else:  # the older file: counts only, contiguous shards
+            packing, plan = "contiguous", dict(saved)
         costs = cost.load_costs()
         catalogues: dict[tuple[str, ...], Any] = {}
         out: list[tuple[str, list[str]]] = []
@@ -278,16 +289,16 @@ class RdSweeper(Sweeper):
                 else:
                     per_frame, per_clip = cost.cpu_cost(costs, folder)
                     plan[folder] = shards.shard_count([r.frames for r in refs], per_frame, shard_cfg.max_cpu_s,
-                                                      per_clip)
+                                                      per_clip, packing)
             count = plan[folder]
             if count == 1:
                 out.append((folder, [o for o in overrides if not o.startswith("shard.count=")]))
                 continue
-            base = [o for o in overrides if o.split("=", 1)[0] not in ("shard.index", "shard.count")]
+            base = [o for o in overrides if o.split("=", 1)[0] not in ("shard.index", "shard.count", "shard.packing")]
             for index in range(count):
                 out.append((shards.shard_folder(folder, index, count),
-                            [*base, f"shard.index={index}", f"shard.count={count}"]))
-        plan_path.write_text(json.dumps(plan, indent=1, sort_keys=True))
+                            [*base, f"shard.index={index}", f"shard.count={count}", f"shard.packing={packing}"]))
+        plan_path.write_text(json.dumps({"packing": packing, "counts": plan}, indent=1, sort_keys=True))
         return out
 
     # -- running ---------------------------------------------------------------------------------------
