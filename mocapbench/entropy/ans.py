@@ -39,8 +39,12 @@ __all__ = [
     "ClassTables",
     "decode_classed",
     "encode_classed",
+    "TokenRun",
+    "class_groups",
     "laplace_token_probabilities",
+    "read_tokens",
     "tokenize",
+    "values_of_tokens",
 ]
 
 _DIRECT = 16  # magnitudes 0..15 are tokens of their own
@@ -82,9 +86,10 @@ def _bit_length(magnitude: np.ndarray) -> np.ndarray:
     return exponent.astype(np.int64)
 
 
-def _token_widths(tokens: np.ndarray) -> np.ndarray:
-    """Raw bit count of each token (inverse of :func:`tokenize`'s widths)."""
-    return np.where(tokens >= _DIRECT, tokens.astype(np.int64) - _DIRECT + _FIRST_ESCAPE_BITS - 1, 0)
+#: Raw bit count of every token (inverse of :func:`tokenize`'s widths): 0 below ``_DIRECT``, then 4, 5, ... 39.
+_TOKEN_WIDTHS = np.concatenate(
+    [np.zeros(_DIRECT, dtype=np.int64), np.arange(_FIRST_ESCAPE_BITS - 1, MAX_MAGNITUDE_BITS, dtype=np.int64)]
+)
 
 
 def laplace_token_probabilities(scale: float, rounding: float) -> np.ndarray:
@@ -154,7 +159,7 @@ def _check_classes(classes: np.ndarray, count: int, tables: ClassTables) -> np.n
     return classes.astype(np.uint8 if tables.num_classes <= 256 else np.int64)  # uint8 sorts by radix: O(N)
 
 
-def _class_groups(classes: np.ndarray) -> tuple[np.ndarray, list[tuple[int, int]]]:
+def class_groups(classes: np.ndarray) -> tuple[np.ndarray, list[tuple[int, int]]]:
     """A stable permutation sorting the values by class, and (class, count) of each class present, in order."""
     order = np.argsort(classes, kind="stable")
     counts = np.bincount(classes)
@@ -172,23 +177,6 @@ def _pack_raw_bits(raw: np.ndarray, widths: np.ndarray) -> bytes:
     return np.packbits(bits[positions < widths[selected, None]].astype(np.uint8)).tobytes()
 
 
-def _unpack_raw_bits(data: bytes, widths: np.ndarray) -> np.ndarray:
-    """Inverse of :func:`_pack_raw_bits`."""
-    raw = np.zeros(len(widths), dtype=np.int64)
-    selected = widths > 0
-    if not selected.any():
-        return raw
-    bits = np.unpackbits(np.frombuffer(data, dtype=np.uint8)).astype(np.int64)
-    ends = np.cumsum(widths[selected])
-    starts = ends - widths[selected]
-    positions = np.arange(int(widths.max()))
-    index = starts[:, None] + positions
-    valid = positions < widths[selected, None]
-    weights = np.where(valid, np.int64(1) << np.maximum(widths[selected, None] - 1 - positions, 0), 0)
-    raw[selected] = (bits[np.where(valid, index, 0)] * weights).sum(axis=1)
-    return raw
-
-
 def encode_classed(writer: ByteWriter, values: np.ndarray, classes: np.ndarray, tables: ClassTables) -> None:
     """Append ``values`` (int64, (N,)) coded with each one's class distribution to ``writer``.
 
@@ -198,7 +186,7 @@ def encode_classed(writer: ByteWriter, values: np.ndarray, classes: np.ndarray, 
     classes = _check_classes(classes, values.size, tables)
     tokens, raw, widths = tokenize(values)
     coder = constriction.stream.stack.AnsCoder()
-    order, groups = _class_groups(classes)
+    order, groups = class_groups(classes)
     sorted_tokens = tokens[order]
     end = len(sorted_tokens)
     for klass, count in reversed(groups):  # a stack: encode last what is decoded first
@@ -214,11 +202,40 @@ def encode_classed(writer: ByteWriter, values: np.ndarray, classes: np.ndarray, 
 def decode_classed(reader: ByteReader, classes: np.ndarray, tables: ClassTables, what: str) -> np.ndarray:
     """Read ``len(classes)`` values written by :func:`encode_classed` (int64, (N,))."""
     classes = _check_classes(classes, len(classes), tables)
+    order, groups = class_groups(classes)
+    return values_of_tokens([read_tokens(reader, groups, tables, what)], order)
+
+
+@dataclass(frozen=True)
+class TokenRun:
+    """The tokens of one stream of :func:`encode_classed` in class order, and its sign and raw bytes, unparsed.
+
+    Returned by :func:`read_tokens`; :func:`values_of_tokens` turns any number of them into values in one pass.
+    """
+
+    tokens: np.ndarray  # (N,) int32, sorted by class (the order they were coded in)
+    nonzero: int  # how many tokens are not 0 (= sign bits)
+    raw_bits: int  # total raw bits
+    signs: bytes
+    raw: bytes
+
+
+def read_tokens(reader: ByteReader, groups: list[tuple[int, int]], tables: ClassTables, what: str) -> TokenRun:
+    """The ANS part of one stream of :func:`encode_classed` and the bytes of its signs and raw bits.
+
+    ``groups`` lists ``(class, count)`` of the classes present, in increasing class order (the stream codes the
+    values sorted by class, stably). Splitting the read from :func:`values_of_tokens` lets a decoder with many small
+    streams (one per random-access chunk) do the ANS calls stream by stream and everything else once.
+
+    Raises
+    ------
+    BitstreamError
+        If the ANS words run past the data, do not decode, or hold more than the counts of ``groups``.
+    """
     num_words = reader.read_varint(f"{what}: ANS word count")
     if num_words > reader.remaining // 4:
         raise BitstreamError(f"{what}: expected {num_words} ANS words, only {reader.remaining} bytes left.")
-    words = reader.read_array(num_words, "<u4", f"{what}: ANS words").astype(np.uint32)
-    order, groups = _class_groups(classes)
+    words = reader.read_array(num_words, "<u4", f"{what}: ANS words").astype(np.uint32, copy=False)
     try:
         coder = constriction.stream.stack.AnsCoder(words)
         parts = [coder.decode(tables.model(klass), count) for klass, count in groups]
@@ -226,19 +243,53 @@ def decode_classed(reader: ByteReader, classes: np.ndarray, tables: ClassTables,
     except (ValueError, RuntimeError, AssertionError) as error:
         raise BitstreamError(f"{what}: the ANS stream does not decode ({error}).") from None
     if not finished:
-        raise BitstreamError(f"{what}: the ANS stream holds more data than its {len(classes)} values.")
-    tokens = np.zeros(len(classes), dtype=np.int32)
-    if parts:
-        tokens[order] = np.concatenate(parts)
+        raise BitstreamError(f"{what}: the ANS stream holds more data than its {sum(c for _, c in groups)} values.")
+    tokens = np.concatenate(parts) if len(parts) > 1 else parts[0] if parts else np.zeros(0, dtype=np.int32)
+    nonzero = int(np.count_nonzero(tokens))
+    raw_bits = int(_TOKEN_WIDTHS[tokens].sum()) if nonzero else 0
+    signs = reader.read_bytes((nonzero + 7) // 8, f"{what}: signs")
+    raw = reader.read_bytes((raw_bits + 7) // 8, f"{what}: raw bits")
+    return TokenRun(tokens, nonzero, raw_bits, signs, raw)
+
+
+def values_of_tokens(runs: list[TokenRun], order: np.ndarray) -> np.ndarray:
+    """Values (int64, (N,)) of the streams ``runs``, concatenated in stream order.
+
+    ``order`` (N,) is the permutation that sorts the streams' concatenated classes stream by stream and, inside a
+    stream, stably by class: ``values[order]`` is the runs' tokens concatenated.
+    """
+    tokens = np.zeros(len(order), dtype=np.int64)
+    if len(runs) == 1:
+        tokens[order] = runs[0].tokens
+    elif runs:
+        tokens[order] = np.concatenate([run.tokens for run in runs])
     # Most values are 0: the rest of the work touches only the nonzero ones.
     nonzero = np.flatnonzero(tokens)
-    tokens = tokens[nonzero].astype(np.int64)
-    signs = np.unpackbits(
-        np.frombuffer(reader.read_bytes((len(nonzero) + 7) // 8, f"{what}: signs"), dtype=np.uint8)
-    )[: len(nonzero)]
-    widths = _token_widths(tokens)
-    raw = _unpack_raw_bits(reader.read_bytes((int(widths.sum()) + 7) // 8, f"{what}: raw bits"), widths)
-    magnitudes = np.where(tokens >= _DIRECT, (np.int64(1) << widths) + raw, tokens)
-    values = np.zeros(len(classes), dtype=np.int64)
-    values[nonzero] = np.where(signs.astype(bool), -magnitudes, magnitudes)
-    return values
+    if nonzero.size == 0:
+        return tokens
+    magnitudes = tokens[nonzero]
+    counts = np.array([run.nonzero for run in runs], dtype=np.int64)
+    first = np.cumsum(counts) - counts  # first nonzero of each stream
+    # Each stream's sign bits start on a byte: bit of nonzero i = 8 x (its stream's sign byte) + its rank there.
+    sign_bytes = np.array([len(run.signs) for run in runs], dtype=np.int64)
+    signs = np.unpackbits(np.frombuffer(b"".join([run.signs for run in runs]), dtype=np.uint8))
+    sign_at = np.arange(nonzero.size) + np.repeat(8 * (np.cumsum(sign_bytes) - sign_bytes) - first, counts)
+    negative = signs[sign_at].astype(bool)
+    widths = _TOKEN_WIDTHS[magnitudes]
+    escaped = np.flatnonzero(widths)
+    if escaped.size:
+        width = widths[escaped]
+        bits = np.array([run.raw_bits for run in runs], dtype=np.int64)
+        raw_bytes = np.array([len(run.raw) for run in runs], dtype=np.int64)
+        stream = np.repeat(np.arange(len(runs)), counts)[escaped]
+        # Bit position of each escaped value's raw bits: its stream's first raw bit + the widths before it there.
+        position = np.cumsum(width) - width + (8 * (np.cumsum(raw_bytes) - raw_bytes) - (np.cumsum(bits) - bits))[stream]
+        data = np.frombuffer(b"".join([run.raw for run in runs] + [bytes(8)]), dtype=np.uint8)
+        byte = position >> 3
+        window = np.zeros(escaped.size, dtype=np.uint64)
+        for i in range(8):  # the 8 bytes from the first raw bit's byte, big-endian: width + 7 <= 46 bits needed
+            window |= data[byte + i].astype(np.uint64) << np.uint64(56 - 8 * i)
+        raw = ((window << (position & 7).astype(np.uint64)) >> (64 - width).astype(np.uint64)).astype(np.int64)
+        magnitudes[escaped] = (np.int64(1) << width) + raw
+    tokens[nonzero] = np.where(negative, -magnitudes, magnitudes)
+    return tokens

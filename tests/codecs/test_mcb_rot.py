@@ -9,7 +9,7 @@ from hypothesis import strategies as st
 
 from mocapbench import metrics
 from mocapbench.codecs import BitstreamError, container, create
-from mocapbench.codecs.mcb_rot import codec as mcb_rot_codec
+from mocapbench.codecs.mcb_rot import decoder
 from mocapbench.codecs.mcb_rot.quaternions import exp_map, log_map, multiply, sign_continuous
 from mocapbench.motion import Motion, Skeleton
 from mocapbench.synthetic import sinusoidal_motion
@@ -170,19 +170,21 @@ def test_decode_frames_decodes_only_the_chunks_holding_them(synthetic_motion, mo
     data = codec.encode(synthetic_motion)
     full = codec.decode(data)
     seen = []
-    original = mcb_rot_codec.decode_chunks
+    original = decoder.decode_block
 
     def spy(info, payload, chunks):
-        seen.append(list(chunks))
+        seen.extend(chunks.tolist())
         return original(info, payload, chunks)
 
-    monkeypatch.setattr(mcb_rot_codec, "decode_chunks", spy)
+    monkeypatch.setattr(decoder, "decode_block", spy)
+    monkeypatch.setattr(decoder, "BLOCK_FRAMES", 64)  # several blocks per call
     for start, stop in [(0, 1), (70, 71), (31, 33), (100, 240), (239, 240)]:
+        seen.clear()
         part = codec.decode_frames(data, start, stop)
         np.testing.assert_allclose(part.positions, full.positions[start:stop], atol=1e-9)
         np.testing.assert_allclose(part.motion.rotations, full.motion.rotations[start:stop], atol=1e-12)
         assert metrics.max_joint_error(synthetic_motion.positions()[start:stop], part.positions) <= 0.5
-        assert seen[-1] == list(range(start // 32, (stop - 1) // 32 + 1))
+        assert seen == list(range(start // 32, (stop - 1) // 32 + 1))
     assert codec.latency_frames == 16
     with pytest.raises(ValueError, match="frame range 5:5 is outside 0:240 or empty"):
         codec.decode_frames(data, 5, 5)

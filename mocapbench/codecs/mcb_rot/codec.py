@@ -51,6 +51,7 @@ from mocapbench.codecs import container
 from mocapbench.codecs.base import Codec, CodecConfig, Decoded, Header, param
 from mocapbench.codecs.limits import DecodeLimits, using_limits
 from mocapbench.codecs.mcb_rot import kinematics
+from mocapbench.codecs.mcb_rot.decoder import decode_range
 from mocapbench.codecs.mcb_rot import quaternions as quat
 from mocapbench.codecs.mcb_rot.axes import axes_from_codes, principal_axes, to_axes
 from mocapbench.codecs.mcb_rot.budgets import joint_budgets, offset_discrepancy_cm
@@ -64,7 +65,6 @@ from mocapbench.codecs.mcb_rot.stream import (
     apply_corrections,
     assemble,
     base_signal,
-    decode_chunks,
     _f32,
     read_info,
     steps_of,
@@ -75,7 +75,7 @@ from mocapbench.codecs.skeleton_blob import pack_skeleton_compact, unpack_skelet
 from mocapbench.entropy.bitio import ByteReader
 from mocapbench.entropy.errors import BitstreamError
 from mocapbench.metrics.shell import motion_shell_errors
-from mocapbench.motion import Motion
+from mocapbench.motion import Motion, OwnedQuaternions
 
 __all__ = ["McbRotCodec"]
 
@@ -194,8 +194,8 @@ class McbRotCodec(Codec):
     # -- decoding --------------------------------------------------------------------------------------
     def decode_payload(self, header: Header, payload: memoryview):
         info = read_info(header, payload)
-        roots, quats = decode_chunks(info, payload, np.arange(info.layout.num_chunks))
-        return kinematics.positions(quats, roots, info.skeleton), Motion(info.skeleton, header.fps, roots, quats)
+        positions, roots, quats = decode_range(info, payload, 0, header.num_frames)
+        return positions, Motion(info.skeleton, header.fps, roots, OwnedQuaternions(quats))
 
     def _stream_info(self, header: Header, payload: memoryview) -> StreamInfo:
         """The parsed payload header, kept for the last stream seen: an engine sampling one clip at many times
@@ -225,16 +225,13 @@ class McbRotCodec(Codec):
             active.check_header(stop - start, header.num_joints, self.codes_rotations)
         try:
             info = self._stream_info(header, payload)
-            chunks = info.layout.chunks_of_frames(start, stop)
-            roots, quats = decode_chunks(info, payload, chunks)
+            positions, roots, quats = decode_range(info, payload, start, stop)
         except BitstreamError:
             raise
         except (ValueError, IndexError, KeyError, OverflowError, EOFError, TypeError) as error:
             raise BitstreamError(f"{self.name}: payload is inconsistent with its header: {error}") from error
-        first = int(info.layout.starts[info.layout.chunk_starts[chunks[0]]])
-        roots, quats = roots[start - first : stop - first], quats[start - first : stop - first]
-        positions = kinematics.positions(quats, roots, info.skeleton)
-        return Decoded(positions=positions, motion=Motion(info.skeleton, header.fps, roots, quats), header=header)
+        motion = Motion(info.skeleton, header.fps, roots, OwnedQuaternions(quats))
+        return Decoded(positions=positions, motion=motion, header=header)
 
     def describe_payload(self, header: Header, payload: memoryview):
         info = read_info(header, payload)

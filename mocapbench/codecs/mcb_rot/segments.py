@@ -80,15 +80,6 @@ def forward(signal: np.ndarray, layout: SegmentLayout) -> list[np.ndarray]:
     return out
 
 
-def inverse(spectra: dict[int, np.ndarray], layout: SegmentLayout, channels: int) -> dict[int, np.ndarray]:
-    """Inverse of :func:`forward` for the segments in ``spectra`` (segment -> (n_s, C)): segment -> (n_s, C)."""
-    out: dict[int, np.ndarray] = {}
-    by_length: dict[int, list[int]] = {}
-    for segment in spectra:
-        by_length.setdefault(int(layout.lengths[segment]), []).append(segment)
-    for length, segments in by_length.items():
-        stacked = np.stack([spectra[s] for s in segments]) if len(segments) > 1 else spectra[segments[0]][None]
-        signals = scipy.fft.idct(stacked, axis=1, norm="ortho")
-        for i, segment in enumerate(segments):
-            out[segment] = signals[i]
-    return out
+def inverse(spectra: np.ndarray) -> np.ndarray:
+    """Inverse of :func:`forward` along the last axis of ``spectra`` (..., n): the signals (..., n), in place."""
+    return scipy.fft.idct(spectra, axis=-1, norm="ortho", overwrite_x=True)

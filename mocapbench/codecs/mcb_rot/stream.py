@@ -41,7 +41,7 @@ from mocapbench.entropy.errors import BitstreamError
 from mocapbench.motion import Skeleton
 
 __all__ = ["Settings", "StreamInfo", "steps_of", "base_signal", "assemble", "apply_corrections", "write_payload",
-           "read_info", "decode_chunks"]
+           "read_info", "segment_signal", "tables"]
 
 FORMAT = 3  # payload layout version; BE CAREFUL WHEN CHANGING: append only
 _READABLE = (2, 3)  # 3 appended the shell distance (f32, cm) to the settings; a format 2 stream has none
@@ -144,6 +144,13 @@ class StreamInfo:
         return self._cache["axes"]
 
     @property
+    def turned(self) -> np.ndarray:
+        """Indices of the joints whose channels are on principal axes (the others' axes are the identity)."""
+        if "turned" not in self._cache:
+            self._cache["turned"] = np.flatnonzero(np.any(self.axis_codes != 0, axis=1))
+        return self._cache["turned"]
+
+    @property
     def channels(self) -> int:
         return 3 + 3 * self.skeleton.num_joints
 
@@ -210,43 +217,98 @@ def _significant_mask(counts: np.ndarray, length: int) -> np.ndarray:
     return np.arange(length - 1)[None, :] < counts[:, None]
 
 
-def base_signal(info: StreamInfo, segments, coefficients: dict[int, np.ndarray]) -> dict[int, np.ndarray]:
-    """Dequantize and inverse-transform segments: segment -> (n, C) signal."""
-    spectra = {}
-    for segment in segments:
-        length = int(info.layout.lengths[segment])
-        steps = steps_of(info, length)
-        spectrum = np.empty((length, steps.shape[1]))
-        spectrum[0] = info.dc[segment] * steps[0]
-        spectrum[1:] = coefficients[segment] * steps[1:]
-        spectra[int(segment)] = spectrum
-    return inverse(spectra, info.layout, info.channels)
+def _steps_by_channel(info: StreamInfo, length: int) -> np.ndarray:
+    """(C, n) :func:`steps_of` channel-major, cached per segment length."""
+    key = ("steps", length)
+    if key not in info._cache:
+        info._cache[key] = np.ascontiguousarray(steps_of(info, length).T)
+    return info._cache[key]
 
 
-def assemble(info: StreamInfo, segments, signals: dict[int, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
-    """Consecutive decoded segments as roots (n, 3) cm and base quaternions (n, J, 4).
+def segment_signal(info: StreamInfo, segments: np.ndarray, ac: np.ndarray) -> np.ndarray:
+    """The (C, n) base signal of consecutive ``segments``, channel-major, from their AC coefficients.
+
+    ``ac`` (S, C, P), any real or integer dtype: the quantized AC coefficients of each segment, channel-major,
+    zero-padded to ``P >= n_s - 1``; the segment means come from ``info.dc``. Dequantization and one inverse DCT
+    per segment length (a batched call over the segments of that length). Encoder and decoder both go through here,
+    so both see bit-identical signals.
+    """
+    layout = info.layout
+    lengths = layout.lengths[segments]
+    offsets = layout.starts[segments] - layout.starts[segments[0]]
+    channels = info.channels
+    signal = np.empty((channels, int(lengths.sum())))
+    for length in np.unique(lengths).tolist():
+        pick = np.flatnonzero(lengths == length)
+        every = len(pick) == len(segments)
+        steps = _steps_by_channel(info, length)
+        spectrum = np.empty((len(pick), channels, length))
+        np.multiply(info.dc[segments[pick]], steps[:, 0], out=spectrum[:, :, 0])
+        np.multiply(ac[:, :, : length - 1] if every else ac[pick, :, : length - 1], steps[:, 1:],
+                    out=spectrum[:, :, 1:])
+        spectrum = inverse(spectrum)
+        if every:
+            signal.reshape(channels, len(pick), length)[...] = spectrum.transpose(1, 0, 2)
+        else:
+            for i, segment in enumerate(pick.tolist()):
+                signal[:, offsets[segment] : offsets[segment] + length] = spectrum[i]
+    return signal
+
+
+def base_signal(info: StreamInfo, segments, coefficients: dict[int, np.ndarray]) -> np.ndarray:
+    """Dequantize and inverse-transform consecutive segments (segment -> (n - 1, C) AC coefficients): (C, n)."""
+    segments = np.asarray(segments, dtype=np.int64)
+    lengths = info.layout.lengths[segments]
+    ac = np.zeros((len(segments), info.channels, max(int(lengths.max()) - 1, 0)), dtype=np.int64)
+    for i, segment in enumerate(segments.tolist()):
+        ac[i, :, : lengths[i] - 1] = coefficients[segment].T
+    return segment_signal(info, segments, ac)
+
+
+def assemble(info: StreamInfo, segments, signal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Consecutive decoded segments (their (C, n) base signal) as roots (n, 3) cm and base quaternions (n, J, 4).
+
+    ``signal`` is consumed: the rotation rows of the joints on principal axes are overwritten.
 
     The quaternions are a view of a component-major (4, J, n) array (what forward kinematics reads fastest); the
-    rotation vectors are turned off each joint's principal axes and mapped to quaternions component by component.
+    rotation vectors of the joints on principal axes are turned back off them (the others' axes are the identity),
+    then mapped to quaternions component by component.
     """
-    signal = np.concatenate([signals[int(s)] for s in segments]).T  # (C, n)
-    axes = info.axes
-    parts = [signal[3 + i :: 3] for i in range(3)]  # components on the principal axes, (J, n) each
-    rotvec = [sum(axes[:, row, col][:, None] * parts[col] for col in range(3)) for row in range(3)]
-    angle = np.sqrt(rotvec[0] * rotvec[0] + rotvec[1] * rotvec[1] + rotvec[2] * rotvec[2])
-    small = angle < 1e-6
-    scale = np.where(small, 0.5 - angle * angle / 48.0, np.sin(0.5 * angle) / np.where(small, 1.0, angle))
-    quats = np.empty((4,) + angle.shape)
-    for i in range(3):
-        np.multiply(rotvec[i], scale, out=quats[i])
-    np.cos(0.5 * angle, out=quats[3])
+    num_joints = info.skeleton.num_joints
+    length = signal.shape[1]
+    rotvec = signal[3:].reshape(num_joints, 3, length)  # [joint, component on its axes, frame]
+    turned = info.turned
+    if turned.size:
+        axes = info.axes[turned]  # (T, 3, 3)
+        parts = rotvec[turned]  # (T, 3, n) copy
+        for row in range(3):
+            rotvec[turned, row] = (axes[:, row, 0, None] * parts[:, 0] + axes[:, row, 1, None] * parts[:, 1]
+                                   + axes[:, row, 2, None] * parts[:, 2])
+    x, y, z = rotvec[:, 0], rotvec[:, 1], rotvec[:, 2]
+    quats = np.empty((4, num_joints, length))
+    angle = np.multiply(x, x, out=quats[0])
+    angle += np.multiply(y, y, out=quats[1])
+    angle += np.multiply(z, z, out=quats[1])
+    np.sqrt(angle, out=angle)
+    half = np.multiply(angle, 0.5, out=quats[3])
+    scale = np.sin(half, out=quats[2])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        scale /= angle
+    small = angle < 1e-6  # sin(theta/2)/theta by its Taylor series near 0 (exact to float precision)
+    if small.any():
+        scale[small] = 0.5 - angle[small] * angle[small] / 48.0
+    np.cos(half, out=half)
+    np.multiply(x, scale, out=quats[0])
+    np.multiply(y, scale, out=quats[1])
+    np.multiply(z, scale, out=quats[2])
     quats = quats.transpose(2, 1, 0)  # (n, J, 4) view
-    first = int(info.layout.starts[segments[0]])
-    for (segment, joint), reference in info.overrides.items():
-        if segments[0] <= segment <= segments[-1]:
-            start = int(info.layout.starts[segment]) - first
-            frames = slice(start, start + int(info.layout.lengths[segment]))
-            quats[frames, joint] = quat.multiply(reference, quats[frames, joint])
+    if info.overrides:
+        first = int(info.layout.starts[segments[0]])
+        for (segment, joint), reference in info.overrides.items():
+            if segments[0] <= segment <= segments[-1]:
+                start = int(info.layout.starts[segment]) - first
+                frames = slice(start, start + int(info.layout.lengths[segment]))
+                quats[frames, joint] = quat.multiply(reference, quats[frames, joint])
     return np.ascontiguousarray(signal[:3].T), quats
 
 
@@ -393,52 +455,3 @@ def read_info(header: Header, payload: memoryview) -> StreamInfo:
                             settings.allocation_power, settings.shell_cm)
     return StreamInfo(settings, skeleton, budgets, layout, cuts, overrides, axis_codes, scale, tilt, dc_tilt,
                       count_tilt, gap_class, value_class, dc, offsets)
-
-
-def decode_chunks(info: StreamInfo, payload: memoryview, chunks: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Roots (n, 3) cm and rotations (n, J, 4) of the consecutive ``chunks``, corrections applied."""
-    coder_tables = tables(info.settings.rounding)
-    layout = info.layout
-    slots = len(info.correction_steps)
-    channels = info.channels
-    coefficients, corrections = {}, []
-    first = int(layout.starts[layout.chunk_starts[chunks[0]]])
-    for chunk in chunks:
-        chunk = int(chunk)
-        segments = layout.chunk_segments(chunk)
-        lengths = layout.lengths[segments]
-        length = int(lengths.sum())
-        reader = ByteReader(payload[: info.chunk_offsets[chunk + 1]], int(info.chunk_offsets[chunk]))
-        what = f"mcb-rot: chunk {chunk}"
-        count = reader.read_varint("correction count")
-        if count > length * slots:
-            raise BitstreamError(f"{what}: expected at most {length * slots} corrections, found {count}.")
-        counts = np.cumsum(
-            decode_classed(reader, info.count_classes(len(segments)), coder_tables, what).reshape(-1, channels), axis=0
-        )
-        if np.any(counts < 0) or np.any(counts > (lengths - 1)[:, None]):
-            raise BitstreamError(f"{what}: significance counts outside their segments.")
-        masks = [_significant_mask(c, int(n)) for c, n in zip(counts, lengths)]
-        classes = [info.class_matrix(int(n)).T[m] for n, m in zip(lengths, masks)]
-        stream_classes = np.concatenate(classes + [np.full(count, _SIDE + info.gap_class, np.uint8),
-                                                   np.full(3 * count, _SIDE + info.value_class, np.uint8)])
-        values = decode_classed(reader, stream_classes, coder_tables, what)
-        reader.expect_end(f"chunk {chunk}")
-        at = 0
-        for segment, n, mask in zip(segments, lengths, masks):
-            dense = np.zeros((channels, int(n) - 1), dtype=np.int64)
-            size = int(mask.sum())
-            dense[mask] = values[at : at + size]
-            coefficients[int(segment)] = dense.T
-            at += size
-        gaps = values[at : at + count]
-        local = np.cumsum(gaps + 1) - 1
-        if count and (gaps.min() < 0 or local[-1] >= length * slots):
-            raise BitstreamError(f"{what}: corrections run past its end.")
-        start = int(layout.starts[segments[0]])
-        corrections.append((local + (start - first) * slots, values[at + count :].reshape(-1, 3)))
-    segments = np.arange(layout.chunk_starts[chunks[0]], layout.chunk_starts[chunks[-1] + 1])
-    roots, quats = assemble(info, segments, base_signal(info, segments, coefficients))
-    flat = np.concatenate([c[0] for c in corrections])
-    apply_corrections(info, roots, quats, flat, np.concatenate([c[1] for c in corrections]))
-    return roots, quats

@@ -1,0 +1,225 @@
+"""The ``mcb-rot`` decoder: chunks read a block at a time into preallocated outputs.
+
+A stream is a list of chunks (128 frames by default), each with two small ANS streams (significance counts, then
+coefficients and corrections; :mod:`.stream`). Decoding chunk by chunk would pay numpy's per-call overhead on
+arrays of a few thousand values, and decoding the whole clip at once would hold every temporary of the clip. So
+consecutive chunks are decoded in *blocks* of at least :data:`BLOCK_FRAMES` frames:
+
+1. entropy, in two passes over the block's chunks: the ANS calls (one per class present) stream by stream, then
+   signs, raw bits, significance masks, classes and the sort that orders each stream by class, once for the block
+   (:func:`mocapbench.entropy.ans.read_tokens`, :func:`~mocapbench.entropy.ans.values_of_tokens`);
+2. synthesis: dequantization and one batched inverse DCT per segment length, rotation vectors off their principal
+   axes and the exponential map, the re-referenced segments and the corrections
+   (:func:`.stream.segment_signal`, :func:`.stream.assemble`, :func:`.stream.apply_corrections`: the functions
+   the encoder's closed loop uses, so its bound check sees bit-identical rotations);
+3. forward kinematics of the block (:mod:`.kinematics`), written into the output arrays.
+
+Peak memory is the outputs (positions, rotations, roots) plus one block's temporaries, whatever the length of the
+stream; :func:`decode_range` decodes only the blocks holding the frames asked for, and runs forward kinematics only
+on those frames.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from mocapbench.codecs.mcb_rot import kinematics
+from mocapbench.codecs.mcb_rot.classes import NUM_CLASSES
+from mocapbench.codecs.mcb_rot.stream import (
+    StreamInfo,
+    apply_corrections,
+    assemble,
+    segment_signal,
+    tables,
+)
+from mocapbench.entropy.ans import class_groups, read_tokens, values_of_tokens
+from mocapbench.entropy.bitio import ByteReader
+from mocapbench.entropy.errors import BitstreamError
+
+__all__ = ["BLOCK_FRAMES", "decode_range", "decode_block"]
+
+#: Frames decoded together (whole chunks, at least this many, unless the stream ends): large enough that numpy's
+#: per-call costs are small against the work, small enough that the block's temporaries (about 1 KB per frame on a
+#: 31-joint skeleton) stay in cache-sized pieces.
+BLOCK_FRAMES = 2048
+_SIDE = NUM_CLASSES  # classes >= this are the side tables (as in .stream)
+_KEY_STRIDE = 2 * NUM_CLASSES  # classes of one stream lie in [0, 128)
+
+
+def decode_range(
+    info: StreamInfo, payload: memoryview, start: int, stop: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Positions (n, J, 3) cm, roots (n, 3) cm and rotations (n, J, 4) of frames ``start:stop`` (n = stop - start).
+
+    Decodes the blocks of chunks that hold those frames, each into the preallocated outputs. The rotations are the
+    decoded quaternions as forward kinematics used them (unit up to float rounding).
+
+    Raises
+    ------
+    BitstreamError
+        If a chunk is corrupt or inconsistent with the payload header.
+    """
+    layout = info.layout
+    num_joints = info.skeleton.num_joints
+    count = stop - start
+    positions = np.empty((count, num_joints, 3))
+    roots = np.empty((count, 3))
+    quats = np.empty((count, num_joints, 4))
+    for chunks in _blocks(info, layout.chunks_of_frames(start, stop)):
+        first = int(layout.starts[layout.chunk_starts[chunks[0]]])
+        block_roots, block_quats = decode_block(info, payload, chunks)
+        low, high = max(first, start), min(first + len(block_roots), stop)
+        inside, out = slice(low - first, high - first), slice(low - start, high - start)
+        roots[out] = block_roots[inside]
+        quats[out] = block_quats[inside]
+        kinematics.positions(block_quats[inside], block_roots[inside], info.skeleton, out=positions[out])
+    return positions, roots, quats
+
+
+def _blocks(info: StreamInfo, chunks: np.ndarray) -> list[np.ndarray]:
+    """``chunks`` (consecutive) cut into runs of at least :data:`BLOCK_FRAMES` frames (the last may hold fewer)."""
+    layout = info.layout
+    frames = layout.starts[layout.chunk_starts[chunks + 1] - 1] + layout.lengths[layout.chunk_starts[chunks + 1] - 1]
+    frames = frames - layout.starts[layout.chunk_starts[chunks]]  # frames of each chunk
+    blocks, begin, held = [], 0, 0
+    for i, held_here in enumerate(frames.tolist()):
+        held += held_here
+        if held >= BLOCK_FRAMES:
+            blocks.append(chunks[begin : i + 1])
+            begin, held = i + 1, 0
+    if begin < len(chunks):
+        blocks.append(chunks[begin:])
+    return blocks
+
+
+def decode_block(info: StreamInfo, payload: memoryview, chunks: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Roots (n, 3) cm and rotations (n, J, 4) (a view of a component-major array) of the consecutive ``chunks``,
+    corrections applied."""
+    layout = info.layout
+    segments = np.arange(layout.chunk_starts[chunks[0]], layout.chunk_starts[chunks[-1] + 1])
+    ac, flat, values = read_chunks(info, payload, chunks)
+    roots, quats = assemble(info, segments, segment_signal(info, segments, ac))
+    apply_corrections(info, roots, quats, flat, values)
+    return roots, quats
+
+
+def _count_groups(info: StreamInfo, num_segments: int) -> tuple[np.ndarray, list[tuple[int, int]]]:
+    """Sort order and class groups of the significance counts of a chunk of ``num_segments`` segments (cached)."""
+    key = ("count groups", num_segments)
+    if key not in info._cache:
+        info._cache[key] = class_groups(info.count_classes(num_segments))
+    return info._cache[key]
+
+
+def _coefficient_classes(info: StreamInfo, lengths: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """Classes of the coded AC coefficients of segments of ``lengths``, in stream order (segment, channel, k)."""
+    unique = np.unique(lengths).tolist()
+    if len(unique) == 1:
+        length = unique[0]
+        return np.broadcast_to(info.class_matrix(length).T, mask.shape)[mask] if length > 1 else np.zeros(0, np.uint8)
+    full = np.zeros(mask.shape, dtype=np.uint8)
+    for length in unique:
+        if length > 1:
+            full[lengths == length, :, : length - 1] = info.class_matrix(length).T
+    return full[mask]
+
+
+def read_chunks(info: StreamInfo, payload: memoryview, chunks: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Entropy-decode consecutive ``chunks``.
+
+    Returns
+    -------
+    ac : ndarray, shape (S, C, P), float
+        Quantized AC coefficients of the chunks' S segments, channel-major, zero-padded to ``P = max n_s - 1``.
+    flat : ndarray, shape (N,), int
+        Corrections as ``frame * (J + 1) + slot``, frames counted from the first frame of the chunks.
+    values : ndarray, shape (N, 3), int
+        The corrections' quantized values.
+
+    Raises
+    ------
+    BitstreamError
+        If a chunk is corrupt: ANS words that do not decode, counts outside their segments, corrections past the
+        chunk's end, bytes left over.
+    """
+    layout = info.layout
+    coder_tables = tables(info.settings.rounding)
+    channels = info.channels
+    slots = len(info.correction_steps)
+    first_segment = layout.chunk_starts[chunks]
+    per_chunk = layout.chunk_starts[chunks + 1] - first_segment  # segments of each chunk
+    segments = np.arange(first_segment[0], first_segment[-1] + per_chunk[-1])
+    lengths = layout.lengths[segments]
+    local_first = first_segment - first_segment[0]  # first segment of each chunk, within the block
+    chunk_frames = np.add.reduceat(lengths, local_first)
+    # Pass 1: the correction count and the significance counts' ANS stream of every chunk.
+    readers, count_runs, corrections = [], [], []
+    offsets = info.chunk_offsets
+    for chunk, held, frames in zip(chunks.tolist(), per_chunk.tolist(), chunk_frames.tolist()):
+        reader = ByteReader(payload[: offsets[chunk + 1]], int(offsets[chunk]))
+        count = reader.read_varint("correction count")
+        if count > frames * slots:
+            raise BitstreamError(f"mcb-rot: chunk {chunk}: expected at most {frames * slots} corrections, found {count}.")
+        count_runs.append(read_tokens(reader, _count_groups(info, held)[1], coder_tables, f"mcb-rot: chunk {chunk}"))
+        readers.append(reader)
+        corrections.append(count)
+    if np.all(per_chunk == per_chunk[0]):
+        order = _count_groups(info, int(per_chunk[0]))[0]
+        order = (order[None, :] + len(order) * np.arange(len(chunks))[:, None]).ravel()
+    else:
+        sizes = per_chunk * channels
+        order = np.concatenate([_count_groups(info, int(n))[0] + at for n, at in zip(per_chunk, np.cumsum(sizes) - sizes)])
+    counts = values_of_tokens(count_runs, order).reshape(len(segments), channels)
+    if len(segments) > len(chunks):  # differences from the previous segment of the same chunk
+        counts = np.cumsum(counts, axis=0)
+        before = np.concatenate([np.zeros((1, channels), dtype=np.int64), counts])[local_first]
+        counts -= np.repeat(before, per_chunk, axis=0)
+    bad = (counts < 0) | (counts > (lengths - 1)[:, None])
+    if bad.any():
+        chunk = chunks[np.searchsorted(local_first, int(np.argmax(bad.any(axis=1))), side="right") - 1]
+        raise BitstreamError(f"mcb-rot: chunk {chunk}: significance counts outside their segments.")
+    # Pass 2: the coefficients and corrections, one ANS stream per chunk, classes found for the whole block.
+    padded = max(int(lengths.max()) - 1, 0)
+    mask = np.arange(padded) < counts[:, :, None]  # (S, C, P): the coded coefficients
+    coefficient_classes = _coefficient_classes(info, lengths, mask)
+    coded = np.add.reduceat(counts.sum(axis=1), local_first)  # coefficients of each chunk
+    corrections = np.array(corrections, dtype=np.int64)
+    sizes = coded + 4 * corrections  # stream of a chunk: coefficients, correction gaps, correction values (x 3)
+    stream_start = np.cumsum(sizes) - sizes
+    classes = np.full(int(sizes.sum()), _SIDE + info.value_class, dtype=np.uint16)
+    at_coefficients = _runs(stream_start, coded)
+    at_gaps = _runs(stream_start + coded, corrections)
+    at_values = _runs(stream_start + coded + corrections, 3 * corrections)
+    classes[at_coefficients] = coefficient_classes
+    classes[at_gaps] = _SIDE + info.gap_class
+    keys = classes + np.repeat(np.arange(len(chunks), dtype=np.int64) * _KEY_STRIDE, sizes)
+    keys = keys.astype(np.uint16 if len(chunks) * _KEY_STRIDE <= 1 << 16 else np.int64)
+    order = np.argsort(keys, kind="stable")  # by chunk, then by class (as each stream was coded)
+    histogram = np.bincount(keys, minlength=len(chunks) * _KEY_STRIDE).reshape(len(chunks), _KEY_STRIDE)
+    group_chunk, group_class = np.nonzero(histogram)
+    groups = list(zip(group_class.tolist(), histogram[group_chunk, group_class].tolist()))
+    bounds = np.searchsorted(group_chunk, np.arange(len(chunks) + 1)).tolist()
+    runs = []
+    for i, (chunk, reader) in enumerate(zip(chunks.tolist(), readers)):
+        runs.append(read_tokens(reader, groups[bounds[i] : bounds[i + 1]], coder_tables, f"mcb-rot: chunk {chunk}"))
+        reader.expect_end(f"chunk {chunk}")
+    decoded = values_of_tokens(runs, order)
+    ac = np.zeros(mask.shape)
+    ac[mask] = decoded[at_coefficients]
+    gaps = decoded[at_gaps]
+    if gaps.size and gaps.min() < 0:
+        raise BitstreamError(f"mcb-rot: chunks {chunks[0]}-{chunks[-1]}: a correction gap is negative.")
+    steps = np.cumsum(gaps + 1)
+    local = steps - 1 - np.repeat((np.concatenate([[0], steps]))[np.cumsum(corrections) - corrections], corrections)
+    ends = np.repeat(chunk_frames * slots, corrections)
+    if np.any(local >= ends):
+        raise BitstreamError(f"mcb-rot: chunks {chunks[0]}-{chunks[-1]}: corrections run past their chunk's end.")
+    chunk_offset = (np.cumsum(chunk_frames) - chunk_frames) * slots
+    flat = local + np.repeat(chunk_offset, corrections)
+    return ac, flat, decoded[at_values].reshape(-1, 3)
+
+
+def _runs(starts: np.ndarray, counts: np.ndarray) -> np.ndarray:
+    """Concatenated ranges ``starts[i] : starts[i] + counts[i]``."""
+    total = int(counts.sum())
+    return np.arange(total) + np.repeat(starts - (np.cumsum(counts) - counts), counts)
