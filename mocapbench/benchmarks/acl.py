@@ -3,6 +3,8 @@
     python -m mocapbench.benchmarks.acl                 # RD points, ASF/AMC clips (what cmu_test reads)
     python -m mocapbench.benchmarks.acl --fmt bvh       # the same on the BVH release (what the issue measured)
     python -m mocapbench.benchmarks.acl --speed         # + encode/decode frames/s on one core, single-pose decode
+    python -m mocapbench.benchmarks.acl --grid --variants --jitter 5   # why the issue's 0.5 and 1 cm points differ
+                                                        # (BVH; see mocapbench.benchmarks.acl_reference)
 
 RD points at precision 0.01 / 0.1 / 0.5 / 1 cm, shell distance 3 cm (ACL's default) and 0 cm, compression level
 highest, every other setting ACL's default. ``ratio`` is the issue's definition, 12·J·F / ACL's compressed
@@ -27,6 +29,7 @@ from typing import Any
 import numpy as np
 
 from mocapbench import metrics
+from mocapbench.benchmarks import acl_reference
 from mocapbench.codecs import container, create
 from mocapbench.codecs.acl.binding import load_library
 from mocapbench.codecs.skeleton_blob import unpack_skeleton
@@ -116,7 +119,7 @@ def _print_rd(points: list[dict[str, Any]], fmt: str) -> None:
             f"| {linf_cols[1]} | {p['mean_cm']:.4g} | {mean_ref} | {p['p99_cm']:.4g} | {p99_ref} "
             f"| {p['shell_max_cm']:.4g} | {p['shell_p99_cm']:.4g} |"
         )
-    print(f"Issue, shell 0: " + ", ".join(f"{r}:1 at L-inf {e} cm" for r, e in ISSUE_SHELL0))
+    print("Issue, shell 0: " + ", ".join(f"{r}:1 at L-inf {e} cm" for r, e in ISSUE_SHELL0))
 
 
 def _speed(motions: list[Motion], repeats: int) -> None:
@@ -157,7 +160,31 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--speed", action="store_true", help="also time encode, decode and single poses")
     parser.add_argument("--repeats", type=int, default=3, help="timing repeats (median)")
     parser.add_argument("--data-dir", default=None, help="CMU data folder (default: $MOCAPBENCH_CMU_DIR, ../shared)")
+    parser.add_argument("--grid", action="store_true", help="shell x precision grid on the BVH clips, nearest points "
+                        "to each reference row (no RD table)")
+    parser.add_argument("--grid-shells", type=float, nargs="+", default=acl_reference.GRID_SHELLS, metavar="CM")
+    parser.add_argument("--grid-precisions", type=float, nargs="+", default=acl_reference.GRID_PRECISIONS, metavar="CM")
+    parser.add_argument("--variants", action="store_true", help="measurement and setting variants at the issue's "
+                        "precisions on the BVH clips (no RD table)")
+    parser.add_argument("--jitter", type=int, default=0, metavar="SEEDS",
+                        help="spread over SEEDS float32-ulp jittered copies of the BVH clips (no RD table)")
+    parser.add_argument("--neighbourhood", action="store_true",
+                        help="spread over precisions p x 0.98..1.02 at 0.5 and 1 cm on the BVH clips (no RD table)")
+    parser.add_argument("--why", action="store_true", help="ACL's own per-bone bit-rate summary from a patched "
+                        "temporary copy of its headers, on the BVH clips (no RD table)")
     args = parser.parse_args(argv)
+    if args.grid or args.variants or args.jitter or args.neighbourhood or args.why:
+        if args.grid:
+            acl_reference.main_grid(args.grid_shells, args.grid_precisions, args.data_dir)
+        if args.variants:
+            acl_reference.main_variants(PRECISIONS, args.data_dir)
+        if args.jitter:
+            acl_reference.main_jitter(args.jitter, args.data_dir)
+        if args.neighbourhood:
+            acl_reference.main_neighbourhood(args.data_dir)
+        if args.why:
+            acl_reference.main_why(acl_reference.WHY_SETTINGS, args.data_dir)
+        return
     from mocapbench.datasets.cmu import load_split
 
     motions = load_split("cmu_test", fmt=args.fmt, data_dir=args.data_dir)
