@@ -121,3 +121,14 @@ def test_debug_copy_refuses_an_acl_without_the_define(tmp_path):
     (fake / "rtm" / "includes" / "rtm" / "qvvf.h").write_text("")
     with pytest.raises(RuntimeError, match="define not found"):
         ref.debug_acl_copy(tmp_path / "out", str(fake))
+
+
+def test_without_leaves_keeps_the_other_joints(synthetic_motion):
+    skeleton = synthetic_motion.skeleton
+    leaf = next(j for j in range(skeleton.num_joints) if not skeleton.children(j))
+    reduced, keep = ref._without_leaves(synthetic_motion, [skeleton.names[leaf]])
+    assert leaf not in keep and len(keep) == skeleton.num_joints - 1
+    np.testing.assert_allclose(reduced.positions(), synthetic_motion.positions()[:, keep], atol=1e-9)
+    inner = next(j for j in range(skeleton.num_joints) if skeleton.children(j))
+    with pytest.raises(ValueError, match="is not a leaf joint"):
+        ref._without_leaves(synthetic_motion, [skeleton.names[inner]])

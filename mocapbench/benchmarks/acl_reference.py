@@ -17,7 +17,8 @@ point's distance to a reference row is the largest relative deviation of those 4
   left out; the reference positions from the float32 quaternions ACL was given; the clip given to ACL in BVH
   units (precision and shell divided by 5.6444, or only the precision, i.e. a shell of 3 units = 16.9 cm; or
   neither, i.e. a precision of p units); a sample rate of 30 fps or 1/0.008333 s; the full-precision rotation
-  or translation format; compression levels automatic/high/medium; trivial-keyframe stripping and loop
+  or translation format; CMU's two hand leaves (constant rotations) left out of what ACL compresses, measured
+  or not; compression levels automatic/high/medium; trivial-keyframe stripping and loop
   optimisation off. Error metrics are not a variant: without scale, ACL's three transform metrics
   (``qvvf_transform_error_metric``, ``qvvf_matrix3x4f_transform_error_metric``, ``additive_qvvf_...`` on a
   non-additive clip) run the same ``calculate_error_no_scale`` code.
@@ -55,11 +56,14 @@ from mocapbench import metrics
 from mocapbench.codecs import create
 from mocapbench.datasets.cmu import CMU_CM_PER_UNIT, clip_names, cmu_data_dir
 from mocapbench.io.bvh import read_bvh
-from mocapbench.motion import Motion
+from mocapbench.motion import Motion, Skeleton
 
 __all__ = ["Variant", "VARIANTS", "measure", "deviation", "grid", "run_variants", "run_jitter", "closest",
            "parse_quantization_summary", "main_grid", "main_variants", "main_jitter", "main_neighbourhood", "main_why"]
 
+HAND_LEAVES = ("LeftHandIndex1", "RightHandIndex1")
+"""CMU's two hand leaf joints: constant rotations, 3-4 cm past a zero-length finger-base bone; in ACL's own summary
+(``--why``) the bones most often still over their precision after ACL's bit-rate search."""
 GRID_SHELLS = (0.0, 0.5, 1.0, 2.0, 3.0, 5.0)
 GRID_PRECISIONS = (0.4, 0.45, 0.5, 0.55, 0.6, 0.8, 0.9, 1.0, 1.1, 1.2)
 
@@ -83,6 +87,11 @@ class Variant:
         Length unit of the clip given to ACL, cm (1: cm; 5.6444: BVH units). Errors are reported in cm.
     precision_in_units, shell_in_units : bool
         With ``unit_cm != 1``: the precision (shell) is converted to that unit (True) or passed as the cm number.
+    drop_leaves : tuple of str
+        Leaf joints left out of what ACL compresses (their raw rotations are put back before FK; for joints whose
+        rotation is constant, as CMU's hand leaves, that is exact).
+    measure_dropped : bool
+        With ``drop_leaves``, measure those joints too (else only the joints ACL got).
     fps : float
         Sample rate given to ACL (0: the clip's 120 fps); the clip is decoded at the same rate.
     codec : tuple of (str, Any)
@@ -97,6 +106,8 @@ class Variant:
     unit_cm: float = 1.0
     precision_in_units: bool = True
     shell_in_units: bool = True
+    drop_leaves: tuple[str, ...] = ()
+    measure_dropped: bool = True
     fps: float = 0.0
     codec: tuple[tuple[str, Any], ...] = ()
 
@@ -111,6 +122,8 @@ VARIANTS = (
     Variant("BVH units, precision and shell converted", unit_cm=CMU_CM_PER_UNIT),
     Variant("BVH units, shell 3 units (16.9 cm)", unit_cm=CMU_CM_PER_UNIT, shell_in_units=False),
     Variant("BVH units, precision p units (5.64p cm)", unit_cm=CMU_CM_PER_UNIT, precision_in_units=False),
+    Variant("hand leaves not given to ACL, 31 joints measured", drop_leaves=HAND_LEAVES),
+    Variant("hand leaves not given to ACL, 29 joints measured", drop_leaves=HAND_LEAVES, measure_dropped=False),
     Variant("sample rate 30 fps", fps=30.0),
     Variant("sample rate 1/0.008333 s (120.0048 fps)", fps=1 / 0.008333),
     Variant("rotation format quatf_drop_w_full", codec=(("rotation_format", "quatf_drop_w_full"),)),
@@ -128,6 +141,22 @@ def _scaled(motion: Motion, factor: float) -> Motion:
     skeleton = dataclasses.replace(motion.skeleton, offsets=motion.skeleton.offsets * factor,
                                    end_site_offsets=motion.skeleton.end_site_offsets * factor)
     return dataclasses.replace(motion, skeleton=skeleton, root_positions=motion.root_positions * factor)
+
+
+def _without_leaves(motion: Motion, leaves: Sequence[str]) -> tuple[Motion, list[int]]:
+    """``motion`` without the leaf joints ``leaves`` (end sites dropped too), and the indices of the joints kept."""
+    skeleton = motion.skeleton
+    drop = {skeleton.index(name) for name in leaves}
+    for joint in drop:
+        if skeleton.children(joint):
+            raise ValueError(f"{skeleton.names[joint]!r} is not a leaf joint.")
+    keep = [j for j in range(skeleton.num_joints) if j not in drop]
+    new_index = {old: new for new, old in enumerate(keep)}
+    reduced = Skeleton(names=tuple(skeleton.names[j] for j in keep),
+                       parents=np.array([new_index.get(int(skeleton.parents[j]), -1) for j in keep]),
+                       offsets=skeleton.offsets[keep],
+                       channel_orders=tuple(skeleton.channel_orders[j] for j in keep) if skeleton.channel_orders else ())
+    return dataclasses.replace(motion, skeleton=reduced, rotations=motion.rotations[:, keep]), keep
 
 
 def _points(motion: Motion, which: str) -> np.ndarray:
@@ -163,14 +192,23 @@ def measure(motions: Sequence[Motion], precision_cm: float, shell_cm: float, var
         given = _scaled(motion, factor) if factor != 1.0 else motion
         if variant.fps:
             given = dataclasses.replace(given, fps=variant.fps)
+        keep = list(range(motion.num_joints))
+        if variant.drop_leaves:
+            given, keep = _without_leaves(given, variant.drop_leaves)
         decoded = codec.decode(codec.encode(given)).motion
         if factor != 1.0:
             decoded = _scaled(decoded, 1.0 / factor)
+        if variant.drop_leaves:
+            rotations = motion.rotations.copy()
+            rotations[:, keep] = decoded.rotations
+            decoded = dataclasses.replace(motion, root_positions=decoded.root_positions, rotations=rotations)
         reference = motion
         if variant.reference_float32:
             reference = dataclasses.replace(motion, rotations=motion.rotations.astype(np.float32).astype(np.float64))
         first = 1 if variant.keep_frame0 and not variant.measure_frame0 else 0
-        error = metrics.joint_errors(_points(reference, variant.points)[first:], _points(decoded, variant.points)[first:])
+        measured = slice(None) if variant.measure_dropped else keep
+        error = metrics.joint_errors(_points(reference, variant.points)[first:, measured],
+                                     _points(decoded, variant.points)[first:, measured])
         errors.append(error.ravel())
         buffer_bytes += codec.last_encode_stats["acl_buffer_bytes"]
         raw_bytes += metrics.raw_position_bytes(motion.num_joints, motion.num_frames - first)
