@@ -61,6 +61,7 @@ from mocapbench.codecs import container
 from mocapbench.codecs.base import Codec, CodecConfig, Header, NotFittedError, param
 from mocapbench.codecs.registry import register_codec
 from mocapbench.codecs.segments import find_cuts, read_cuts, window_lengths, write_cuts
+from mocapbench.codecs.windows import WINDOW_FRAMES, encode_frame_windows, split_windows
 from mocapbench.entropy.bitio import BitReader, BitWriter, ByteReader, ByteWriter
 from mocapbench.entropy.errors import BitstreamError
 from mocapbench.entropy.huffman import decode_symbols, encode_symbols
@@ -506,19 +507,66 @@ class _SpatialTransformCodec(Codec):
         positions = np.asarray(positions, dtype=np.float64)
         if positions.ndim != 3 or positions.shape[2] != 3 or positions.shape[0] < 1 or positions.shape[1] < 1:
             raise ValueError(f"{self.name}: expected `positions` of shape (F, J, 3) with F, J >= 1, got {positions.shape}.")
-        if not np.all(np.isfinite(positions)):
-            raise ValueError(f"{self.name}: `positions` holds non-finite values.")
-        if np.abs(positions).max() > self.max_coordinate_cm:
-            raise ValueError(
-                f"{self.name}: a joint lies {np.abs(positions).max():.3g} cm from the origin; this codec's numeric range "
-                f"is ±{self.max_coordinate_cm:g} cm (re-centre the motion or check its length unit)."
-            )
+
+        def window(start: int, stop: int) -> np.ndarray:  # checked window by window: no F-sized temporary
+            part = positions[start:stop]
+            if not np.all(np.isfinite(part)):
+                raise ValueError(f"{self.name}: `positions` holds non-finite values.")
+            reach = max(-float(part.min()), float(part.max()))
+            if reach > self.max_coordinate_cm:
+                raise ValueError(
+                    f"{self.name}: a joint lies {reach:.3g} cm from the origin; this codec's numeric range "
+                    f"is ±{self.max_coordinate_cm:g} cm (re-centre the motion or check its length unit)."
+                )
+            return part
+
         self.last_encode_stats = {}
-        payload = self._encode_positions(positions)
+        payload = self._encode_windowed(positions.shape[0], positions.shape[1], window)
         return container.pack(self.name, positions.shape[0], positions.shape[1], float(fps), payload)
 
     def encode_payload(self, motion: Motion) -> bytes:
-        return self._encode_positions(motion.positions())
+        if motion.num_frames <= WINDOW_FRAMES:
+            return self._encode_windowed(motion.num_frames, motion.num_joints, lambda start, stop: motion.positions())
+        return self._encode_windowed(
+            motion.num_frames, motion.num_joints, lambda start, stop: motion.slice(start, stop).positions()
+        )
+
+    def _window_frames(self) -> int:
+        """Frames per window of a long capture: :data:`WINDOW_FRAMES` (frame scheme), rounded down to whole clips of
+        L for the clip scheme (at least one clip), so that the windows keep the clip grid of an unwindowed stream."""
+        if self.scheme == "frame":
+            return WINDOW_FRAMES
+        return max(1, WINDOW_FRAMES // self.config.clip_length) * self.config.clip_length
+
+    def _encode_windowed(self, num_frames: int, num_joints: int, window_positions) -> bytes:
+        """One payload (every capture up to :data:`WINDOW_FRAMES` frames), else a sequence of windows.
+
+        A longer capture is coded as the window length (varint, frames) then length-prefixed windows
+        (:mod:`mocapbench.codecs.windows`), each a payload of its own: the paper's pipeline, unchanged, on the window's
+        frames (its own Huffman tables; the frame scheme restarts its closed loop with an intra frame, eq. 1; the
+        clip scheme keeps the clip grid of L frames, :meth:`_window_frames`, and finds the cuts within the window).
+        So the encoder holds one window's positions and temporaries and the decoder one window's temporaries beside
+        its output. ``window_positions(start, stop)`` gives frames ``start:stop`` as an ``(n, J, 3)`` array, cm.
+        """
+        if num_frames <= WINDOW_FRAMES:
+            return self._encode_positions(window_positions(0, num_frames))
+        window_frames = self._window_frames()
+
+        def encode_window(start: int, stop: int) -> tuple[bytes, dict]:
+            return self._encode_positions(window_positions(start, stop)), self.last_encode_stats
+
+        windows, stats = encode_frame_windows(num_frames, window_frames, encode_window)
+        writer = ByteWriter()
+        writer.write_varint(window_frames)
+        payload = writer.getvalue() + windows
+        nonzero = sum(window["nonzero_coefficients"] for window in stats)
+        self.last_encode_stats = {
+            "windows": len(stats),
+            "nonzero_coefficients": nonzero,
+            "nonzero_percent": 100.0 * nonzero / (3 * num_frames * num_joints),  # one coefficient per coordinate
+            "cuts": sum(window["cuts"] for window in stats),
+        }
+        return payload
 
     def _encode_positions(self, positions: np.ndarray) -> bytes:
         num_frames, num_joints = positions.shape[:2]
@@ -561,8 +609,26 @@ class _SpatialTransformCodec(Codec):
         return writer.getvalue()
 
     def decode_payload(self, header: Header, payload: memoryview):
+        """One window's payload (every stream up to :data:`WINDOW_FRAMES` frames), else a sequence of windows, each
+        decoded into its frames of the output: a window's temporaries beside the output, whatever the length."""
         num_frames, num_joints = header.num_frames, header.num_joints
         self._check_joint_count(num_joints, BitstreamError)
+        if num_frames <= WINDOW_FRAMES:
+            return self._decode_window(header, payload), None
+        reader = ByteReader(payload)
+        window_frames = reader.read_varint("window frames")
+        if window_frames < 1:
+            raise BitstreamError(f"{self.name}: expected at least 1 frame per window, found {window_frames}.")
+        # Every extent is checked before anything is decoded.
+        windows = split_windows(payload[reader.offset :], num_frames, window_frames)
+        positions = np.empty((num_frames, num_joints, 3))
+        for start, stop, part in windows:
+            positions[start:stop] = self._decode_window(Header(header.codec, stop - start, num_joints, header.fps), part)
+        return positions, None
+
+    def _decode_window(self, header: Header, payload: memoryview) -> np.ndarray:
+        """Positions (F, J, 3) cm of one window's payload (a whole stream up to :data:`WINDOW_FRAMES` frames)."""
+        num_frames, num_joints = header.num_frames, header.num_joints
         reader = ByteReader(payload)
         expected = self._fingerprint(num_joints)
         if expected:
@@ -603,7 +669,7 @@ class _SpatialTransformCodec(Codec):
                 parts.append(_clip_inverse(coefficients, bases).reshape(count * length, 3, num_joints))
                 start = stop
             positions = np.concatenate(parts).transpose(0, 2, 1)
-        return positions, None
+        return positions
 
     # -- stream layout ---------------------------------------------------------------------------------
     def _clip_groups(self, num_frames: int, clip_length: int | None = None, cuts=()) -> list[tuple[int, int]]:
@@ -624,13 +690,20 @@ class _SpatialTransformCodec(Codec):
     def describe_payload(self, header: Header, payload: memoryview) -> dict[str, Any]:
         info: dict[str, Any] = {"scheme": self.scheme}
         reader = ByteReader(payload)
+        num_frames = header.num_frames
+        if num_frames > WINDOW_FRAMES:  # a sequence of windows: describe the first
+            window_frames = reader.read_varint("window frames")
+            reader.read_varint("window length")
+            count = -(-num_frames // max(window_frames, 1))
+            info["windows of frames"] = f"{count} x {window_frames} (first shown)"
+            num_frames = min(num_frames, window_frames)
         reader.read_bytes(len(self._fingerprint(header.num_joints)), "bases fingerprint")
         coding = reader.read_u8("count coding")
         info["count_coding"] = COUNT_CODINGS[(coding & ~_CUTS_FLAG) % len(COUNT_CODINGS)]
         info["step_cm"] = reader.read_f64("quantization step")
         if self.scheme == "clip":
             info["clip_length"] = reader.read_varint("clip length")
-            cuts = read_cuts(reader, header.num_frames, self.name) if coding & _CUTS_FLAG else ()
+            cuts = read_cuts(reader, num_frames, self.name) if coding & _CUTS_FLAG else ()
             info["cuts (frames starting a segment)"] = [int(cut) for cut in cuts]
         return info
 

@@ -12,7 +12,10 @@ from collections.abc import Callable
 from mocapbench.entropy.bitio import ByteReader, ByteWriter
 from mocapbench.motion import Motion
 
-__all__ = ["encode_windows", "split_windows"]
+__all__ = ["WINDOW_FRAMES", "encode_frame_windows", "encode_windows", "split_windows"]
+
+#: Frames of a window of a long capture (64 s at 120 fps; a multiple of the usual clip lengths 60, 120, 240, 256).
+WINDOW_FRAMES = 7680
 
 
 def encode_windows(
@@ -22,10 +25,20 @@ def encode_windows(
 
     ``encode_window(part) -> (payload, stats)`` codes one window of at most ``window_frames`` frames.
     """
+    return encode_frame_windows(
+        motion.num_frames, window_frames, lambda start, stop: encode_window(motion.slice(start, stop))
+    )
+
+
+def encode_frame_windows(
+    num_frames: int, window_frames: int, encode_window: Callable[[int, int], tuple[bytes, dict]]
+) -> tuple[bytes, list[dict]]:
+    """As :func:`encode_windows` for any source of frames: ``encode_window(start, stop) -> (payload, stats)`` codes
+    frames ``start:stop`` (at most ``window_frames`` of them), e.g. a slice of a positions array."""
     writer = ByteWriter()
     stats = []
-    for start in range(0, motion.num_frames, window_frames):
-        window, window_stats = encode_window(motion.slice(start, min(motion.num_frames, start + window_frames)))
+    for start in range(0, num_frames, window_frames):
+        window, window_stats = encode_window(start, min(num_frames, start + window_frames))
         writer.write_varint(len(window))
         writer.write_bytes(window)
         stats.append(window_stats)
