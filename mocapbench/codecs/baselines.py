@@ -30,8 +30,8 @@ from mocapbench.codecs.skeleton_blob import pack_skeleton, unpack_skeleton
 from mocapbench.entropy.backend import (
     zstd_compress_chunks,
     zstd_decompress_chunks,
-    zstd_pack_ints,
-    zstd_unpack_ints,
+    zstd_pack_tracks,
+    zstd_unpack_tracks,
 )
 from mocapbench.entropy.bitio import ByteReader, ByteWriter
 from mocapbench.entropy.errors import BitstreamError
@@ -195,6 +195,19 @@ class QuantDeltaZstdCodec(Codec):
 _MAX_ORDER2_INDEX = 1 << 60  # second differences of larger indices could overflow int64
 
 
+def _channel_major_indices(motion: Motion, step: float) -> np.ndarray:
+    """Quantized positions as channel-major tracks ``(3J, F)``, block by block: int32 while they fit (half the
+    memory of the positions array), int64 otherwise."""
+    tracks = np.empty((3 * motion.num_joints, motion.num_frames), dtype=np.int32)
+    for start in range(0, motion.num_frames, _BLOCK_FRAMES):
+        block = _block_positions(motion, start)
+        indices = quantize(block.reshape(len(block), -1), step)
+        if tracks.dtype == np.int32 and np.abs(indices).max() > np.iinfo(np.int32).max:
+            tracks = tracks.astype(np.int64)
+        tracks[:, start : start + len(block)] = indices.T
+    return tracks
+
+
 def _predict(indices: np.ndarray, order: int) -> np.ndarray:
     """Residuals of order-1 or order-2 prediction along the last axis (the first samples kept as they are).
 
@@ -236,10 +249,15 @@ class QuantPredZstdCodec(Codec):
         return -1  # the order is chosen over the whole clip
 
     def encode_payload(self, motion: Motion) -> bytes:
+        """The channel-major tracks streamed through zstd (:func:`zstd_pack_tracks`): memory is the quantized tracks
+        (int32 where they fit: half the positions array) and one track, whatever the length; up to
+        :data:`~mocapbench.entropy.backend.ONE_SHOT_VALUES` values the bytes are those of a one-shot zstd."""
         step = self.config.step_cm
-        tracks = quantize(motion.positions().reshape(motion.num_frames, -1), step).T  # (3J, F) channel-major
-        orders = (1, 2) if np.abs(tracks).max() < _MAX_ORDER2_INDEX else (1,)
-        blobs = {order: zstd_pack_ints(_predict(tracks, order), self.config.zstd_level, shuffle=True)
+        tracks = _channel_major_indices(motion, step)  # (3J, F)
+        peak = max(int(tracks.max()), -int(tracks.min())) if tracks.size else 0  # no F-sized temporary
+        orders = (1, 2) if peak < _MAX_ORDER2_INDEX else (1,)
+        blobs = {order: zstd_pack_tracks(lambda c: _predict(tracks[c : c + 1], order)[0], tracks.shape[0],
+                                         tracks.shape[1], self.config.zstd_level, shuffle=True)
                  for order in orders}
         order = min(orders, key=lambda o: len(blobs[o]))
         writer = ByteWriter()
@@ -250,17 +268,22 @@ class QuantPredZstdCodec(Codec):
         return writer.getvalue()
 
     def decode_payload(self, header: Header, payload: memoryview):
+        """Track by track into the output (:func:`zstd_unpack_tracks`): beside the positions, one track and the
+        byte planes below the top one (``width - 1`` bytes per value; none for the usual 1-byte residuals)."""
         reader = ByteReader(payload)
         step = float(reader.read_array(1, np.float64, "step")[0])
         order = reader.read_u8("prediction order")
         if not (step > 0 and np.isfinite(step)) or order not in (1, 2):
             raise BitstreamError(f"quant-pred-zstd: expected a positive step and order 1 or 2, found {step}, {order}.")
-        channels = header.num_joints * 3
-        residuals = zstd_unpack_ints(reader.read_blob("positions"), channels * header.num_frames, "positions",
-                                     shuffle=True)
+        blob = reader.read_blob("positions")
         reader.expect_end()
-        tracks = _reconstruct(residuals.reshape(channels, header.num_frames), order)
-        return (tracks.T * step).reshape(header.num_frames, header.num_joints, 3), None
+        positions = np.empty((header.num_frames, 3 * header.num_joints))
+
+        def dequantize(channel: int, residuals: np.ndarray) -> None:
+            positions[:, channel] = _reconstruct(residuals[None], order)[0] * step
+
+        zstd_unpack_tracks(blob, positions.shape[1], header.num_frames, dequantize, "positions", shuffle=True)
+        return positions.reshape(header.num_frames, header.num_joints, 3), None
 
     def describe_payload(self, header: Header, payload: memoryview):
         reader = ByteReader(payload)

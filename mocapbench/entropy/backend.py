@@ -32,13 +32,18 @@ __all__ = [
     "zstd_compress",
     "zstd_decompress",
     "zstd_pack_ints",
+    "zstd_pack_tracks",
     "zstd_unpack_ints",
+    "zstd_unpack_tracks",
     "zstd_compress_chunks",
     "zstd_decompress_chunks",
 ]
 
 #: Dictionary size of the raw LZMA2 filter, bytes. Fixed because a raw stream does not record it.
 LZMA_DICT_SIZE = 1 << 24
+#: Most values :func:`zstd_pack_tracks` packs in one shot (8 MiB as int64), keeping the bytes of
+#: :func:`zstd_pack_ints`; more are streamed.
+ONE_SHOT_VALUES = 1 << 20
 
 
 def _check_level(name: str, level, lo: int, hi: int) -> int:
@@ -281,3 +286,101 @@ def zstd_unpack_ints(blob, count: int, what: str = "integers", *, shuffle: bool 
     if shuffle:
         planes = np.ascontiguousarray(planes.reshape(width, count).T)
     return zigzag_decode(planes.view(f"<u{width}").reshape(-1).astype(np.uint64)).astype(np.int64)
+
+
+def zstd_pack_tracks(track, num_tracks: int, length: int, level: int = 19, *, shuffle: bool = False) -> bytes:
+    """:func:`zstd_pack_ints` of the ``(num_tracks, length)`` array whose row ``i`` is ``track(i)``, never held whole.
+
+    Up to :data:`ONE_SHOT_VALUES` values the tracks are stacked and packed by :func:`zstd_pack_ints` (the same
+    bytes). Beyond, one pass over the tracks finds the width, then each track's bytes (with ``shuffle``: each byte
+    plane of each track, plane by plane) go through zstd's streaming compressor: the same layout and frame format,
+    which :func:`zstd_unpack_ints` reads, though not always the same bytes (zstd's one-shot and streaming
+    compressors can differ by a few bytes on the same input). Memory: one track and the compressor's tables.
+    ``track`` may be called several times per track (``1 + width`` times with ``shuffle``) and must return the same
+    values each time.
+
+    Parameters
+    ----------
+    track : callable, int -> ndarray, shape (length,), integer
+    num_tracks, length : int
+    level : int
+        zstd level, 1..22.
+    shuffle : bool
+        Byte-shuffle as :func:`zstd_pack_ints` does (all lowest bytes of every value, then all next bytes, ...).
+    """
+    from mocapbench.entropy.bitio import zigzag_encode
+
+    def values(i: int) -> np.ndarray:
+        row = np.asarray(track(i))
+        if row.shape != (length,):
+            raise ValueError(f"track {i} has shape {row.shape}, expected ({length},)")
+        return row
+
+    def codes(i: int) -> np.ndarray:
+        return zigzag_encode(values(i))
+
+    if num_tracks * length <= ONE_SHOT_VALUES:  # small: zstd's one-shot compressor, the bytes of zstd_pack_ints
+        stacked = np.empty((num_tracks, length), dtype=np.int64)
+        for i in range(num_tracks):
+            stacked[i] = values(i)
+        return zstd_pack_ints(stacked, level, shuffle=shuffle)
+    peak = max((int(codes(i).max()) for i in range(num_tracks)), default=0) if length else 0
+    width = next(w for w in (1, 2, 4, 8) if peak < 1 << (8 * w))
+    if shuffle:
+        chunks = ((codes(i) >> np.uint64(8 * plane)).astype(np.uint8).tobytes()
+                  for plane in range(width) for i in range(num_tracks))
+    else:
+        chunks = (codes(i).astype(f"<u{width}").tobytes() for i in range(num_tracks))
+    return bytes([width]) + zstd_compress_chunks(chunks, num_tracks * length * width, level=level)
+
+
+def zstd_unpack_tracks(blob, num_tracks: int, length: int, sink, what: str = "integers", *,
+                       shuffle: bool = False) -> None:
+    """Inverse of :func:`zstd_pack_tracks` (same ``shuffle``): ``sink(i, values)`` for every track in order, values
+    an int64 array of ``length``; :class:`BitstreamError` on any inconsistency.
+
+    Memory beside the sink: one track, and with ``shuffle`` the byte planes below the highest one
+    (``(width - 1) * num_tracks * length`` bytes: a track's top byte comes after every lower byte of every track).
+    """
+    from mocapbench.entropy.bitio import zigzag_decode
+
+    blob = memoryview(blob).cast("B")
+    if len(blob) < 1 or blob[0] not in (1, 2, 4, 8):
+        raise BitstreamError(f"{what}: expected a width byte of 1, 2, 4 or 8, found {bytes(blob[:1])!r}")
+    width = blob[0]
+    planes = width if shuffle else 1
+    track_bytes = length * (1 if shuffle else width)  # bytes of one track in one plane
+    held = np.empty(((planes - 1) * num_tracks * track_bytes,), dtype=np.uint8)  # the planes below the top
+    filled, pending, index = 0, bytearray(), 0
+
+    def emit(top) -> None:  # track ``index``'s top plane (its only plane without shuffle) is complete in ``top``
+        if not shuffle:
+            sink(index, zigzag_decode(np.frombuffer(top, dtype=f"<u{width}").astype(np.uint64)))
+            return
+        codes = np.frombuffer(top, dtype=np.uint8).astype(np.uint64) << np.uint64(8 * (planes - 1))
+        for plane in range(planes - 1):
+            start = (plane * num_tracks + index) * track_bytes
+            codes |= held[start : start + track_bytes].astype(np.uint64) << np.uint64(8 * plane)
+        sink(index, zigzag_decode(codes))
+
+    for piece in zstd_decompress_chunks(blob[1:], planes * num_tracks * track_bytes):
+        view, at = memoryview(piece), 0
+        if filled < held.size:  # the lower planes come first, straight into their buffer
+            at = min(held.size - filled, len(view))
+            held[filled : filled + at] = np.frombuffer(view[:at], dtype=np.uint8)
+            filled += at
+        while at < len(view):  # whole tracks from the piece itself, the rest through ``pending``
+            if not pending and len(view) - at >= track_bytes:
+                emit(view[at : at + track_bytes])
+                at += track_bytes
+            else:
+                take = min(track_bytes - len(pending), len(view) - at)
+                pending += view[at : at + take]
+                at += take
+                if len(pending) < track_bytes:
+                    continue
+                emit(pending)
+                pending = bytearray()
+            index += 1
+    for index in range(index, num_tracks):  # zero-length tracks: nothing was decompressed for them
+        sink(index, np.zeros(0, dtype=np.int64))

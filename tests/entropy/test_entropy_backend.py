@@ -136,3 +136,43 @@ def test_zstd_unpack_ints_rejects_wrong_count_and_bad_width():
         zstd_unpack_ints(blob, 11, "tracks")
     with pytest.raises(BitstreamError, match="width byte"):
         zstd_unpack_ints(b"\x03" + blob[1:], 10, "tracks")
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(0, 6), st.integers(0, 300), st.sampled_from([3, 2**10, 2**20, 2**40, 2**62]), st.booleans(),
+       st.booleans(), st.integers(0, 2**32 - 1))
+def test_zstd_pack_tracks_is_zstd_pack_ints_without_the_array(num_tracks, length, scale, shuffle, stream, seed):
+    """One shot (small inputs): the bytes of zstd_pack_ints. Streamed (as a long capture is): a frame that
+    zstd_unpack_ints reads to the same values. zstd_unpack_tracks hands every track back, in order."""
+    from mocapbench.entropy import backend
+
+    values = np.random.default_rng(seed).integers(-scale, scale, size=(num_tracks, length), dtype=np.int64)
+    if stream:
+        original, backend.ONE_SHOT_VALUES = backend.ONE_SHOT_VALUES, 0
+    try:
+        blob = backend.zstd_pack_tracks(lambda i: values[i], num_tracks, length, 5, shuffle=shuffle)
+    finally:
+        if stream:
+            backend.ONE_SHOT_VALUES = original
+    if not stream:
+        assert blob == backend.zstd_pack_ints(values, 5, shuffle=shuffle)
+    unpacked = backend.zstd_unpack_ints(blob, values.size, shuffle=shuffle)
+    np.testing.assert_array_equal(unpacked.reshape(values.shape), values)
+    seen = []
+    backend.zstd_unpack_tracks(blob, num_tracks, length, lambda i, row: seen.append((i, row.copy())), shuffle=shuffle)
+    assert [i for i, _ in seen] == list(range(num_tracks))
+    for i, row in seen:
+        np.testing.assert_array_equal(row, values[i])
+
+
+def test_zstd_unpack_tracks_rejects_a_wrong_size_and_bad_width():
+    from mocapbench.entropy.backend import zstd_pack_tracks, zstd_unpack_tracks
+
+    values = np.arange(30).reshape(3, 10)
+    blob = zstd_pack_tracks(lambda i: values[i], 3, 10, shuffle=True)
+    with pytest.raises(BitstreamError, match="expected a zstd frame of 33 bytes"):
+        zstd_unpack_tracks(blob, 3, 11, lambda i, row: None, "tracks", shuffle=True)
+    with pytest.raises(BitstreamError, match="width byte"):
+        zstd_unpack_tracks(b"\x03" + blob[1:], 3, 10, lambda i, row: None, "tracks", shuffle=True)
+    with pytest.raises(ValueError, match=r"track 1 has shape \(9,\), expected \(10,\)"):
+        zstd_pack_tracks(lambda i: values[i, : 10 - i], 3, 10)
