@@ -72,3 +72,100 @@ def test_svd_of_a_long_capture_uses_the_gram_matrix_with_the_same_result(monkeyp
     blocked = create("svd", rank=16)
     error = _error(blocked, motion, blocked.encode(motion))
     assert abs(error.max() - reference.max()) < 1e-3 and abs(error.mean() - reference.mean()) < 1e-4
+
+
+SPATIAL_TRANSFORM_CODECS = ["lsdt-frame", "lsdt-clip", "dct-spatial-frame", "dct-spatial-clip", "dwt-spatial-frame",
+                            "dwt-spatial-clip"]
+
+
+@pytest.mark.parametrize("name", SPATIAL_TRANSFORM_CODECS)
+def test_spatial_transform_codecs_code_a_long_capture_window_by_window(name, monkeypatch):
+    from mocapbench.codecs import lsdt
+
+    motion = sinusoidal_motion(num_frames=1100, seed=4)
+    short = motion.slice(0, 300)
+    short_stream = create(name).encode(short)
+    whole = create(name).encode(motion)  # one window: the paper's pipeline over the whole capture
+    whole_decoded = create(name).decode(whole).positions
+    monkeypatch.setattr(lsdt, "WINDOW_FRAMES", 480)  # 1,100 frames: windows of 480, 480, 140
+    codec = create(name)
+    assert codec.encode(short) == short_stream  # up to a window: the same bytes as before windows existed
+    stream = codec.encode(motion)
+    assert codec.last_encode_stats["windows"] == 3
+    header, payload = container.unpack(stream, name)
+    assert codec.describe_payload(header, payload)["windows of frames"] == "3 x 480 (first shown)"
+    assert len(stream) <= 1.05 * len(whole)  # a window's own Huffman tables (and intra frame) cost little
+    # With the paper's dead zone (threshold 0.5 step) the coefficients of every frame (frame scheme: K_i = rint(g_i/Δ))
+    # or every clip of L frames (clip scheme, windows of whole clips) do not depend on the windows: same decode.
+    assert np.array_equal(codec.decode(stream).positions, whole_decoded)
+    assert _error(codec, motion, stream).max() < 3 * 0.5  # a few steps (step 0.5 cm)
+    with pytest.raises(BitstreamError):
+        codec.decode(stream[:-9])  # truncated: a window runs past the end
+
+
+@pytest.mark.parametrize("name", ["lsdt-frame", "dct-spatial-frame"])
+def test_frame_codecs_restart_their_closed_loop_per_window_within_the_bound(name, monkeypatch):
+    from mocapbench.codecs import lsdt
+
+    motion = sinusoidal_motion(num_frames=1000, seed=8)
+    config = {"step_cm": 0.5, "threshold_steps": 2.0}  # a hard threshold wider than the dead zone: the loop matters
+    whole = create(name, **config)
+    whole_error = _error(whole, motion, whole.encode(motion))  # decoded before the windows are made small
+    monkeypatch.setattr(lsdt, "WINDOW_FRAMES", 256)
+    codec = create(name, **config)
+    windowed_error = _error(codec, motion, codec.encode(motion))
+    # Closed loop: every frame's error is its own quantization error (at most sqrt(3J) x threshold), with or
+    # without windows, and it does not grow along the capture.
+    bound = (3 * motion.num_joints) ** 0.5 * 2.0 * 0.5
+    assert whole_error.max() <= bound and windowed_error.max() <= bound
+    assert abs(windowed_error.mean() - whole_error.mean()) < 0.05 * whole_error.mean()
+    assert windowed_error[-256:].mean() < 1.5 * windowed_error[:256].mean()
+
+
+def test_clip_codec_windows_are_whole_clips_of_any_length(monkeypatch):
+    from mocapbench.codecs import lsdt
+
+    motion = sinusoidal_motion(num_frames=1000, seed=2)
+    codec = create("lsdt-clip", clip_length=100)
+    whole = codec.decode(codec.encode(motion)).positions
+    monkeypatch.setattr(lsdt, "WINDOW_FRAMES", 256)  # windows of 200 frames: two clips of 100
+    stream = codec.encode(motion)
+    assert codec.last_encode_stats["windows"] == 5
+    assert np.array_equal(codec.decode(stream).positions, whole)
+    monkeypatch.setattr(lsdt, "WINDOW_FRAMES", 64)  # a clip longer than the window: windows of one clip
+    assert create("lsdt-clip", clip_length=100).describe_payload(
+        *container.unpack(create("lsdt-clip", clip_length=100).encode(motion), "lsdt-clip"))[
+        "windows of frames"] == "10 x 100 (first shown)"
+
+
+def test_windowed_spatial_stream_with_a_hostile_window_length_is_refused(monkeypatch):
+    from mocapbench.codecs import lsdt
+    from mocapbench.entropy.bitio import ByteWriter
+
+    motion = sinusoidal_motion(num_frames=600, seed=1)
+    monkeypatch.setattr(lsdt, "WINDOW_FRAMES", 256)
+    codec = create("dct-spatial-clip")
+    header, payload = container.unpack(codec.encode(motion), "dct-spatial-clip")
+    for window_frames in (0, 7):
+        writer = ByteWriter()
+        writer.write_varint(window_frames)
+        edited = writer.getvalue() + bytes(payload)[2:]  # replaces the 2-byte varint of 240
+        stream = container.pack("dct-spatial-clip", 600, motion.num_joints, motion.fps, edited)
+        with pytest.raises(BitstreamError):
+            codec.decode(stream)
+
+
+def test_quant_pred_zstd_streams_a_long_capture_to_the_same_positions(monkeypatch):
+    from mocapbench.entropy import backend
+
+    motion = sinusoidal_motion(num_frames=1500, seed=6)
+    codec = create("quant-pred-zstd", step_cm=0.1)
+    one_shot = codec.encode(motion)  # 1,500 x 93 values: under ONE_SHOT_VALUES, the bytes it always had
+    monkeypatch.setattr(backend, "ONE_SHOT_VALUES", 1000)  # as a long capture: track by track, streaming zstd
+    streamed = codec.encode(motion)
+    assert abs(len(streamed) - len(one_shot)) <= 0.001 * len(one_shot)  # zstd's streaming mode: a few bytes apart
+    decoded = codec.decode(streamed).positions
+    assert np.array_equal(decoded, codec.decode(one_shot).positions)
+    assert _error(codec, motion, streamed).max() <= 0.1 * 3**0.5 / 2 + 1e-9  # step / 2 per coordinate
+    with pytest.raises(BitstreamError):
+        codec.decode(streamed[:-9])
