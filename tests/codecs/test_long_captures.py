@@ -8,6 +8,7 @@ import pytest
 
 from mocapbench.codecs import container, create
 from mocapbench.codecs.base import BitstreamError
+from mocapbench.entropy.bitio import ByteReader, ByteWriter
 from mocapbench.synthetic import sinusoidal_motion
 
 
@@ -140,7 +141,6 @@ def test_clip_codec_windows_are_whole_clips_of_any_length(monkeypatch):
 
 def test_windowed_spatial_stream_with_a_hostile_window_length_is_refused(monkeypatch):
     from mocapbench.codecs import lsdt
-    from mocapbench.entropy.bitio import ByteWriter
 
     motion = sinusoidal_motion(num_frames=600, seed=1)
     monkeypatch.setattr(lsdt, "WINDOW_FRAMES", 256)
@@ -169,3 +169,46 @@ def test_quant_pred_zstd_streams_a_long_capture_to_the_same_positions(monkeypatc
     assert _error(codec, motion, streamed).max() <= 0.1 * 3**0.5 / 2 + 1e-9  # step / 2 per coordinate
     with pytest.raises(BitstreamError):
         codec.decode(streamed[:-9])
+
+
+def test_acl_compresses_a_long_capture_as_one_acl_clip_per_window(acl_codec, monkeypatch):
+    from mocapbench.codecs.acl import codec as acl_module
+
+    motion = sinusoidal_motion(num_frames=1000, seed=5)
+    codec = acl_codec(precision_cm=0.1, shell_cm=0.0)
+    short_stream = codec.encode(motion.slice(0, 300))
+    whole = codec.encode(motion)
+    whole_decoded = codec.decode(whole)
+    monkeypatch.setattr(acl_module, "WINDOW_FRAMES", 400)  # 1,000 frames: ACL clips of 400, 400, 200
+    assert codec.encode(motion.slice(0, 300)) == short_stream  # up to a window: one ACL clip, the same bytes
+    stream = codec.encode(motion)
+    assert codec.last_encode_stats["windows"] == 3
+    assert codec.last_encode_stats["acl_overhead_bytes"] < codec.last_encode_stats["acl_buffer_bytes"]
+    assert len(stream) <= 1.2 * len(whole)  # each ACL clip has its own header and constant tracks
+    decoded = codec.decode(stream)
+    assert decoded.motion.num_frames == 1000 and np.allclose(decoded.motion.positions(), decoded.positions)
+    error = _error(codec, motion, stream)
+    assert error.max() <= 1.5 * 0.1  # ACL's precision (shell 0), window by window as over the whole clip
+    assert np.abs(decoded.positions - whole_decoded.positions).max() <= 2 * 1.5 * 0.1
+    # Random access across a window boundary decodes the same frames as the full decode.
+    part = codec.decode_frames(stream, 350, 850)
+    np.testing.assert_allclose(part.positions, decoded.positions[350:850], rtol=0, atol=1e-9)  # FK blocks differ
+    header, payload = container.unpack(stream, "acl")
+    assert codec.describe_payload(header, payload)["windows of frames (ACL clips)"] == "3 x 400 (first shown)"
+    with pytest.raises(BitstreamError):
+        codec.decode(stream[:-9])
+    # The stream carries its window length: another WINDOW_FRAMES in the decoder reads it the same.
+    monkeypatch.setattr(acl_module, "WINDOW_FRAMES", 300)
+    np.testing.assert_array_equal(codec.decode(stream).positions, decoded.positions)
+    # A window length edited to 300 asks for 4 clips where the payload holds 3 of 400 frames: refused.
+    from mocapbench.codecs.skeleton_blob import unpack_skeleton
+
+    reader = ByteReader(payload)
+    unpack_skeleton(reader)
+    skeleton_end = reader.offset
+    assert reader.read_varint("window frames") == 400
+    edited = ByteWriter()
+    edited.write_varint(300)
+    hostile = bytes(payload[:skeleton_end]) + edited.getvalue() + bytes(payload[reader.offset :])
+    with pytest.raises(BitstreamError):
+        codec.decode(container.pack("acl", 1000, motion.num_joints, motion.fps, hostile))

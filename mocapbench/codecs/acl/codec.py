@@ -13,7 +13,12 @@ positions are its forward kinematics.
 
 Stream payload: the skeleton blob (:mod:`mocapbench.codecs.skeleton_blob`: names, parents, channel orders,
 offsets, end sites; a few hundred bytes for CMU's 31 joints) then ACL's compressed buffer (varint length +
-bytes, exactly ``compressed_tracks::get_size()`` bytes). The results row gets ``acl_buffer_bytes`` and
+bytes, exactly ``compressed_tracks::get_size()`` bytes). A capture of more than
+:data:`~mocapbench.codecs.windows.WINDOW_FRAMES` frames (64 s at 120 fps) is compressed as consecutive windows of
+that many frames, each its own ACL clip: after the skeleton, the window length (varint, frames), then one buffer
+per window. ACL holds a whole clip's raw and lossy tracks while it compresses (and its 32-bit offsets cap a clip
+near 4 GiB), so this keeps encode and decode memory to one window beside the motion whatever the length; every
+clip up to a window keeps the one-buffer layout, byte for byte. The results row gets ``acl_buffer_bytes`` and
 ``acl_overhead_bytes`` (container header + skeleton + lengths) so that ACL's own ratio can be recovered.
 The buffer is validated by ACL's ``is_valid(check_hash=true)`` (size, tag, version, hash) before a
 decompression context touches it; anything wrong is a :class:`BitstreamError`.
@@ -36,9 +41,10 @@ from mocapbench.codecs import container
 from mocapbench.codecs.base import Codec, CodecConfig, Decoded, Header, param
 from mocapbench.codecs.registry import CodecUnavailableError
 from mocapbench.codecs.skeleton_blob import pack_skeleton, unpack_skeleton
+from mocapbench.codecs.windows import WINDOW_FRAMES
 from mocapbench.entropy.bitio import ByteReader, ByteWriter
 from mocapbench.entropy.errors import BitstreamError
-from mocapbench.motion import Motion
+from mocapbench.motion import Motion, OwnedQuaternions
 
 __all__ = ["AclCodec"]
 
@@ -49,11 +55,11 @@ _FLOAT32_MAX = float(np.finfo(np.float32).max)
 
 
 def _check_motion(motion: Motion) -> None:
-    """One clear line for a motion ACL cannot take.
+    """One clear line for a motion ACL cannot take (a long capture is checked window by window, as ACL sees it).
 
     Zero frames and NaN/inf never get here: :class:`Motion` refuses them with one line on construction.
     """
-    frames, joints = motion.num_frames, motion.num_joints
+    frames, joints = min(motion.num_frames, WINDOW_FRAMES), motion.num_joints
     if 40 * frames * joints >= MAX_RAW_BYTES:
         raise ValueError(
             f"acl: {frames} frames x {joints} joints is {40 * frames * joints} bytes of raw tracks, over ACL's "
@@ -115,15 +121,41 @@ class AclCodec(Codec):
 
     def encode_payload(self, motion: Motion) -> bytes:
         _check_motion(motion)
-        config = self.config
         library = self._library()
+        writer = ByteWriter()
+        writer.write_bytes(pack_skeleton(motion.skeleton))
+        buffer_bytes = 0
+        if motion.num_frames <= WINDOW_FRAMES:
+            buffer = self._compress(library, motion)
+            writer.write_blob(buffer)
+            buffer_bytes = len(buffer)
+        else:  # one ACL clip per window (module docstring)
+            writer.write_varint(WINDOW_FRAMES)
+            for start in range(0, motion.num_frames, WINDOW_FRAMES):
+                buffer = self._compress(library, motion.slice(start, min(motion.num_frames, start + WINDOW_FRAMES)))
+                writer.write_blob(buffer)
+                buffer_bytes += len(buffer)
+        payload = writer.getvalue()
+        header_bytes = len(container.pack(self.name, motion.num_frames, motion.num_joints, motion.fps, b""))
+        self.last_encode_stats = {
+            "acl_buffer_bytes": buffer_bytes,
+            "acl_overhead_bytes": header_bytes + len(payload) - buffer_bytes,  # container + skeleton + lengths
+            "acl_version": library.acl_version,
+        }
+        if motion.num_frames > WINDOW_FRAMES:
+            self.last_encode_stats["windows"] = -(-motion.num_frames // WINDOW_FRAMES)
+        return payload
+
+    def _compress(self, library, motion: Motion) -> bytes:
+        """ACL's compressed buffer of one clip (a whole motion, or one window of a long capture)."""
+        config = self.config
         rotations = motion.rotations.astype(np.float32)
         translations = np.empty((motion.num_frames, motion.num_joints, 3), dtype=np.float32)
         translations[:, 0] = motion.root_positions
         translations[:, 1:] = motion.skeleton.offsets[1:]
         variable = config.rotation_format.endswith("variable") or config.translation_format.endswith("variable")
         try:
-            buffer = library.compress(
+            return library.compress(
                 rotations, translations, motion.skeleton.parents.astype(np.int32), motion.fps,
                 precision_cm=config.precision_cm, shell_cm=config.shell_cm, level=config.level,
                 rotation_format=config.rotation_format, translation_format=config.translation_format,
@@ -133,51 +165,62 @@ class AclCodec(Codec):
             )
         except AclError as error:
             raise ValueError(f"acl: {error}") from error
-        writer = ByteWriter()
-        writer.write_bytes(pack_skeleton(motion.skeleton))
-        writer.write_blob(buffer)
-        payload = writer.getvalue()
-        header_bytes = len(container.pack(self.name, motion.num_frames, motion.num_joints, motion.fps, b""))
-        self.last_encode_stats = {
-            "acl_buffer_bytes": len(buffer),
-            "acl_overhead_bytes": header_bytes + len(payload) - len(buffer),  # container + skeleton + length
-            "acl_version": library.acl_version,
-        }
-        return payload
 
     def _read(self, header: Header, payload: memoryview):
+        """The skeleton, the ACL clips ``[(start, stop, buffer, info), ...]`` in frame order (one per window; each
+        buffer validated by ACL, its tracks and samples checked against the header) and the library."""
         reader = ByteReader(payload)
         skeleton = unpack_skeleton(reader)
         if skeleton.num_joints != header.num_joints:
             raise BitstreamError(f"acl: header says {header.num_joints} joints, skeleton has {skeleton.num_joints}.")
-        buffer = bytes(reader.read_blob("ACL buffer"))
+        window_frames = header.num_frames
+        if header.num_frames > WINDOW_FRAMES:
+            window_frames = reader.read_varint("window frames")
+            if window_frames < 1:
+                raise BitstreamError(f"acl: expected at least 1 frame per window, found {window_frames}.")
+        extents = []
+        for start in range(0, header.num_frames, window_frames):  # every extent before any buffer is validated
+            extents.append((start, min(header.num_frames, start + window_frames), reader.read_blob("ACL buffer")))
         reader.expect_end()
         library = self._library()
-        try:
-            info = library.info(buffer)
-        except AclError as error:
-            raise BitstreamError(f"acl: {error}.") from error
-        if info.num_tracks != header.num_joints:
-            raise BitstreamError(f"acl: ACL buffer holds {info.num_tracks} tracks, header says {header.num_joints} joints.")
-        # With loop optimization ACL drops a last frame equal to the first and plays with wrap.
-        if info.num_samples not in (header.num_frames, header.num_frames - 1) or info.num_samples == 0:
-            raise BitstreamError(f"acl: ACL buffer holds {info.num_samples} samples, header says {header.num_frames} frames.")
-        return skeleton, buffer, info, library
+        clips = []
+        for start, stop, view in extents:
+            buffer = bytes(view)
+            try:
+                info = library.info(buffer)
+            except AclError as error:
+                raise BitstreamError(f"acl: {error}.") from error
+            if info.num_tracks != header.num_joints:
+                raise BitstreamError(
+                    f"acl: ACL buffer holds {info.num_tracks} tracks, header says {header.num_joints} joints."
+                )
+            # With loop optimization ACL drops a last frame equal to the first and plays with wrap.
+            if info.num_samples not in (stop - start, stop - start - 1) or info.num_samples == 0:
+                raise BitstreamError(f"acl: ACL buffer holds {info.num_samples} samples, expected {stop - start} frames.")
+            clips.append((start, stop, buffer, info))
+        return skeleton, clips, library
 
     def _decode_range(self, header: Header, payload: memoryview, start: int, stop: int):
-        """Positions and Motion of frames ``start:stop`` through ACL's decompression context."""
-        skeleton, buffer, _, library = self._read(header, payload)
-        try:
-            rotations, translations = library.decompress(buffer, header.num_joints, start, stop)
-        except AclError as error:
-            raise BitstreamError(f"acl: {error}.") from error
-        rotations = rotations.astype(np.float64)
-        if not (np.all(np.isfinite(rotations)) and np.all(np.isfinite(translations))):
-            raise BitstreamError("acl: ACL decoded non-finite values.")
-        if np.any(np.linalg.norm(rotations, axis=-1) < 0.5):
-            raise BitstreamError("acl: ACL decoded a quaternion far from unit length.")
-        motion = Motion(skeleton=skeleton, fps=header.fps, root_positions=translations[:, 0].astype(np.float64),
-                        rotations=rotations)
+        """Positions and Motion of frames ``start:stop`` through ACL's decompression context, clip by clip into the
+        motion's arrays (one window's float32 arrays beside them)."""
+        skeleton, clips, library = self._read(header, payload)
+        rotations = np.empty((stop - start, header.num_joints, 4))
+        roots = np.empty((stop - start, 3))
+        for clip_start, clip_stop, buffer, _ in clips:
+            first, last = max(start, clip_start), min(stop, clip_stop)
+            if first >= last:
+                continue
+            try:
+                part, translations = library.decompress(buffer, header.num_joints, first - clip_start, last - clip_start)
+            except AclError as error:
+                raise BitstreamError(f"acl: {error}.") from error
+            if not (np.all(np.isfinite(part)) and np.all(np.isfinite(translations))):
+                raise BitstreamError("acl: ACL decoded non-finite values.")
+            if np.any(np.einsum("...i,...i->...", part, part) < 0.25):
+                raise BitstreamError("acl: ACL decoded a quaternion far from unit length.")
+            rotations[first - start : last - start] = part
+            roots[first - start : last - start] = translations[:, 0]
+        motion = Motion(skeleton=skeleton, fps=header.fps, root_positions=roots, rotations=OwnedQuaternions(rotations))
         return motion.positions(), motion
 
     def decode_payload(self, header: Header, payload: memoryview):
@@ -201,10 +244,15 @@ class AclCodec(Codec):
         return Decoded(positions=positions, motion=motion, header=header)
 
     def describe_payload(self, header: Header, payload: memoryview) -> dict[str, Any]:
-        _, buffer, info, library = self._read(header, payload)
+        _, clips, library = self._read(header, payload)
+        info = clips[0][3]
+        windows = {}
+        if len(clips) > 1 or header.num_frames > WINDOW_FRAMES:
+            windows = {"windows of frames (ACL clips)": f"{len(clips)} x {clips[0][1]} (first shown)"}
         return {
+            **windows,
             "acl_version": library.acl_version,
-            "acl_buffer_bytes": len(buffer),
+            "acl_buffer_bytes": sum(len(clip[2]) for clip in clips),
             "samples": info.num_samples,
             "sample_rate": info.sample_rate,
             "rotation_format": info.rotation_format,
