@@ -250,6 +250,7 @@ def _discontinuities(data_dir) -> None:
 ABLATIONS = {
     "default": {},
     "no principal axes": {"principal_axes": False},
+    "no compensation (each joint quantized alone)": {"compensate": False},
     "fixed step (4x budget, no rate search)": {"step_rel": 4.0},
     "root share 0.2 (was 0.05)": {"root_share": 0.2},
     "allocation p = 2 (was max lever)": {"allocation_power": 2.0},

@@ -110,6 +110,17 @@ def test_decodes_to_a_motion_on_the_same_skeleton_and_uses_the_bound(synthetic_m
     assert len(data) < len(baseline) / 3
 
 
+def test_compensated_quantization_saves_rate_and_keeps_the_bound(synthetic_motion):
+    """Joints coded against their decoded parents: the ancestors' errors no longer add up at the extremities."""
+    sizes = {}
+    for compensate in (True, False):
+        codec = create("mcb-rot", eps_cm=0.1, compensate=compensate)
+        data = codec.encode(synthetic_motion)
+        assert metrics.max_joint_error(synthetic_motion.positions(), codec.decode(data).positions) <= 0.1
+        sizes[compensate] = len(data)
+    assert sizes[True] < 0.95 * sizes[False]
+
+
 def test_rate_falls_as_the_bound_grows(synthetic_motion):
     sizes = [len(create("mcb-rot", eps_cm=eps).encode(synthetic_motion)) for eps in (0.05, 0.5, 5.0)]
     assert sizes == sorted(sizes, reverse=True) and sizes[0] > 2 * sizes[-1]

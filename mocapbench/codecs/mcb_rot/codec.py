@@ -21,6 +21,10 @@ Design::
          arm (:mod:`.budgets`: an error at the hips moves every joint, one at the wrist only the fingers) and ``m`` a
          multiplier chosen per stream by a rate search (the smallest stream wins). Segment means (DC) are coded as
          differences along the segments in one small track that random access reads whole.
+      └─ compensated quantization (:mod:`.compensate`, encoder only): joints are quantized level by level down the
+         tree, each coding the local rotation that puts its *global* rotation on the original's given its parent as
+         the decoder rebuilds it, so the errors of the hips and spine do not add up down to the hands and feet
+         (+5-7 % at 24 fps, +6-15 % at 120 fps on cmu_test); the decoder is unchanged.
       └─ refinement (closed loop): the encoder decodes the base layer, runs forward kinematics and, on every frame
          where a joint misses ε, replaces the rotation of the over-budget ancestors of the missing joints (and the
          root translation) by a correction quantized finely enough to bring it within its budget, repeating until
@@ -56,6 +60,7 @@ from mocapbench.codecs.mcb_rot import quaternions as quat
 from mocapbench.codecs.mcb_rot.axes import axes_from_codes, principal_axes, to_axes
 from mocapbench.codecs.mcb_rot.budgets import joint_budgets, offset_discrepancy_cm
 from mocapbench.codecs.mcb_rot.checks import PointTargets
+from mocapbench.codecs.mcb_rot.compensate import Compensator, quantize
 from mocapbench.codecs.mcb_rot.classes import NUM_BANDS
 from mocapbench.codecs.mcb_rot.segments import SegmentLayout, forward, segment_starts
 from mocapbench.codecs.segments import CUT_MIN_JUMP_CM, CUT_RATIO, find_cuts
@@ -84,7 +89,8 @@ _SAFETY_MARGIN = 1e-6
 # A segment of a joint is re-referenced when it strays this far (radians) from the identity.
 _OVERRIDE_ANGLE = 1.5 * np.pi
 # The rate search: step multipliers on a half-octave grid from 1 to 32, started at 4 and walked downhill (the
-# stream size is unimodal in the multiplier on every clip tried; 3-5 attempts instead of 11).
+# stream size is unimodal in the multiplier on every clip tried; 3-5 attempts instead of 11). A quarter-octave grid
+# gained 0.2 % at 24 fps for 40 % more encoding time.
 _SEARCH_GRID = tuple(2.0 ** (i / 2) for i in range(0, 11))
 _SEARCH_START = 4
 
@@ -126,6 +132,7 @@ class McbRotCodec(Codec):
         cut_min_cm: float = param(
             CUT_MIN_JUMP_CM, low=0.0, high=1e4, unit="cm", doc="smallest jump (RMS over joints) treated as a cut"
         )
+        compensate: bool = param(True, doc="each joint's target compensates its ancestors' decoded errors")
         shell_cm: float = param(
             0.0, low=0.0, high=100.0, unit="cm",
             doc="the bound also holds on ACL's virtual vertices at this distance from every joint (0: joints only)",
@@ -295,20 +302,18 @@ class _Encoder:
         self.skeleton_blob = skeleton_blob
         self.spectra = spectra
         self.points = points
+        self.compensator = None
+        if config.compensate:
+            self.compensator = Compensator(info, quat.sign_continuous(motion.rotations), motion.root_positions)
         self.stats: dict[int, dict] = {}
 
     def attempt(self, multiplier: float) -> bytes:
         config, layout = self.config, self.layout
         info = self.info.replace(settings=dataclasses.replace(self.info.settings, multiplier=_f32(multiplier)))
-        # Quantize.
-        dc = np.empty((layout.num_segments, info.channels), dtype=np.int64)
-        coefficients = {}
-        for segment, spectrum in enumerate(self.spectra):
-            steps = steps_of(info, len(spectrum))
-            dc[segment] = np.floor(spectrum[0] / steps[0] + 0.5).astype(np.int64)
-            scaled = spectrum[1:] / steps[1:]
-            rounding = info.settings.rounding
-            coefficients[segment] = (np.sign(scaled) * np.floor(np.abs(scaled) + rounding)).astype(np.int64)
+        if self.compensator is not None:
+            dc, coefficients = self.compensator.quantize(info)
+        else:
+            dc, coefficients = quantize(info, self.spectra)
         info = info.replace(dc=dc)
         # Decode the base layer as the decoder will, then refine in closed loop.
         segments = np.arange(layout.num_segments)
