@@ -251,6 +251,8 @@ ABLATIONS = {
     "default": {},
     "no principal axes": {"principal_axes": False},
     "no compensation (each joint quantized alone)": {"compensate": False},
+    "all over-budget joints corrected (not greedy)": {"greedy_corrections": False},
+    "no flat-slope trial in the rate search": {"slope_search": False},
     "fixed step (4x budget, no rate search)": {"step_rel": 4.0},
     "root share 0.2 (was 0.05)": {"root_share": 0.2},
     "allocation p = 2 (was max lever)": {"allocation_power": 2.0},

@@ -44,10 +44,15 @@ class PointTargets:
     def errors(self, frames: np.ndarray, quats: np.ndarray, roots: np.ndarray) -> np.ndarray:
         """(n, J) error of every joint at ``frames`` (cm) for decoded ``quats`` (n, J, 4), ``roots`` (n, 3): the joint's
         position error, or with a shell the larger of it and its vertices' errors."""
-        moved = self.positions[frames] - kinematics.positions(quats, roots, self.skeleton)  # (n, J, 3)
+        return self.evaluate(frames, quats, roots)[0]
+
+    def evaluate(self, frames: np.ndarray, quats: np.ndarray, roots: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`errors` and the decoded joint positions (n, J, 3) cm."""
+        decoded = kinematics.positions(quats, roots, self.skeleton)
+        moved = self.positions[frames] - decoded  # (n, J, 3)
         squared = np.sum(moved**2, axis=-1)
         if self.vertices is not None:
             decoded = self.shell_cm * quat.as_matrix(global_quaternions(quats, self.skeleton.parents))
             displacement = self.vertices[frames] - decoded + moved[..., :, None]  # (n, J, 3 coords, 3 vertices)
             squared = np.maximum(squared, np.sum(displacement**2, axis=-2).max(axis=-1))
-        return np.sqrt(squared)
+        return np.sqrt(squared), decoded

@@ -29,7 +29,9 @@ Design::
          where a joint misses ε, replaces the rotation of the over-budget ancestors of the missing joints (and the
          root translation) by a correction quantized finely enough to bring it within its budget, repeating until
          no joint misses. A frame whose every joint is within budget is within ε in any pose (:mod:`.budgets`),
-         so the loop always ends.
+         so the loop always ends. Greedy: each round corrects one joint per missing frame, the one that moves a
+         missing joint the most (angle error times distance); a miss is usually small and one correction ends it
+         (+6 % at 24 fps).
       └─ shell (``shell_cm`` = d > 0): the bound also holds on ACL's virtual vertices at distance d along every
          joint's axes (:mod:`mocapbench.metrics.shell`). Each vertex is a virtual child bone of length d in the
          budgets, so every joint (leaves too) gets a budget from its lever plus d instead of a fixed angle; the
@@ -117,6 +119,9 @@ class McbRotCodec(Codec):
             0.0, low=0.0, high=1e4, unit="x budget", doc="base step over the error budget (0: rate search per stream)"
         )
         frequency_slope: float = param(1.0, low=0.0, high=64.0, doc="step of DCT frequency k is (1 + slope k / n) x")
+        slope_search: bool = param(
+            True, doc="the rate search also tries a flat step over frequency (slope 0) at its best multipliers"
+        )
         rounding: float = param(0.45, low=0.0, high=0.5, doc="rounding offset of the base quantizer (0.5: nearest)")
         root_share: float = param(0.05, low=0.01, high=0.9, doc="share of eps budgeted to the root translation")
         allocation_power: float = param(
@@ -133,6 +138,9 @@ class McbRotCodec(Codec):
             CUT_MIN_JUMP_CM, low=0.0, high=1e4, unit="cm", doc="smallest jump (RMS over joints) treated as a cut"
         )
         compensate: bool = param(True, doc="each joint's target compensates its ancestors' decoded errors")
+        greedy_corrections: bool = param(
+            True, doc="correct one joint per missing frame and round (the one moving the miss most), not all"
+        )
         shell_cm: float = param(
             0.0, low=0.0, high=100.0, unit="cm",
             doc="the bound also holds on ACL's virtual vertices at this distance from every joint (0: joints only)",
@@ -181,7 +189,7 @@ class McbRotCodec(Codec):
         if config.step_rel > 0:
             payload = encoder.attempt(config.step_rel)
         else:
-            payload = _search(encoder.attempt)
+            payload = _search(encoder.attempt, config.slope_search and config.frequency_slope > 0)
         # The guarantee: decode what we are about to return and check it.
         header = Header(self.name, motion.num_frames, motion.num_joints, motion.fps)
         decoded, decoded_motion = self.decode_payload(header, memoryview(payload))
@@ -251,8 +259,9 @@ class McbRotCodec(Codec):
                 "joints on principal axes": int((info.axis_codes != 0).any(axis=1).sum())}
 
 
-def _search(attempt) -> bytes:
-    """The smallest payload over :data:`_SEARCH_GRID`, by walking downhill from :data:`_SEARCH_START`."""
+def _search(attempt, flat_too: bool = False) -> bytes:
+    """The smallest payload over :data:`_SEARCH_GRID`, by walking downhill from :data:`_SEARCH_START`; with
+    ``flat_too``, also a flat step over frequency (slope 0) at the best multiplier and the next one up."""
     tried = {}
 
     def size(index: int) -> int:
@@ -264,7 +273,10 @@ def _search(attempt) -> bytes:
     for direction in (1, -1):
         while 0 <= best + direction < len(_SEARCH_GRID) and size(best + direction) < size(best):
             best += direction
-    return tried[best]
+    candidates = [tried[best]]
+    if flat_too:
+        candidates += [attempt(_SEARCH_GRID[i], 0.0) for i in (best, best + 1) if i < len(_SEARCH_GRID)]
+    return min(candidates, key=len)
 
 
 def _signal(quats: np.ndarray, roots: np.ndarray, layout: SegmentLayout) -> tuple[np.ndarray, dict]:
@@ -307,9 +319,13 @@ class _Encoder:
             self.compensator = Compensator(info, quat.sign_continuous(motion.rotations), motion.root_positions)
         self.stats: dict[int, dict] = {}
 
-    def attempt(self, multiplier: float) -> bytes:
+    def attempt(self, multiplier: float, slope: float | None = None) -> bytes:
+        """The stream at step multiplier ``multiplier`` and frequency slope ``slope`` (None: the config's)."""
         config, layout = self.config, self.layout
-        info = self.info.replace(settings=dataclasses.replace(self.info.settings, multiplier=_f32(multiplier)))
+        settings = dataclasses.replace(self.info.settings, multiplier=_f32(multiplier))
+        if slope is not None:
+            settings = dataclasses.replace(settings, slope=_f32(slope))
+        info = self.info.replace(settings=settings)
         if self.compensator is not None:
             dc, coefficients = self.compensator.quantize(info)
         else:
@@ -318,19 +334,36 @@ class _Encoder:
         # Decode the base layer as the decoder will, then refine in closed loop.
         segments = np.arange(layout.num_segments)
         roots, quats = assemble(info, segments, base_signal(info, segments, coefficients))
-        corrections = _refine(info, self.motion, roots, quats, self.points, config.eps_cm * (1.0 - _SAFETY_MARGIN))
+        corrections = _refine(info, self.motion, roots, quats, self.points, config.eps_cm * (1.0 - _SAFETY_MARGIN),
+                              config.greedy_corrections)
         payload = write_payload(info, self.skeleton_blob, coefficients, corrections)
         self.stats[len(payload)] = {"step_multiplier": multiplier, "corrections": int(len(corrections[0]))}
         return payload
 
 
-def _refine(info: StreamInfo, motion: Motion, roots, quats, points: PointTargets, check_cm: float):
+def _largest(fix, missing, placed, relative, root_error, budgets) -> np.ndarray:
+    """``fix`` (n, J + 1) reduced to one slot per row: the candidate that moves a missing point the most (its angle
+    error times its largest distance to a missing joint it moves, or the root's translation error)."""
+    distance = np.sqrt(np.sum((placed[:, :, None, :] - placed[:, None, :, :]) ** 2, axis=-1))  # (n, k, a)
+    moved = missing[:, :, None] & budgets.movers[None]  # (n, k, a)
+    reach = np.where(moved, distance, 0.0).max(axis=1) + budgets.shell_cm  # (n, a)
+    score = np.concatenate([np.sqrt(np.sum(root_error**2, axis=-1))[:, None], quat.angle(relative) * reach], axis=1)
+    score = np.where(fix, score, -1.0)
+    out = np.zeros_like(fix)
+    rows = np.flatnonzero(fix.any(axis=1))
+    out[rows, np.argmax(score[rows], axis=1)] = True
+    return out
+
+
+def _refine(info: StreamInfo, motion: Motion, roots, quats, points: PointTargets, check_cm: float, greedy: bool):
     """Closed-loop corrections (in place on ``roots``, ``quats``): returns (flat indices, values (N, 3)) sorted.
 
     On every frame where a joint (or, with a shell, one of its vertices) misses ``check_cm``, the over-budget joints
     that move the missing points (and the root translation when it is over budget) are corrected to within budget;
-    repeated until nothing misses. A frame whose every joint and root is within budget cannot miss
-    (:mod:`.budgets`), so the loop ends.
+    repeated until nothing misses. With ``greedy``, only one of them per frame and round: the one that moves a
+    missing point the most (a miss is usually by a little, and one correction often ends it). A frame whose every
+    joint and root is within budget cannot miss (:mod:`.budgets`), and every round corrects a new slot of every
+    frame still missing, so the loop ends.
     """
     budgets = info.budgets
     steps = info.correction_steps
@@ -346,7 +379,7 @@ def _refine(info: StreamInfo, motion: Motion, roots, quats, points: PointTargets
         if frames.size == 0:
             break
         if errors is None:
-            errors = points.errors(frames, quats[frames], roots[frames])  # (n, J)
+            errors, placed = points.evaluate(frames, quats[frames], roots[frames])  # (n, J), (n, J, 3)
         missing = errors > check_cm
         moves_missing = (missing.astype(np.float64) @ movers) > 0  # (n, J): joint a moves a missing point
         relative = quat.multiply(quat.conjugate(quats[frames]), true_quats[frames])
@@ -357,6 +390,8 @@ def _refine(info: StreamInfo, motion: Motion, roots, quats, points: PointTargets
         stuck = ~fix.any(axis=1)
         if stuck.any():  # cannot happen by the budget argument; fix every over-budget slot to be sure
             fix[stuck] = np.concatenate([root_over[:, None], over], axis=1)[stuck] & ~corrected[frames[stuck]]
+        if greedy:
+            fix = _largest(fix, missing, placed, relative, true_roots[frames] - roots[frames], budgets)
         rows, slot = np.nonzero(fix)
         if rows.size == 0:
             raise RuntimeError("mcb-rot: refinement made no progress; the error budgets are inconsistent.")
@@ -373,9 +408,9 @@ def _refine(info: StreamInfo, motion: Motion, roots, quats, points: PointTargets
         corrected[at, slot] = True
         flat = at * slots + slot
         apply_corrections(info, roots, quats, flat, values[at, slot])
-        errors = points.errors(frames, quats[frames], roots[frames])
+        errors, placed = points.evaluate(frames, quats[frames], roots[frames])
         still = np.any(errors > check_cm, axis=1)
-        frames, errors = frames[still], errors[still]
+        frames, errors, placed = frames[still], errors[still], placed[still]
     if frames.size:
         raise RuntimeError("mcb-rot: refinement did not converge; not writing.")
     flat = np.flatnonzero(corrected.ravel())
