@@ -52,7 +52,7 @@ class PointTargets:
         moved = self.positions[frames] - decoded  # (n, J, 3)
         squared = np.sum(moved**2, axis=-1)
         if self.vertices is not None:
-            decoded = self.shell_cm * quat.as_matrix(global_quaternions(quats, self.skeleton.parents))
-            displacement = self.vertices[frames] - decoded + moved[..., :, None]  # (n, J, 3 coords, 3 vertices)
+            axes = self.shell_cm * quat.as_matrix(global_quaternions(quats, self.skeleton.parents))
+            displacement = self.vertices[frames] - axes + moved[..., :, None]  # (n, J, 3 coords, 3 vertices)
             squared = np.maximum(squared, np.sum(displacement**2, axis=-2).max(axis=-1))
         return np.sqrt(squared), decoded
