@@ -121,8 +121,8 @@ class Compensator:
                 channels = np.concatenate([np.arange(3), channels])
                 signal = np.concatenate([self.roots, signal], axis=1)
             dequantized = _quantize_into(info, forward(signal, layout), channels, dc, coefficients)
-            rebuilt = inverse(dequantized, layout, len(channels))
-            rebuilt = np.concatenate([rebuilt[s] for s in range(layout.num_segments)])
+            # Each segment's signal (n, c) back from its spectrum (the DCT runs along the last axis).
+            rebuilt = np.concatenate([inverse(dequantized[s].T).T for s in range(layout.num_segments)])
             if level == 0:
                 rebuilt = rebuilt[:, 3:]
             local = self._rotations(info, from_axes(rebuilt.reshape(-1, len(joints), 3), axes[joints]), joints)
