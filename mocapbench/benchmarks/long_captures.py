@@ -15,7 +15,9 @@ torch, Python objects), not the motion itself; it is printed in MB and as a mult
 array (``F * J * 3 * 8`` bytes, 372 MB at 500k frames), the bound the benchmark asks of every non-neural codec.
 
 ``--tree DIR`` runs the subprocesses on another checkout (``PYTHONPATH=DIR``), e.g. the commit before a change,
-so one command prints before and after. Load average is printed beside the table (CPU time does not depend on
+so one command prints before and after. ``--cache DIR`` keeps each synthetic capture in DIR (``.npz``) and later
+subprocesses read it back (the same arrays up to a last-bit renormalization; building the 500k-frame capture
+costs 32 CPU-s, more than most codecs' encode). Load average is printed beside the table (CPU time does not depend on
 it much, wall time does). A subprocess that runs past ``--timeout`` seconds or fails is reported as such.
 """
 
@@ -60,14 +62,27 @@ from mocapbench.codecs import create
 from mocapbench.motion import Motion
 from mocapbench.synthetic import sinusoidal_motion
 
-source = sinusoidal_motion(num_frames=frames, seed=7)
-t = np.arange(frames) / source.fps
-angle = 2 * np.pi * t / 30.0
-root = np.array(source.root_positions)
-root[:, 0] = 300.0 * np.cos(angle)
-root[:, 2] = 300.0 * np.sin(angle)
-motion = Motion(source.skeleton, source.fps, root, np.array(source.rotations), name=source.name)
-del source, root, t, angle
+cache = os.environ.get("MOCAPBENCH_LONG_CAPTURES_CACHE")
+cached = os.path.join(cache, f"sinusoidal-seed7-{frames}.npz") if cache else None
+if cached and os.path.exists(cached):  # the same capture, read back instead of rebuilt (32 CPU-s at 500k frames)
+    source = sinusoidal_motion(num_frames=1, seed=7)  # the skeleton and fps (they do not depend on F)
+    with np.load(cached) as data:
+        root, rotations = data["root"], data["rotations"]
+    motion = Motion(source.skeleton, source.fps, root, rotations, name="synthetic-seed7")
+    del source, root, rotations
+else:
+    source = sinusoidal_motion(num_frames=frames, seed=7)
+    t = np.arange(frames) / source.fps
+    angle = 2 * np.pi * t / 30.0
+    root = np.array(source.root_positions)
+    root[:, 0] = 300.0 * np.cos(angle)
+    root[:, 2] = 300.0 * np.sin(angle)
+    motion = Motion(source.skeleton, source.fps, root, np.array(source.rotations), name=source.name)
+    del source, root, t, angle
+    if cached:
+        os.makedirs(cache, exist_ok=True)
+        np.savez(cached + ".tmp.npz", root=motion.root_positions, rotations=motion.rotations)
+        os.replace(cached + ".tmp.npz", cached)
 codec = create(name)
 codec.decode(codec.encode(motion.slice(0, min(frames, 64))))  # lazy imports and caches, not the capture's cost
 trim()
@@ -98,8 +113,10 @@ print("RESULT " + json.dumps(out))
 """
 
 
-def _run_one(name: str, frames: int, tree: Path, timeout: float) -> dict:
+def _run_one(name: str, frames: int, tree: Path, timeout: float, cache: str | None = None) -> dict:
     env = dict(os.environ, PYTHONPATH=str(tree), OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1", MKL_NUM_THREADS="1")
+    if cache:
+        env["MOCAPBENCH_LONG_CAPTURES_CACHE"] = str(Path(cache).resolve())
     try:
         done = subprocess.run([sys.executable, "-c", CHILD, name, str(frames)], env=env, capture_output=True,
                               text=True, timeout=timeout, cwd=tree)
@@ -133,6 +150,9 @@ def main(argv: list[str] | None = None) -> int:
                         help="checkout whose package the subprocesses import (default: this one)")
     parser.add_argument("--timeout", type=float, default=900.0, help="seconds per (codec, frames) subprocess")
     parser.add_argument("--json", default=None, help="append every result as a JSON line to this file")
+    parser.add_argument("--cache", default=None,
+                        help="folder keeping each synthetic capture (.npz, 0.5 GB at 500k frames) so that later "
+                             "subprocesses read it back instead of rebuilding it (32 CPU-s at 500k frames)")
     args = parser.parse_args(argv)
     tree = Path(args.tree).resolve()
     if args.codecs:
@@ -149,7 +169,7 @@ def main(argv: list[str] | None = None) -> int:
     print("|---|---:|---:|---:|---:|---:|---:|---:|")
     for frames in frame_counts:
         for name in names:
-            result = _run_one(name, frames, tree, args.timeout)
+            result = _run_one(name, frames, tree, args.timeout, args.cache)
             print(_row(result), flush=True)
             if args.json:
                 with open(args.json, "a") as handle:
