@@ -8,7 +8,8 @@
   along time with order 1 (``q[t] - q[t-1]``) or order 2 (``q[t] - 2 q[t-1] + q[t-2]``), whichever gives the
   smaller stream, then zigzag, narrowest width, **byte shuffle** (Blosc's filter: all low bytes, then all high
   bytes) and zstd. On ``cmu_test`` it is 14-16 % smaller than ``quant-delta-zstd`` at the same step (same
-  decoded positions); brotli -q 11 instead of zstd gave 1-3 % less, so zstd stays (no new dependency).
+  decoded positions); brotli -q 11 instead of zstd gave 1-3 % less, so zstd stays (no new dependency). A long
+  capture's tracks are streamed through zstd one track (and byte plane) at a time, in the same format.
 * ``quant-rot-zstd``: local rotations and root translation quantized and zstd-coded, decoded through FK;
   the way game engines store clips. Each quaternion is made scalar-positive (``w >= 0``), its x, y, z are
   range-reduced per joint over the clip and quantized to ``rotation_bits``, ``w`` is rebuilt from the unit

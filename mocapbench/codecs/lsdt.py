@@ -20,6 +20,8 @@ Because ``B`` is orthogonal the loop runs in the coefficient domain (``c_i = B m
 running sum of the coded indices), which needs no matrix product per frame and vectorizes over time; the decoder
 accumulates the integer indices exactly and applies ``Bᵀ`` once (see :func:`_frame_closed_loop`).
 The clip scheme codes a final partial clip of ``F mod L`` frames with a DCT of that length.
+A capture of more than :data:`~mocapbench.codecs.windows.WINDOW_FRAMES` frames is coded as windows, each this
+pipeline on its own frames (see :meth:`_SpatialTransformCodec._encode_windowed`), so that memory stays bounded.
 
 Registered codecs: ``lsdt-frame``, ``lsdt-clip`` (learned ``B``), ``dct-spatial-frame`` (Kwak & Bajic 2011),
 ``dct-spatial-clip``, ``dwt-spatial-frame``, ``dwt-spatial-clip`` (3-level Haar, see
