@@ -141,6 +141,11 @@ class ClassTables:
         return self._models[klass]
 
     @cached_property
+    def probability_rows(self) -> np.ndarray:
+        """(K, TOKEN_COUNT) every class's token probabilities, as :meth:`probabilities` (for per-value models)."""
+        return np.stack([self.probabilities(klass) for klass in range(self.num_classes)])
+
+    @cached_property
     def log2_probabilities(self) -> np.ndarray:
         """(K, TOKEN_COUNT) log2 of every class's token probabilities (for the encoder's cost estimates)."""
         return np.log2(self.counts) - np.log2(self.counts.sum(axis=1, keepdims=True))
@@ -238,7 +243,17 @@ def read_tokens(reader: ByteReader, groups: list[tuple[int, int]], tables: Class
     words = reader.read_array(num_words, "<u4", f"{what}: ANS words").astype(np.uint32, copy=False)
     try:
         coder = constriction.stream.stack.AnsCoder(words)
-        parts = [coder.decode(tables.model(klass), count) for klass, count in groups]
+        parts, small = [], []
+        for klass, count in groups:
+            if count < _MERGE_BELOW:
+                small.append((klass, count))
+                continue
+            if small:
+                parts.append(_decode_small_groups(coder, tables, small))
+                small = []
+            parts.append(coder.decode(tables.model(klass), count))
+        if small:
+            parts.append(_decode_small_groups(coder, tables, small))
         finished = coder.is_empty()
     except (ValueError, RuntimeError, AssertionError) as error:
         raise BitstreamError(f"{what}: the ANS stream does not decode ({error}).") from None
@@ -252,17 +267,35 @@ def read_tokens(reader: ByteReader, groups: list[tuple[int, int]], tables: Class
     return TokenRun(tokens, nonzero, raw_bits, signs, raw)
 
 
-def values_of_tokens(runs: list[TokenRun], order: np.ndarray) -> np.ndarray:
-    """Values (int64, (N,)) of the streams ``runs``, concatenated in stream order.
+#: Consecutive classes with fewer values than this are decoded in one call, with a model per value: a call costs
+#: about as much as 20 values decoded that way.
+_MERGE_BELOW = 8
+_CATEGORICAL = constriction.stream.model.Categorical(perfect=False)
+
+
+def _decode_small_groups(coder, tables: ClassTables, groups: list[tuple[int, int]]) -> np.ndarray:
+    """Tokens of consecutive small class groups in one ANS call, each value with its class's model.
+
+    constriction builds the per-value models with the same quantization as :meth:`ClassTables.model` (a test
+    checks every class), so the values decode exactly as with one call per class.
+    """
+    if len(groups) == 1:
+        return coder.decode(tables.model(groups[0][0]), groups[0][1])
+    classes, counts = zip(*groups)
+    return coder.decode(_CATEGORICAL, tables.probability_rows[np.repeat(classes, counts)])
+
+
+def values_of_tokens(runs: list[TokenRun], order: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+    """Values (int64, (N,)) of the streams ``runs``, concatenated in stream order (written into ``out`` if given).
 
     ``order`` (N,) is the permutation that sorts the streams' concatenated classes stream by stream and, inside a
     stream, stably by class: ``values[order]`` is the runs' tokens concatenated.
     """
-    tokens = np.zeros(len(order), dtype=np.int64)
-    if len(runs) == 1:
-        tokens[order] = runs[0].tokens
-    elif runs:
-        tokens[order] = np.concatenate([run.tokens for run in runs])
+    tokens = np.empty(len(order), dtype=np.int64) if out is None else out
+    at = 0
+    for run in runs:  # order is a permutation: every value is written
+        tokens[order[at : at + len(run.tokens)]] = run.tokens
+        at += len(run.tokens)
     # Most values are 0: the rest of the work touches only the nonzero ones.
     nonzero = np.flatnonzero(tokens)
     if nonzero.size == 0:
@@ -274,7 +307,7 @@ def values_of_tokens(runs: list[TokenRun], order: np.ndarray) -> np.ndarray:
     sign_bytes = np.array([len(run.signs) for run in runs], dtype=np.int64)
     signs = np.unpackbits(np.frombuffer(b"".join([run.signs for run in runs]), dtype=np.uint8))
     sign_at = np.arange(nonzero.size) + np.repeat(8 * (np.cumsum(sign_bytes) - sign_bytes) - first, counts)
-    negative = signs[sign_at].astype(bool)
+    negative = signs[sign_at].view(bool)
     widths = _TOKEN_WIDTHS[magnitudes]
     escaped = np.flatnonzero(widths)
     if escaped.size:
@@ -291,5 +324,6 @@ def values_of_tokens(runs: list[TokenRun], order: np.ndarray) -> np.ndarray:
             window |= data[byte + i].astype(np.uint64) << np.uint64(56 - 8 * i)
         raw = ((window << (position & 7).astype(np.uint64)) >> (64 - width).astype(np.uint64)).astype(np.int64)
         magnitudes[escaped] = (np.int64(1) << width) + raw
-    tokens[nonzero] = np.where(negative, -magnitudes, magnitudes)
+    np.negative(magnitudes, out=magnitudes, where=negative)
+    tokens[nonzero] = magnitudes
     return tokens

@@ -183,9 +183,9 @@ def test_decode_frames_decodes_only_the_chunks_holding_them(synthetic_motion, mo
     seen = []
     original = decoder.decode_block
 
-    def spy(info, payload, chunks):
+    def spy(info, payload, chunks, *rest):
         seen.extend(chunks.tolist())
-        return original(info, payload, chunks)
+        return original(info, payload, chunks, *rest)
 
     monkeypatch.setattr(decoder, "decode_block", spy)
     monkeypatch.setattr(decoder, "BLOCK_FRAMES", 64)  # several blocks per call
@@ -297,3 +297,22 @@ def test_the_t_pose_frame_of_the_cmu_bvh_files_costs_at_most_ten_percent(cmu_ful
         assert codec.last_encode_stats["cuts"] >= 1, name
         apart = len(codec.encode(with_pose.slice(0, 1))) + len(codec.encode(with_pose.slice(1, with_pose.num_frames)))
         assert joined <= 1.10 * apart, f"{name}: {joined} bytes joined, {apart} apart"
+
+
+def test_decoding_is_the_same_whatever_the_block_size_and_buffers_reused(synthetic_motion, monkeypatch):
+    """Blocks of chunks and reused work arrays are a speed device: the output must not depend on them, bit for bit
+    (the encoder's bound check decodes with the same code)."""
+    codec = create("mcb-rot", eps_cm=0.3, segment_frames=32, chunk_frames=32)
+    data = codec.encode(synthetic_motion)
+    other = create("mcb-rot", eps_cm=1.0).encode(sinusoidal_motion(num_frames=700, seed=2))
+    first = codec.decode(data)
+    codec.decode(other)  # fills the reused buffers with another stream's arrays
+    again = codec.decode(data)
+    np.testing.assert_array_equal(first.positions, again.positions)
+    monkeypatch.setattr(decoder, "BLOCK_FRAMES", 40)
+    small_blocks = codec.decode(data)
+    np.testing.assert_array_equal(first.positions, small_blocks.positions)
+    np.testing.assert_array_equal(first.motion.rotations, small_blocks.motion.rotations)
+    for start, stop in [(0, 240), (33, 97), (200, 201)]:
+        np.testing.assert_array_equal(codec.decode_frames(data, start, stop).positions, first.positions[start:stop])
+    assert metrics.max_joint_error(synthetic_motion.positions(), first.positions) <= 0.3

@@ -102,3 +102,48 @@ def test_truncated_and_corrupt_streams_raise_bitstream_errors():
         reader = ByteReader(too_few)
         decode_classed(reader, classes, tables, "test")
         reader.expect_end()
+
+
+def test_per_value_models_code_exactly_as_the_class_models():
+    """Small class groups are decoded in one call with a model per value (ans._decode_small_groups): that is exact
+    only if constriction quantizes the per-value models as it quantizes the class's own model, for every class."""
+    import constriction
+
+    from mocapbench.codecs.mcb_rot.stream import tables as mcb_rot_tables
+
+    family = constriction.stream.model.Categorical(perfect=False)
+    tokens = np.concatenate([np.arange(TOKEN_COUNT), np.zeros(40, dtype=np.int64), [TOKEN_COUNT - 1] * 3]).astype(np.int32)
+    for tables in (_tables(), mcb_rot_tables(float(np.float32(0.45)))):
+        for klass in range(tables.num_classes):
+            one = constriction.stream.stack.AnsCoder()
+            one.encode_reverse(tokens, tables.model(klass))
+            per_value = constriction.stream.stack.AnsCoder()
+            per_value.encode_reverse(tokens, family, np.repeat(tables.probability_rows[klass][None], len(tokens), 0))
+            assert np.array_equal(one.get_compressed(), per_value.get_compressed()), klass
+
+
+@settings(max_examples=40, deadline=None, derandomize=True)
+@given(seed=st.integers(0, 10_000), streams=st.integers(1, 6), bits=st.integers(1, MAX_MAGNITUDE_BITS))
+def test_streams_read_apart_and_finished_together_equal_one_decode_each(seed, streams, bits):
+    """read_tokens per stream, then one values_of_tokens over all: what the mcb-rot decoder does per block."""
+    from mocapbench.entropy.ans import class_groups, read_tokens, values_of_tokens
+
+    rng = np.random.default_rng(seed)
+    tables = _tables()
+    writer, parts = ByteWriter(), []
+    for _ in range(streams):
+        size = int(rng.integers(0, 200))
+        values = rng.integers(-(2 ** (bits - 1)), 2 ** (bits - 1), size) * (rng.random(size) < 0.5)
+        classes = rng.integers(0, tables.num_classes, size).astype(np.uint8)
+        encode_classed(writer, values, classes, tables)
+        parts.append((values, classes))
+    reader = ByteReader(writer.getvalue())
+    runs, orders, at = [], [], 0
+    for values, classes in parts:
+        order, groups = class_groups(classes)
+        runs.append(read_tokens(reader, groups, tables, "test"))
+        orders.append(order + at)
+        at += len(values)
+    reader.expect_end()
+    decoded = values_of_tokens(runs, np.concatenate(orders) if orders else np.zeros(0, np.int64))
+    np.testing.assert_array_equal(decoded, np.concatenate([v for v, _ in parts]).astype(np.int64))

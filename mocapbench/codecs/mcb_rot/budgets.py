@@ -72,11 +72,16 @@ def _chains(skeleton: Skeleton) -> tuple[np.ndarray, np.ndarray]:
     bones = np.sqrt(np.sum(skeleton.offsets**2, axis=1))
     chain = np.zeros((num_joints, num_joints))
     ancestors = np.zeros((num_joints, num_joints), dtype=bool)
+    parents = skeleton.parents
+    depth = np.zeros(num_joints, dtype=np.int64)
     for k in range(1, num_joints):
-        parent = skeleton.parents[k]
-        ancestors[k] = ancestors[parent]
-        ancestors[k, parent] = True
-        chain[:, k] = np.where(ancestors[k], chain[:, parent] + bones[k], 0.0)
+        depth[k] = depth[parents[k]] + 1
+    for level in range(1, int(depth.max(initial=0)) + 1):  # a tree level at a time (what one joint at a time did)
+        joints = np.flatnonzero(depth == level)
+        above = parents[joints]
+        ancestors[joints] = ancestors[above]
+        ancestors[joints, above] = True
+        chain[:, joints] = np.where(ancestors[joints].T, chain[:, above] + bones[joints], 0.0)
     return chain, ancestors
 
 

@@ -25,6 +25,7 @@ import numpy as np
 
 from mocapbench.codecs.mcb_rot import kinematics
 from mocapbench.codecs.mcb_rot.classes import NUM_CLASSES
+from mocapbench.codecs.mcb_rot.scratch import Scratch, thread_scratch
 from mocapbench.codecs.mcb_rot.stream import (
     StreamInfo,
     apply_corrections,
@@ -65,14 +66,16 @@ def decode_range(
     positions = np.empty((count, num_joints, 3))
     roots = np.empty((count, 3))
     quats = np.empty((count, num_joints, 4))
+    scratch = thread_scratch()
     for chunks in _blocks(info, layout.chunks_of_frames(start, stop)):
         first = int(layout.starts[layout.chunk_starts[chunks[0]]])
-        block_roots, block_quats = decode_block(info, payload, chunks)
+        block_roots, block_quats = decode_block(info, payload, chunks, scratch)
         low, high = max(first, start), min(first + len(block_roots), stop)
         inside, out = slice(low - first, high - first), slice(low - start, high - start)
         roots[out] = block_roots[inside]
         quats[out] = block_quats[inside]
-        kinematics.positions(block_quats[inside], block_roots[inside], info.skeleton, out=positions[out])
+        kinematics.positions(block_quats[inside], block_roots[inside], info.skeleton, positions[out], scratch)
+    scratch.trim()
     return positions, roots, quats
 
 
@@ -92,13 +95,15 @@ def _blocks(info: StreamInfo, chunks: np.ndarray) -> list[np.ndarray]:
     return blocks
 
 
-def decode_block(info: StreamInfo, payload: memoryview, chunks: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def decode_block(
+    info: StreamInfo, payload: memoryview, chunks: np.ndarray, scratch: Scratch | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """Roots (n, 3) cm and rotations (n, J, 4) (a view of a component-major array) of the consecutive ``chunks``,
-    corrections applied."""
+    corrections applied. With ``scratch`` the rotations are a scratch view (valid until its next use)."""
     layout = info.layout
     segments = np.arange(layout.chunk_starts[chunks[0]], layout.chunk_starts[chunks[-1] + 1])
-    ac, flat, values = read_chunks(info, payload, chunks)
-    roots, quats = assemble(info, segments, segment_signal(info, segments, ac))
+    ac, flat, values = read_chunks(info, payload, chunks, scratch)
+    roots, quats = assemble(info, segments, segment_signal(info, segments, ac, scratch), scratch)
     apply_corrections(info, roots, quats, flat, values)
     return roots, quats
 
@@ -124,8 +129,10 @@ def _coefficient_classes(info: StreamInfo, lengths: np.ndarray, mask: np.ndarray
     return full[mask]
 
 
-def read_chunks(info: StreamInfo, payload: memoryview, chunks: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Entropy-decode consecutive ``chunks``.
+def read_chunks(
+    info: StreamInfo, payload: memoryview, chunks: np.ndarray, scratch: Scratch | None = None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Entropy-decode consecutive ``chunks`` (with ``scratch``, ``ac`` is a scratch view).
 
     Returns
     -------
@@ -180,7 +187,9 @@ def read_chunks(info: StreamInfo, payload: memoryview, chunks: np.ndarray) -> tu
         raise BitstreamError(f"mcb-rot: chunk {chunk}: significance counts outside their segments.")
     # Pass 2: the coefficients and corrections, one ANS stream per chunk, classes found for the whole block.
     padded = max(int(lengths.max()) - 1, 0)
-    mask = np.arange(padded) < counts[:, :, None]  # (S, C, P): the coded coefficients
+    shape = (len(segments), channels, padded)
+    mask = np.empty(shape, dtype=bool) if scratch is None else scratch.take("mask", shape, bool)
+    np.less(np.arange(padded), counts[:, :, None], out=mask)  # (S, C, P): the coded coefficients
     coefficient_classes = _coefficient_classes(info, lengths, mask)
     coded = np.add.reduceat(counts.sum(axis=1), local_first)  # coefficients of each chunk
     corrections = np.array(corrections, dtype=np.int64)
@@ -203,8 +212,9 @@ def read_chunks(info: StreamInfo, payload: memoryview, chunks: np.ndarray) -> tu
     for i, (chunk, reader) in enumerate(zip(chunks.tolist(), readers)):
         runs.append(read_tokens(reader, groups[bounds[i] : bounds[i + 1]], coder_tables, f"mcb-rot: chunk {chunk}"))
         reader.expect_end(f"chunk {chunk}")
-    decoded = values_of_tokens(runs, order)
-    ac = np.zeros(mask.shape)
+    decoded = values_of_tokens(runs, order, None if scratch is None else scratch.take("values", order.shape, np.int64))
+    ac = np.empty(shape) if scratch is None else scratch.take("ac", shape)
+    ac.fill(0.0)
     ac[mask] = decoded[at_coefficients]
     gaps = decoded[at_gaps]
     if gaps.size and gaps.min() < 0:
@@ -222,4 +232,4 @@ def read_chunks(info: StreamInfo, payload: memoryview, chunks: np.ndarray) -> tu
 def _runs(starts: np.ndarray, counts: np.ndarray) -> np.ndarray:
     """Concatenated ranges ``starts[i] : starts[i] + counts[i]``."""
     total = int(counts.sum())
-    return np.arange(total) + np.repeat(starts - (np.cumsum(counts) - counts), counts)
+    return np.arange(total, dtype=np.int64) + np.repeat(starts - (np.cumsum(counts) - counts), counts)

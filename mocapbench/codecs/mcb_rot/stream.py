@@ -32,6 +32,7 @@ from mocapbench.codecs.mcb_rot import classes as model
 from mocapbench.codecs.mcb_rot import quaternions as quat
 from mocapbench.codecs.mcb_rot.axes import axes_from_codes
 from mocapbench.codecs.mcb_rot.budgets import Budgets, joint_budgets
+from mocapbench.codecs.mcb_rot.scratch import Scratch
 from mocapbench.codecs.mcb_rot.segments import SegmentLayout, inverse, segment_starts
 from mocapbench.codecs.segments import read_cuts, write_cuts
 from mocapbench.codecs.skeleton_blob import unpack_skeleton_compact
@@ -225,24 +226,26 @@ def _steps_by_channel(info: StreamInfo, length: int) -> np.ndarray:
     return info._cache[key]
 
 
-def segment_signal(info: StreamInfo, segments: np.ndarray, ac: np.ndarray) -> np.ndarray:
+def segment_signal(info: StreamInfo, segments: np.ndarray, ac: np.ndarray, scratch: Scratch | None = None) -> np.ndarray:
     """The (C, n) base signal of consecutive ``segments``, channel-major, from their AC coefficients.
 
     ``ac`` (S, C, P), any real or integer dtype: the quantized AC coefficients of each segment, channel-major,
     zero-padded to ``P >= n_s - 1``; the segment means come from ``info.dc``. Dequantization and one inverse DCT
     per segment length (a batched call over the segments of that length). Encoder and decoder both go through here,
-    so both see bit-identical signals.
+    so both see bit-identical signals. With ``scratch`` the signal is a scratch view (valid until its next use).
     """
     layout = info.layout
     lengths = layout.lengths[segments]
     offsets = layout.starts[segments] - layout.starts[segments[0]]
     channels = info.channels
-    signal = np.empty((channels, int(lengths.sum())))
+    shape = (channels, int(lengths.sum()))
+    signal = np.empty(shape) if scratch is None else scratch.take("signal", shape)
     for length in np.unique(lengths).tolist():
         pick = np.flatnonzero(lengths == length)
         every = len(pick) == len(segments)
         steps = _steps_by_channel(info, length)
-        spectrum = np.empty((len(pick), channels, length))
+        shape = (len(pick), channels, length)
+        spectrum = np.empty(shape) if scratch is None else scratch.take("spectrum", shape)
         np.multiply(info.dc[segments[pick]], steps[:, 0], out=spectrum[:, :, 0])
         np.multiply(ac[:, :, : length - 1] if every else ac[pick, :, : length - 1], steps[:, 1:],
                     out=spectrum[:, :, 1:])
@@ -265,10 +268,11 @@ def base_signal(info: StreamInfo, segments, coefficients: dict[int, np.ndarray])
     return segment_signal(info, segments, ac)
 
 
-def assemble(info: StreamInfo, segments, signal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def assemble(info: StreamInfo, segments, signal: np.ndarray, scratch: Scratch | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Consecutive decoded segments (their (C, n) base signal) as roots (n, 3) cm and base quaternions (n, J, 4).
 
-    ``signal`` is consumed: the rotation rows of the joints on principal axes are overwritten.
+    ``signal`` is consumed: the rotation rows of the joints on principal axes are overwritten. With ``scratch`` the
+    quaternions are a scratch view (valid until its next use).
 
     The quaternions are a view of a component-major (4, J, n) array (what forward kinematics reads fastest); the
     rotation vectors of the joints on principal axes are turned back off them (the others' axes are the identity),
@@ -285,7 +289,7 @@ def assemble(info: StreamInfo, segments, signal: np.ndarray) -> tuple[np.ndarray
             rotvec[turned, row] = (axes[:, row, 0, None] * parts[:, 0] + axes[:, row, 1, None] * parts[:, 1]
                                    + axes[:, row, 2, None] * parts[:, 2])
     x, y, z = rotvec[:, 0], rotvec[:, 1], rotvec[:, 2]
-    quats = np.empty((4, num_joints, length))
+    quats = np.empty((4, num_joints, length)) if scratch is None else scratch.take("quats", (4, num_joints, length))
     angle = np.multiply(x, x, out=quats[0])
     angle += np.multiply(y, y, out=quats[1])
     angle += np.multiply(z, z, out=quats[1])
