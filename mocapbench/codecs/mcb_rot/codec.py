@@ -40,8 +40,9 @@ Design::
          stream whose decoded shell error exceeds ε.
       └─ entropy coding: ANS with per-stream parametric classes (:mod:`.classes`): no trained model, any skeleton.
 
-The decoder is vectorized numpy: ANS decoding (constriction, one call per class and segment), a batched inverse
-DCT, the exponential map, one multiply per correction and forward kinematics.
+The decoder (:mod:`.decoder`) is vectorized numpy over blocks of chunks written into preallocated outputs: ANS
+decoding (constriction, one call per class and chunk), a batched inverse DCT, the exponential map, one multiply per
+correction and forward kinematics.
 
 Departures from the issue's sketch: no trained prior (the stream needs no model, ``model_bytes`` is 0). Leaves
 (joints whose rotation moves no joint) get the fixed budget ``free_angle_deg`` unless ``shell_cm`` > 0.
