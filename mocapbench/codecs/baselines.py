@@ -37,7 +37,7 @@ from mocapbench.entropy.backend import (
 from mocapbench.entropy.bitio import ByteReader, ByteWriter
 from mocapbench.entropy.errors import BitstreamError
 from mocapbench.entropy.quantize import quantize
-from mocapbench.motion import Motion
+from mocapbench.motion import Motion, OwnedQuaternions
 
 __all__ = ["RawZstdCodec", "QuantDeltaZstdCodec", "QuantPredZstdCodec", "QuantRotZstdCodec"]
 
@@ -365,7 +365,8 @@ class QuantRotZstdCodec(Codec):
         for start in range(0, num_frames, _BLOCK_FRAMES):
             xyz = quats[start : start + _BLOCK_FRAMES, :, :3]
             quats[start : start + _BLOCK_FRAMES, :, 3] = np.sqrt(np.clip(1.0 - np.sum(xyz**2, axis=-1), 0.0, None))
-        motion = Motion(skeleton=skeleton, fps=header.fps, root_positions=roots, rotations=quats)
+        # The quaternions are handed over for keeps: Motion normalizes them in place instead of copying them.
+        motion = Motion(skeleton=skeleton, fps=header.fps, root_positions=roots, rotations=OwnedQuaternions(quats))
         return motion.positions(), motion
 
     def describe_payload(self, header: Header, payload: memoryview):

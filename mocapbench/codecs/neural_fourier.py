@@ -70,6 +70,7 @@ import scipy  # scipy.fft loads on first use (see mocapbench.lazy_imports)
 from mocapbench.codecs.base import Codec, CodecConfig, Header, param
 from mocapbench.codecs.pose_params import (
     TENSOR_FORMATS,
+    motion_from_pose_blocks,
     motion_from_pose_matrix,
     num_pose_parameters,
     pose_matrix,
@@ -169,9 +170,6 @@ def dct_index_to_omega(index: int, num_frames: int) -> float:
     ``cos(π k (2n + 1) / 2N)`` with ``n = t (N − 1)`` has ``k (N − 1) / 2N`` cycles over ``t ∈ [0, 1]``.
     """
     return index * (num_frames - 1) / (2.0 * num_frames)
-
-
-_DECODE_CHUNK_FRAMES = 8192  # frames per network evaluation in the decoder (bounds its working memory)
 
 
 def _time_grid(num_frames: int) -> np.ndarray:
@@ -439,20 +437,25 @@ class _FourierMlpCodec(Codec):
 
     def decode_payload(self, header: Header, payload: memoryview):
         parts = self._read(header, payload)
-        times = _time_grid(header.num_frames)
-        y_hat = np.empty((header.num_frames, len(parts["mean"])))
-        # In chunks of frames: the hidden layers (2 x 2(2K+1) per frame) never exist for the whole clip at once.
-        with np.errstate(over="raise", invalid="raise"):
-            try:
-                for start in range(0, header.num_frames, _DECODE_CHUNK_FRAMES):
-                    features = fourier_features(times[start : start + _DECODE_CHUNK_FRAMES], parts["omegas"])
-                    y_hat[start : start + len(features)] = mlp_forward(features, parts["weights"])
-            except FloatingPointError as error:
-                raise BitstreamError(f"{self.name}: the network overflows on this stream: {error}") from error
-        y_hat *= parts["std"]
-        y_hat += parts["mean"]
-        motion = motion_from_pose_matrix(y_hat, parts["skeleton"], header.fps)
+        num_frames, omegas, weights, std, mean = (
+            header.num_frames, parts["omegas"], parts["weights"], parts["std"], parts["mean"])
+
+        def rows(start: int, stop: int) -> np.ndarray:
+            # One block of frames at a time: the hidden layers (2 x 2(2K+1) per frame) and Y-hat never exist for
+            # the whole clip; t_i = i / (F - 1) as in _time_grid.
+            times = np.arange(start, stop) / (num_frames - 1) if num_frames > 1 else np.zeros(1)
+            with np.errstate(over="raise", invalid="raise"):
+                try:
+                    y_hat = mlp_forward(fourier_features(times, omegas), weights)
+                except FloatingPointError as error:
+                    raise BitstreamError(f"{self.name}: the network overflows on this stream: {error}") from error
+            y_hat *= std
+            y_hat += mean
+            return y_hat
+
+        motion = motion_from_pose_blocks(num_frames, rows, parts["skeleton"], header.fps)
         return motion.positions(), motion
+
 
     def describe_payload(self, header: Header, payload: memoryview) -> dict[str, Any]:
         parts = self._read(header, payload)

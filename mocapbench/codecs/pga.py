@@ -78,7 +78,7 @@ from mocapbench.geometry.lifting import (
 )
 from mocapbench.geometry.pga import fit_pga, geodesic_poses, variance_count
 from mocapbench.metrics.rate import pga_raw_numbers
-from mocapbench.motion import Motion, Skeleton
+from mocapbench.motion import Motion, OwnedQuaternions, Skeleton
 
 __all__ = ["PgaIkCodec", "select_end_joints", "END_JOINT_NAMES"]
 
@@ -99,6 +99,8 @@ _MAX_LM_ITERATIONS = 20
 # Frames of a window of a long capture (64 s at 120 fps): a stream of more frames is a sequence of windows, each
 # coded as a stream of its own with its own pose model (encode_payload).
 WINDOW_FRAMES = 7680
+#: Frames per block of the decoder's pose model (:func:`geodesic_poses`): bounds its rotation temporaries.
+_POSE_BLOCK_FRAMES = 1024
 
 
 def select_end_joints(skeleton: Skeleton) -> list[int]:
@@ -381,17 +383,22 @@ class PgaIkCodec(Codec):
             left = dataclasses.replace(limits, max_ik_iterations=max(0, limits.max_ik_iterations - work))
             with using_limits(left):
                 parsed = self._read(window, part)
-                part_positions, part = self._decode_parsed(window, parsed)
+                # Each window's rotations and root go straight into the motion's arrays (views of them).
+                part_positions, part = self._decode_parsed(window, parsed, roots[start:stop], rotations[start:stop])
             work += (stop - start) * parsed["iterations"]
-            positions[start:stop], roots[start:stop], rotations[start:stop] = (
-                part_positions, part.root_positions, part.rotations)
+            positions[start:stop] = part_positions
             skeleton = skeleton or part.skeleton
-        return positions, Motion(skeleton=skeleton, fps=header.fps, root_positions=roots, rotations=rotations)
+            del part_positions, part, parsed
+        motion = Motion(skeleton=skeleton, fps=header.fps, root_positions=roots, rotations=OwnedQuaternions(rotations))
+        return positions, motion
 
     def _decode_window(self, header: Header, payload: memoryview):
         return self._decode_parsed(header, self._read(header, payload))
 
-    def _decode_parsed(self, header: Header, parsed: dict[str, Any]):
+    def _decode_parsed(self, header: Header, parsed: dict[str, Any], roots: np.ndarray | None = None,
+                       rotations: np.ndarray | None = None):
+        """Positions and motion of one window; its root positions (F, 3) and quaternions (F, J, 4) are written into
+        ``roots`` and ``rotations`` (new arrays when not given), which the returned motion then holds."""
         num_frames = header.num_frames
         spaces = (EUCLIDEAN, ROTATIONS, EUCLIDEAN)
         tracks = []
@@ -401,17 +408,28 @@ class PgaIkCodec(Codec):
 
             tracks.append(lifting_reconstruct(num_frames, levels[0], details, space))
         root_positions, root_quats, end_positions = tracks
+        del tracks
         root_quats = root_quats / np.linalg.norm(root_quats, axis=1, keepdims=True)
         ends = parsed["ends"]
         targets = to_root_frame(root_quats, root_positions, end_positions.reshape(num_frames, len(ends), 3))
+        del end_positions
         ik = GeodesicIK(parsed["skeleton"], parsed["mean"], parsed["directions"], ends)
         coordinates = ik.solve_sequence(targets, parsed["lambda"], parsed["iterations"])  # §3.4, §3.6
-        inner = geodesic_poses(parsed["mean"], parsed["directions"], coordinates).as_quat()
+        del targets
+        roots = np.empty((num_frames, 3)) if roots is None else roots
+        rotations = np.empty((num_frames, parsed["skeleton"].num_joints, 4)) if rotations is None else rotations
+        roots[:] = root_positions
+        rotations[:, 0] = root_quats
+        del root_positions, root_quats
+        # The pose model per block of frames: its rotation temporaries stay one block long.
+        for start in range(0, num_frames, _POSE_BLOCK_FRAMES):
+            block = slice(start, start + _POSE_BLOCK_FRAMES)
+            rotations[block, 1:] = geodesic_poses(parsed["mean"], parsed["directions"], coordinates[block]).as_quat()
         motion = Motion(
             skeleton=parsed["skeleton"],
             fps=header.fps,
-            root_positions=root_positions,
-            rotations=np.concatenate([root_quats[:, None, :], inner], axis=1),
+            root_positions=roots,
+            rotations=OwnedQuaternions(rotations),  # normalized in place, not copied
         )
         return motion.positions(), motion
 

@@ -28,13 +28,15 @@ import numpy as np
 from mocapbench.lazy_imports import Rotation
 
 from mocapbench.entropy.quantize import RangeQuantizer
-from mocapbench.motion import Motion, Skeleton
+from mocapbench.motion import Motion, OwnedQuaternions, Skeleton
 
 __all__ = [
     "num_pose_parameters",
     "pose_matrix",
     "pose_weights",
     "motion_from_pose_matrix",
+    "motion_from_pose_blocks",
+    "POSE_BLOCK_FRAMES",
     "TENSOR_FORMATS",
     "quantize_tensor",
     "write_tensor",
@@ -130,18 +132,55 @@ def motion_from_pose_matrix(y: np.ndarray, skeleton: Skeleton, fps: float, name:
     m = num_pose_parameters(skeleton.num_joints)
     if y.ndim != 2 or y.shape[1] != m:
         raise ValueError(f"Expected the pose matrix to have shape (F, {m}), got {y.shape}.")
-    if not np.all(np.isfinite(y)):
-        raise ValueError("The decoded pose matrix holds non-finite values.")
-    num_frames = y.shape[0]
-    root_quat = y[:, 3:7]
-    norms = np.linalg.norm(root_quat, axis=1, keepdims=True)
-    if np.any(norms < 1e-8):
-        raise ValueError(f"Decoded root quaternion of (near) zero norm at frame {int(np.argmin(norms))}.")
+    return motion_from_pose_blocks(len(y), lambda start, stop: y[start:stop], skeleton, fps, name)
+
+
+#: Frames per block when a decoder turns pose rows into a motion: the rows and scipy's rotation temporaries exist
+#: for one block at a time (about 1 MB for 31 joints), never for the whole clip.
+POSE_BLOCK_FRAMES = 1024
+
+
+def motion_from_pose_blocks(num_frames: int, rows, skeleton: Skeleton, fps: float, name: str = "") -> Motion:
+    """A :class:`Motion` from pose rows made block by block: ``rows(start, stop)`` gives ``y[start:stop]``.
+
+    Memory is the motion's own arrays (root positions ``(F, 3)``, quaternions ``(F, J, 4)``, float64) plus one
+    block of :data:`POSE_BLOCK_FRAMES` rows and its temporaries: the pose matrix of a long capture is never held.
+    The quaternions are handed to :class:`Motion` for keeps (:class:`~mocapbench.motion.OwnedQuaternions`), so
+    they are normalized in place, not copied.
+
+    Parameters
+    ----------
+    num_frames : int
+        F >= 1.
+    rows : callable ``(start, stop) -> ndarray, shape (stop - start, m)``
+        Pose rows as laid out by :func:`pose_matrix`; the block may be a temporary (it is not kept).
+    skeleton : Skeleton
+    fps : float
+
+    Raises
+    ------
+    ValueError
+        If a block has the wrong shape, holds non-finite values, or a root quaternion of (near) zero norm.
+    """
+    m = num_pose_parameters(skeleton.num_joints)
+    roots = np.empty((num_frames, 3))
     quats = np.empty((num_frames, skeleton.num_joints, 4))
-    quats[:, 0] = root_quat / norms
-    if skeleton.num_joints > 1:
-        quats[:, 1:] = Rotation.from_rotvec(y[:, 7:].reshape(-1, 3)).as_quat().reshape(num_frames, -1, 4)
-    return Motion(skeleton=skeleton, fps=fps, root_positions=y[:, :3], rotations=quats, name=name)
+    for start in range(0, num_frames, POSE_BLOCK_FRAMES):
+        stop = min(num_frames, start + POSE_BLOCK_FRAMES)
+        y = np.asarray(rows(start, stop), dtype=np.float64)
+        if y.ndim != 2 or y.shape != (stop - start, m):
+            raise ValueError(f"Expected the pose matrix to have shape (F, {m}), got {y.shape} for frames {start}:{stop}.")
+        if not np.all(np.isfinite(y)):
+            raise ValueError("The decoded pose matrix holds non-finite values.")
+        root_quat = y[:, 3:7]
+        norms = np.linalg.norm(root_quat, axis=1, keepdims=True)
+        if np.any(norms < 1e-8):
+            raise ValueError(f"Decoded root quaternion of (near) zero norm at frame {start + int(np.argmin(norms))}.")
+        roots[start:stop] = y[:, :3]
+        quats[start:stop, 0] = root_quat / norms
+        if skeleton.num_joints > 1:
+            quats[start:stop, 1:] = Rotation.from_rotvec(y[:, 7:].reshape(-1, 3)).as_quat().reshape(stop - start, -1, 4)
+    return Motion(skeleton=skeleton, fps=fps, root_positions=roots, rotations=OwnedQuaternions(quats), name=name)
 
 
 # -- quantized storage of real-valued tensors (network weights, SVD factors) -------------------------------------

@@ -32,7 +32,7 @@ import numpy as np
 from mocapbench.codecs.base import Codec, CodecConfig, Header, param
 from mocapbench.codecs.pose_params import (
     TENSOR_FORMATS,
-    motion_from_pose_matrix,
+    motion_from_pose_blocks,
     num_pose_parameters,
     pose_matrix,
     pose_weights,
@@ -196,15 +196,12 @@ class SvdCodec(Codec):
 
     def decode_payload(self, header: Header, payload: memoryview):
         parts = self._read(header, payload)
-        skeleton, num_frames = parts["skeleton"], header.num_frames
-        # Block by block: Y-hat is never held whole, only the decoded motion's arrays.
-        roots = np.empty((num_frames, 3))
-        quats = np.empty((num_frames, skeleton.num_joints, 4))
-        for start in range(0, num_frames, _BLOCK_FRAMES):
-            block = slice(start, start + _BLOCK_FRAMES)
-            part = motion_from_pose_matrix(parts["mean"] + parts["a"][block] @ parts["b"].T, skeleton, header.fps)
-            roots[block], quats[block] = part.root_positions, part.rotations
-        motion = Motion(skeleton=skeleton, fps=header.fps, root_positions=roots, rotations=quats)
+        mean, a, b = parts["mean"], parts["a"], parts["b"]
+        # Y-hat one block of rows at a time: memory is the motion's arrays, A (F x r) and one block, never F x m.
+        motion = motion_from_pose_blocks(
+            header.num_frames, lambda start, stop: mean + a[start:stop] @ b.T, parts["skeleton"], header.fps
+        )
+        del parts, a
         return motion.positions(), motion
 
     def describe_payload(self, header: Header, payload: memoryview) -> dict[str, Any]:
