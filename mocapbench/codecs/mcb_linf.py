@@ -62,7 +62,12 @@ import numpy as np
 from mocapbench.codecs.base import Codec, CodecConfig, Header, NotFittedError, param
 from mocapbench.codecs.mcb_linf_layers import (
     BAND_EDGES,
+    CHANNEL_GROUP_STARTS,
+    band_of,
     base_positions,
+    base_positions_into,
+    channel_group,
+    LayoutSlices,
     bcc_quantize,
     CoefficientLayout,
     dead_zone_quantize,
@@ -174,14 +179,27 @@ def _write_bands(writer: ByteWriter, coefficients: np.ndarray, layout: "Coeffici
             _write_symbols(writer, selected, zstd_level)
 
 
-def _read_bands(reader: ByteReader, payload: memoryview, layout: "CoefficientLayout") -> np.ndarray:
-    """Inverse of :func:`_write_bands`."""
-    counts = np.bincount(layout.sorted_bands, minlength=len(BAND_EDGES))
-    sorted_coefficients = np.concatenate(
-        [_read_symbols(reader, payload, int(count), f"band {band}") for band, count in enumerate(counts) if count]
-    )
-    coefficients = np.empty_like(sorted_coefficients)
-    coefficients[layout.band_order] = sorted_coefficients
+def _read_bands(reader: ByteReader, payload: memoryview, layout: "LayoutSlices") -> np.ndarray:
+    """Inverse of :func:`_write_bands`: the coefficients (F·C,) int64.
+
+    Each band's values go to its coefficients in flattened order, one slice of the layout at a time: memory is
+    the coefficients, one band's values and a slice (the F·C sort permutation is never built).
+    """
+    bands = np.empty(layout.size, dtype=np.uint8)
+    for start, stop in layout.ranges():
+        bands[start:stop] = band_of(layout.slice(start, stop)[0])
+    counts = np.bincount(bands, minlength=len(BAND_EDGES))
+    coefficients = np.empty(layout.size, dtype=np.int64)
+    for band, count in enumerate(counts):
+        if not count:
+            continue
+        values, used = _read_symbols(reader, payload, int(count), f"band {band}"), 0
+        for start, stop in layout.ranges():
+            selected = bands[start:stop] == band
+            taken = int(np.count_nonzero(selected))
+            coefficients[start:stop][selected] = values[used : used + taken]
+            used += taken
+        del values
     return coefficients
 
 
@@ -214,13 +232,23 @@ def _write_trained(writer: ByteWriter, coefficients, layout: "CoefficientLayout"
     encode_classed(writer, coefficients, shifted_classes(base, layout.shift_groups, shifts), model.tables)
 
 
-def _read_trained(reader: ByteReader, layout: "CoefficientLayout", steps, model: TrainedModel) -> np.ndarray:
-    """Inverse of :func:`_write_trained`."""
+def _read_trained(reader: ByteReader, layout: "LayoutSlices", quantizer: tuple, model: TrainedModel) -> np.ndarray:
+    """Inverse of :func:`_write_trained`; ``quantizer`` is ``(step, slope, root_step_rel, clip_frames)``.
+
+    The classes (one byte per coefficient) are computed one slice of the layout at a time, with the very
+    arithmetic of the encoder's :func:`base_classes` / :func:`shifted_classes` on the whole layout.
+    """
     shifts = np.frombuffer(reader.read_bytes(layout.num_shift_groups, "class shifts"), dtype=np.uint8)
-    if shifts.max() >= 2 * _MAX_SHIFT:
+    if shifts.size and shifts.max() >= 2 * _MAX_SHIFT:
         raise BitstreamError(f"mcb-linf: class shifts must be < {2 * _MAX_SHIFT}, found {shifts.max()}.")
-    base = base_classes(model, layout.frequencies, layout.channels, steps)
-    classes = shifted_classes(base, layout.shift_groups, shifts.astype(np.int64) - _MAX_SHIFT)
+    shifts = shifts.astype(np.int64) - _MAX_SHIFT
+    classes = np.empty(layout.size, dtype=np.uint8)
+    groups = len(CHANNEL_GROUP_STARTS)
+    for start, stop in layout.ranges():
+        frequencies, channels, windows = layout.slice(start, stop)
+        steps = quantization_steps(frequencies, channels, *quantizer)
+        base = base_classes(model, frequencies, channels, steps)
+        classes[start:stop] = shifted_classes(base, windows * groups + channel_group(channels), shifts)
     return decode_classed(reader, classes, model.tables, "mcb-linf: coefficients")
 
 
@@ -576,13 +604,17 @@ class McbLinfCodec(Codec):
             return self._decode_window(header, payload), None
         windows = split_windows(payload, num_frames, WINDOW_FRAMES)  # every extent checked before decoding
         positions = np.empty((num_frames, num_joints, 3))
-        for start, stop, part in windows:
-            window = Header(header.codec, stop - start, num_joints, header.fps)
-            positions[start:stop] = self._decode_window(window, part)
+        for start, stop, part in windows:  # each window decodes straight into its frames of the output
+            self._decode_window(Header(header.codec, stop - start, num_joints, header.fps), part, positions[start:stop])
         return positions, None
 
-    def _decode_window(self, header: Header, payload: memoryview) -> np.ndarray:
-        """Positions (F, J, 3) cm of one window's payload (a whole stream up to :data:`WINDOW_FRAMES` frames)."""
+    def _decode_window(self, header: Header, payload: memoryview, out: np.ndarray | None = None) -> np.ndarray:
+        """Positions (F, J, 3) cm of one window's payload (a whole stream up to :data:`WINDOW_FRAMES` frames),
+        written into ``out`` when given.
+
+        Memory: the output, the quantized coefficients (F·C int64, freed before the refinement is read) and
+        temporaries of one layout slice or one DCT window; the layout's F·C arrays are never built.
+        """
         reader = ByteReader(payload)
         eps, step, slope, root_step_rel, clip_frames, representation, entropy, has_cuts = _read_settings(reader)
         num_frames, num_joints = header.num_frames, header.num_joints
@@ -597,13 +629,16 @@ class McbLinfCodec(Codec):
         model = None
         if _needs_model(representation, entropy):
             model = self._decoding_model(representation, reader.read_u32("model tag"), num_joints)
-        layout = CoefficientLayout.of(num_frames, clip_frames, 3 * num_joints, cuts)
-        steps = quantization_steps(layout.frequencies, layout.channels, step, slope, root_step_rel, clip_frames)
+        layout = LayoutSlices.of(num_frames, clip_frames, 3 * num_joints, cuts)
         if entropy == "trained":
-            coefficients = _read_trained(reader, layout, steps, model)
+            coefficients = _read_trained(reader, layout, (step, slope, root_step_rel, clip_frames), model)
         else:
             coefficients = _read_bands(reader, payload, layout)
-        positions = base_positions(coefficients, steps, num_frames, parents, clip_frames, representation, model, cuts)
+        if coefficients.size and -(1 << 31) <= coefficients.min() and coefficients.max() < 1 << 31:
+            coefficients = coefficients.astype(np.int32)  # half the memory beside the output; same products
+        positions = np.empty((num_frames, num_joints, 3)) if out is None else out
+        base_positions_into(positions, coefficients, layout, step, slope, root_step_rel, parents, representation, model)
+        del coefficients
         positions = positions.reshape(-1, 3)
         num_corrected = reader.read_varint("corrected joint count")
         if num_corrected > num_frames * num_joints:
@@ -628,6 +663,7 @@ class McbLinfCodec(Codec):
             windows = {"windows of frames": f"{-(-header.num_frames // WINDOW_FRAMES)} x {WINDOW_FRAMES} (first shown)"}
         eps, step, slope, root_step_rel, clip_frames, representation, entropy, has_cuts = _read_settings(reader)
         frames = min(header.num_frames, WINDOW_FRAMES)
+        reader.read_varint("frame count")  # F again (written before the cuts)
         cuts = read_cuts(reader, frames, "mcb-linf") if has_cuts else []
         return {**windows,"eps_cm (guaranteed L-inf)": eps, "base step cm": step, "frequency slope": slope,
                 "root step (x base step)": root_step_rel, "clip frames": clip_frames,

@@ -21,10 +21,12 @@ __all__ = [
     "BAND_EDGES",
     "CHANNEL_GROUP_STARTS",
     "CoefficientLayout",
+    "LayoutSlices",
     "REPRESENTATIONS",
     "band_of",
     "band_order",
     "base_positions",
+    "base_positions_into",
     "bcc_quantize",
     "channel_group",
     "coefficient_channels",
@@ -310,3 +312,108 @@ class CoefficientLayout:
     @property
     def sorted_bands(self) -> np.ndarray:
         return self._bands[1]
+
+
+#: Coefficients per slice when the decoder computes the layout piece by piece (:class:`LayoutSlices`).
+SLICE_COEFFICIENTS = 1 << 16
+
+
+@dataclass(frozen=True, eq=False)
+class LayoutSlices:
+    """The layout of :class:`CoefficientLayout` computed for ranges of flattened coefficients on demand.
+
+    The decoder's view of the layout: ``slice(start, stop)`` gives the frequency, channel and window of
+    coefficients ``start:stop`` (exactly the entries of :class:`CoefficientLayout`'s arrays there), so that the
+    decoder never holds the three F·C int64 arrays, only one slice of them; :meth:`windows_in_order` walks the DCT
+    windows for the inverse transform one window at a time.
+    """
+
+    num_frames: int
+    clip_frames: int
+    channels: int
+    full: np.ndarray  # start frame of each full window
+    partial: tuple[tuple[int, int], ...]  # (start frame, length) of each shorter window
+    partial_offsets: np.ndarray  # flattened index of each shorter window's first coefficient, then the end
+
+    @classmethod
+    def of(cls, num_frames: int, clip_frames: int, channels: int, cuts=()) -> "LayoutSlices":
+        full, partial = _windows(num_frames, clip_frames, cuts)
+        split = len(full) * clip_frames * channels
+        lengths = np.array([length for _, length in partial], dtype=np.int64)
+        offsets = split + np.concatenate([[0], np.cumsum(lengths * channels)]).astype(np.int64)
+        return cls(num_frames, clip_frames, channels, full, tuple(partial), offsets)
+
+    @property
+    def size(self) -> int:
+        """Number of coefficients, F·C."""
+        return self.num_frames * self.channels
+
+    @property
+    def num_windows(self) -> int:
+        return len(self.full) + len(self.partial)
+
+    @property
+    def num_shift_groups(self) -> int:
+        """As :attr:`CoefficientLayout.num_shift_groups`."""
+        return self.num_windows * len(CHANNEL_GROUP_STARTS) if self.size else 0
+
+    def ranges(self):
+        """``(start, stop)`` of consecutive slices of at most :data:`SLICE_COEFFICIENTS` covering every coefficient."""
+        for start in range(0, self.size, SLICE_COEFFICIENTS):
+            yield start, min(self.size, start + SLICE_COEFFICIENTS)
+
+    def slice(self, start: int, stop: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Frequencies, channels and windows (int64) of the flattened coefficients ``start:stop``."""
+        index = np.arange(start, stop, dtype=np.int64)
+        frequencies, channels, windows = np.empty_like(index), np.empty_like(index), np.empty_like(index)
+        n, length, count = len(self.full), self.clip_frames, self.channels
+        head = int(np.clip(self.partial_offsets[0] - start, 0, len(index)))  # the full windows' part
+        if head:
+            full = index[:head]
+            frequencies[:head] = full // (count * n)
+            channels[:head] = (full // n) % count
+            windows[:head] = full % n
+        first = max(int(np.searchsorted(self.partial_offsets, start, side="right")) - 1, 0)
+        for p in range(first, len(self.partial)):
+            begin, end = int(self.partial_offsets[p]), int(self.partial_offsets[p + 1])
+            if begin >= stop:
+                break
+            lo, hi = max(begin, start) - start, min(end, stop) - start
+            if lo >= hi:
+                continue
+            local = index[lo:hi] - begin
+            frequencies[lo:hi] = ((local // count) * length) // self.partial[p][1]
+            channels[lo:hi] = local % count
+            windows[lo:hi] = n + p
+        return frequencies, channels, windows
+
+    def windows_in_order(self, coefficients: np.ndarray):
+        """``(first frame, frames, frequencies (frames, 1) int64, values (frames, C))`` of every DCT window, full
+        windows first then the shorter ones (the flattened order); ``values`` is a view of ``coefficients`` (F·C,)."""
+        count, length, n = self.channels, self.clip_frames, len(self.full)
+        split = int(self.partial_offsets[0])
+        if n:
+            full = coefficients[:split].reshape(length, count, n)
+            k = np.arange(length, dtype=np.int64)[:, None]
+            for w, start in enumerate(self.full):
+                yield int(start), length, k, full[:, :, w]
+        for p, (start, frames) in enumerate(self.partial):
+            offset = int(self.partial_offsets[p])
+            k = ((np.arange(frames, dtype=np.int64) * length) // frames)[:, None]
+            yield start, frames, k, coefficients[offset : offset + frames * count].reshape(frames, count)
+
+
+def base_positions_into(
+    out, coefficients, layout: LayoutSlices, step, slope, root_step_rel, parents, representation, spatial
+) -> np.ndarray:
+    """:func:`base_positions` written into ``out`` (F, J, 3) one DCT window at a time (the decoder's version).
+
+    The same arithmetic on every element as :func:`base_positions` (steps, product, inverse DCT of each window,
+    the representation's inverse), but its temporaries are one window of L frames, never F·C.
+    """
+    channels = np.arange(layout.channels, dtype=np.int64)[None, :]
+    for start, frames, frequencies, values in layout.windows_in_order(coefficients):
+        steps = quantization_steps(frequencies, channels, step, slope, root_step_rel, layout.clip_frames)
+        signal = scipy.fft.idct(values * steps, axis=0, norm="ortho")
+        out[start : start + frames] = from_signal(signal, parents, representation, spatial)
+    return out

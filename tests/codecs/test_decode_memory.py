@@ -29,6 +29,7 @@ SETTINGS = {
     "quant-delta-zstd": {"step_cm": 0.1},
     "quant-rot-zstd": {"rotation_bits": 12},
     "svd": {"rank": 16},
+    "mcb-linf": {"eps_cm": 0.5},
     "pga-ik": {"num_geodesics": 12, "lm_iterations": 1},
     "fourier-mlp-int": {"K": 4, "iterations_per_round": 1},
     "fourier-mlp-dct": {"K_max": 2, "iterations_per_round": 1, "threshold": 1e6, "threshold_unit": "cm"},
