@@ -24,6 +24,7 @@ Every count is checked before allocation; a corrupt stream raises :class:`Bitstr
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 from functools import cached_property
 
@@ -205,10 +206,60 @@ def encode_classed(writer: ByteWriter, values: np.ndarray, classes: np.ndarray, 
 
 
 def decode_classed(reader: ByteReader, classes: np.ndarray, tables: ClassTables, what: str) -> np.ndarray:
-    """Read ``len(classes)`` values written by :func:`encode_classed` (int64, (N,))."""
+    """Read ``len(classes)`` values written by :func:`encode_classed` (int64, (N,)).
+
+    Memory beside the N values: the classes, an int32 sort order and the int32 tokens (the histograms and the
+    sort go a chunk at a time, see :func:`_stable_class_order`).
+    """
     classes = _check_classes(classes, len(classes), tables)
-    order, groups = class_groups(classes)
-    return values_of_tokens([read_tokens(reader, groups, tables, what)], order)
+    counts = _histogram(classes, tables.num_classes)
+    present = np.flatnonzero(counts)
+    order = _stable_class_order(classes, counts)
+    run = read_tokens(reader, list(zip(present.tolist(), counts[present].tolist())), tables, what)
+    placed = np.empty(len(classes), dtype=np.int32)  # one stream: put in place as int32, then widened
+    placed[order] = run.tokens
+    del order
+    run = dataclasses.replace(run, tokens=np.zeros(0, dtype=np.int32))
+    tokens = placed.astype(np.int64)
+    del placed
+    return _signed_values(tokens, [run])
+
+
+#: Values per chunk of :func:`_histogram` and :func:`_stable_class_order` (bounds their temporaries).
+_ORDER_CHUNK = 1 << 14
+
+
+def _histogram(values: np.ndarray, size: int) -> np.ndarray:
+    """``np.bincount(values, minlength=size)`` a chunk at a time (bincount casts its whole input to int64 first);
+    every value must be below ``size``."""
+    counts = np.zeros(size, dtype=np.int64)
+    for start in range(0, len(values), _ORDER_CHUNK):
+        counts += np.bincount(values[start : start + _ORDER_CHUNK], minlength=size)[:size]
+    return counts
+
+
+def _stable_class_order(classes: np.ndarray, counts: np.ndarray) -> np.ndarray:
+    """The permutation of :func:`class_groups`, as int32 (int64 past 2**31 values), sorted chunk by chunk;
+    ``counts`` is the histogram of the classes.
+
+    A counting sort of the chunks' stable sorts into each class's slots: the same permutation as one
+    ``argsort(kind="stable")``, without its N-long int64 result and radix buffer.
+    """
+    if len(classes) <= _ORDER_CHUNK:
+        return np.argsort(classes, kind="stable")
+    order = np.empty(len(classes), dtype=np.int32 if len(classes) < 1 << 31 else np.int64)
+    slots = np.cumsum(counts) - counts  # the next free place of each class in `order`
+    for start in range(0, len(classes), _ORDER_CHUNK):
+        chunk = classes[start : start + _ORDER_CHUNK]
+        local = np.argsort(chunk, kind="stable")
+        local_counts = np.bincount(chunk, minlength=len(counts))
+        taken = 0
+        for klass in np.flatnonzero(local_counts).tolist():
+            count = int(local_counts[klass])
+            order[slots[klass] : slots[klass] + count] = local[taken : taken + count] + start
+            slots[klass] += count
+            taken += count
+    return order
 
 
 @dataclass(frozen=True)
@@ -261,7 +312,8 @@ def read_tokens(reader: ByteReader, groups: list[tuple[int, int]], tables: Class
         raise BitstreamError(f"{what}: the ANS stream holds more data than its {sum(c for _, c in groups)} values.")
     tokens = np.concatenate(parts) if len(parts) > 1 else parts[0] if parts else np.zeros(0, dtype=np.int32)
     nonzero = int(np.count_nonzero(tokens))
-    raw_bits = int(_TOKEN_WIDTHS[tokens].sum()) if nonzero else 0
+    # A histogram of the tokens, not an N-long array of widths: the same sum.
+    raw_bits = int(_histogram(tokens, TOKEN_COUNT) @ _TOKEN_WIDTHS) if nonzero else 0
     signs = reader.read_bytes((nonzero + 7) // 8, f"{what}: signs")
     raw = reader.read_bytes((raw_bits + 7) // 8, f"{what}: raw bits")
     return TokenRun(tokens, nonzero, raw_bits, signs, raw)
@@ -296,6 +348,12 @@ def values_of_tokens(runs: list[TokenRun], order: np.ndarray, out: np.ndarray | 
     for run in runs:  # order is a permutation: every value is written
         tokens[order[at : at + len(run.tokens)]] = run.tokens
         at += len(run.tokens)
+    return _signed_values(tokens, runs)
+
+
+def _signed_values(tokens: np.ndarray, runs: list[TokenRun]) -> np.ndarray:
+    """``tokens`` (int64, (N,), in value order) turned into the values in place with the signs and raw bits of
+    ``runs`` (their ``tokens`` are not read), and returned."""
     # Most values are 0: the rest of the work touches only the nonzero ones.
     nonzero = np.flatnonzero(tokens)
     if nonzero.size == 0:
