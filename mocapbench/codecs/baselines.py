@@ -278,12 +278,16 @@ class QuantPredZstdCodec(Codec):
             raise BitstreamError(f"quant-pred-zstd: expected a positive step and order 1 or 2, found {step}, {order}.")
         blob = reader.read_blob("positions")
         reader.expect_end()
-        positions = np.empty((header.num_frames, 3 * header.num_joints))
+        channels = 3 * header.num_joints
+        positions = None  # allocated once the zstd frame's size has been checked against the header
 
         def dequantize(channel: int, residuals: np.ndarray) -> None:
+            nonlocal positions
+            if positions is None:
+                positions = np.empty((header.num_frames, channels))
             positions[:, channel] = _reconstruct(residuals[None], order)[0] * step
 
-        zstd_unpack_tracks(blob, positions.shape[1], header.num_frames, dequantize, "positions", shuffle=True)
+        zstd_unpack_tracks(blob, channels, header.num_frames, dequantize, "positions", shuffle=True)
         return positions.reshape(header.num_frames, header.num_joints, 3), None
 
     def describe_payload(self, header: Header, payload: memoryview):

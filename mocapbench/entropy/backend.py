@@ -170,12 +170,7 @@ def zstd_decompress_chunks(data, expected_size: int, input_chunk: int = 1 << 16)
         As :func:`zstd_decompress`, and if the frame declares another size than ``expected_size``.
     """
     data = memoryview(data).cast("B")
-    try:
-        params = zstandard.get_frame_parameters(bytes(data[:18]))
-    except zstandard.ZstdError as exc:
-        raise BitstreamError(f"expected a zstd frame header in {len(data)} bytes, found none: {exc}") from None
-    if params.content_size != expected_size:
-        raise BitstreamError(f"expected a zstd frame of {expected_size} bytes, the frame declares {params.content_size}")
+    _check_frame_size(data, expected_size)
     decompressor = zstandard.ZstdDecompressor().decompressobj()
     produced = 0
     for start in range(0, len(data), input_chunk):
@@ -196,6 +191,16 @@ def zstd_decompress_chunks(data, expected_size: int, input_chunk: int = 1 << 16)
         raise BitstreamError("zstd: expected the end of data after the frame, found more bytes")
     if produced != expected_size:
         raise BitstreamError(f"zstd: expected {expected_size} decompressed bytes as declared, found {produced}")
+
+
+def _check_frame_size(data: memoryview, expected_size: int) -> None:
+    """:class:`BitstreamError` unless ``data`` starts with a zstd frame header declaring ``expected_size`` bytes."""
+    try:
+        params = zstandard.get_frame_parameters(bytes(data[:18]))
+    except zstandard.ZstdError as exc:
+        raise BitstreamError(f"expected a zstd frame header in {len(data)} bytes, found none: {exc}") from None
+    if params.content_size != expected_size:
+        raise BitstreamError(f"expected a zstd frame of {expected_size} bytes, the frame declares {params.content_size}")
 
 
 def _lzma_filters(preset: int | None = None) -> list[dict]:
@@ -350,6 +355,7 @@ def zstd_unpack_tracks(blob, num_tracks: int, length: int, sink, what: str = "in
     width = blob[0]
     planes = width if shuffle else 1
     track_bytes = length * (1 if shuffle else width)  # bytes of one track in one plane
+    _check_frame_size(blob[1:], planes * num_tracks * track_bytes)  # before anything sized by the header
     held = np.empty(((planes - 1) * num_tracks * track_bytes,), dtype=np.uint8)  # the planes below the top
     filled, pending, index = 0, bytearray(), 0
 

@@ -52,3 +52,24 @@ def test_byte_shuffle_round_trips_every_width():
         values = np.random.default_rng(peak).integers(-peak, peak, size=1001)
         blob = zstd_pack_ints(values, 3, shuffle=True)
         np.testing.assert_array_equal(zstd_unpack_ints(blob, values.size, shuffle=True), values)
+
+
+@pytest.mark.parametrize("frames, width", [(10**6, None), (None, 8)])
+def test_a_header_or_width_that_disagrees_with_the_zstd_frame_is_refused_before_decoding(synthetic_motion, frames,
+                                                                                          width):
+    from mocapbench.codecs import BitstreamError
+
+    codec = create("quant-pred-zstd")
+    header, payload = container.unpack(codec.encode(synthetic_motion), "quant-pred-zstd")
+    payload = bytearray(payload)
+    if width is not None:
+        from mocapbench.entropy.bitio import ByteReader
+
+        reader = ByteReader(bytes(payload))
+        reader.read_bytes(8 + 1, "step and order")
+        reader.read_varint("blob length")
+        payload[reader.offset] = width  # the blob's first byte: the width of the zigzag codes (1 here)
+    stream = container.pack("quant-pred-zstd", frames or header.num_frames, header.num_joints, header.fps,
+                            bytes(payload))
+    with pytest.raises(BitstreamError, match="expected a zstd frame of"):
+        codec.decode(stream)
