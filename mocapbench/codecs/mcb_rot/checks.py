@@ -14,17 +14,21 @@ from mocapbench.codecs.mcb_rot import kinematics
 from mocapbench.codecs.mcb_rot import quaternions as quat
 from mocapbench.motion import Skeleton
 
-__all__ = ["PointTargets", "global_quaternions"]
+__all__ = ["PointTargets", "global_quaternions", "tree_levels"]
+
+
+def tree_levels(parents: np.ndarray) -> list[np.ndarray]:
+    """The joints at tree depth 0 (the root), 1, 2, ... of a parent array (J,) (parents before children)."""
+    depth = np.zeros(len(parents), dtype=np.int64)
+    for joint in range(1, len(parents)):
+        depth[joint] = depth[parents[joint]] + 1
+    return [np.flatnonzero(depth == d) for d in range(int(depth.max(initial=0)) + 1)]
 
 
 def global_quaternions(quats: np.ndarray, parents: np.ndarray) -> np.ndarray:
     """Global rotations (F, J, 4) of local rotations ``quats`` (F, J, 4), one product per tree depth."""
-    depth = np.zeros(len(parents), dtype=np.int64)
-    for joint in range(1, len(parents)):
-        depth[joint] = depth[parents[joint]] + 1
     glob = np.array(quats, dtype=np.float64)
-    for level in range(1, int(depth.max(initial=0)) + 1):
-        joints = np.flatnonzero(depth == level)
+    for joints in tree_levels(parents)[1:]:
         glob[:, joints] = quat.multiply(glob[:, parents[joints]], quats[:, joints])
     return glob
 

@@ -19,7 +19,7 @@ import numpy as np
 
 from mocapbench.codecs.mcb_rot import quaternions as quat
 from mocapbench.codecs.mcb_rot.axes import from_axes, to_axes
-from mocapbench.codecs.mcb_rot.checks import global_quaternions
+from mocapbench.codecs.mcb_rot.checks import global_quaternions, tree_levels
 from mocapbench.codecs.mcb_rot.segments import forward, inverse
 from mocapbench.codecs.mcb_rot.stream import StreamInfo, steps_of
 
@@ -56,13 +56,6 @@ def quantize(info: StreamInfo, spectra) -> tuple[np.ndarray, dict[int, np.ndarra
     return dc, coefficients
 
 
-def _levels(parents: np.ndarray) -> list[np.ndarray]:
-    depth = np.zeros(len(parents), dtype=np.int64)
-    for joint in range(1, len(parents)):
-        depth[joint] = depth[parents[joint]] + 1
-    return [np.flatnonzero(depth == d) for d in range(int(depth.max(initial=0)) + 1)]
-
-
 class Compensator:
     """One motion's fixed state for :meth:`quantize` (the original global rotations, the segment signs)."""
 
@@ -71,7 +64,7 @@ class Compensator:
         self.roots = roots
         self.parents = info.skeleton.parents
         self.globals = global_quaternions(quats, self.parents)
-        self.levels = _levels(self.parents)
+        self.levels = tree_levels(self.parents)
         layout = info.layout
         self.segment_of = np.repeat(np.arange(layout.num_segments), layout.lengths)
         self.middle = layout.starts + layout.lengths // 2
