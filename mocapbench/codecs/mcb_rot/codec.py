@@ -263,7 +263,7 @@ class McbRotCodec(Codec):
 
 def _search(attempt, flat_too: bool = False) -> bytes:
     """The smallest payload over :data:`_SEARCH_GRID`, by walking downhill from :data:`_SEARCH_START`; with
-    ``flat_too``, also a flat step over frequency (slope 0) at the best multiplier and the next one up."""
+    ``flat_too``, also a flat step over frequency (slope 0) from the next multiplier up, walking up while it wins."""
     tried = {}
 
     def size(index: int) -> int:
@@ -275,10 +275,17 @@ def _search(attempt, flat_too: bool = False) -> bytes:
     for direction in (1, -1):
         while 0 <= best + direction < len(_SEARCH_GRID) and size(best + direction) < size(best):
             best += direction
-    candidates = [tried[best]]
-    if flat_too:
-        candidates += [attempt(_SEARCH_GRID[i], 0.0) for i in (best, best + 1) if i < len(_SEARCH_GRID)]
-    return min(candidates, key=len)
+    chosen = tried[best]
+    if flat_too:  # a flat step is finer at high frequencies: its best multiplier is the next one up, or higher
+        index = min(best + 1, len(_SEARCH_GRID) - 1)
+        flat = attempt(_SEARCH_GRID[index], 0.0)
+        while len(flat) < len(chosen):
+            chosen = flat
+            if index + 1 == len(_SEARCH_GRID):
+                break
+            index += 1
+            flat = attempt(_SEARCH_GRID[index], 0.0)
+    return chosen
 
 
 def _signal(quats: np.ndarray, roots: np.ndarray, layout: SegmentLayout) -> tuple[np.ndarray, dict]:
@@ -352,25 +359,39 @@ def _most_helpful(fix, missing, placed, error, quats, relative, root_error, budg
     decoded local rotations, ``relative`` (n, J, 4) their errors ``conj(decoded) original``, ``root_error`` (n, 3).
     """
     rel = relative * np.where(relative[..., 3:] < 0, -1.0, 1.0)
-    turn = quat.log_map(rel)  # (n, J, 3) in each joint's frame
-    glob = global_quaternions(quats, parents)
-    u, w = glob[..., :3], glob[..., 3:]
-    t = 2.0 * np.cross(u, turn)
-    omega = turn + w * t + np.cross(u, t)  # world frame
-    arm = placed[:, :, None, :] - placed[:, None, :, :]  # (n, k, a, 3): p_k - p_a
-    shift = np.cross(omega[:, None, :, :], arm)  # (n, k, a, 3)
-    size = np.sqrt(np.sum(error**2, axis=-1))  # (n, k)
-    gain = size[:, :, None] - np.sqrt(np.sum((error[:, :, None, :] - shift) ** 2, axis=-1))  # (n, k, a)
-    moved = missing[:, :, None] & budgets.movers[None]
-    joint_score = np.where(moved, gain, -np.inf).max(axis=1)  # (n, a)
-    root_gain = size - np.sqrt(np.sum((error - root_error[:, None, :]) ** 2, axis=-1))
-    root_score = np.where(missing, root_gain, -np.inf).max(axis=1)
+    omega = _rotate(global_quaternions(quats, parents), quat.log_map(rel))  # (n, J, 3) world-frame turns
+    rows, joints = np.nonzero(missing)  # the (frame, missing joint) pairs
+    arm = placed[rows, joints][:, None, :] - placed[rows]  # (m, J, 3): p_k - p_a
+    shift = _cross(omega[rows], arm)
+    miss = error[rows, joints]  # (m, 3)
+    size = np.sqrt(np.sum(miss**2, axis=-1))
+    gain = size[:, None] - np.sqrt(np.sum((miss[:, None, :] - shift) ** 2, axis=-1))  # (m, J)
+    gain = np.where(budgets.movers[joints], gain, -np.inf)
+    joint_score = np.full(missing.shape, -np.inf)
+    np.maximum.at(joint_score, rows, gain)
+    root_gain = size - np.sqrt(np.sum((miss - root_error[rows]) ** 2, axis=-1))
+    root_score = np.full(len(missing), -np.inf)
+    np.maximum.at(root_score, rows, root_gain)
     score = np.concatenate([root_score[:, None], joint_score], axis=1)
-    score = np.where(fix, score, -np.inf)
+    score = np.where(fix, np.maximum(score, -1e300), -np.inf)  # a candidate always beats a non-candidate
     out = np.zeros_like(fix)
     rows = np.flatnonzero(fix.any(axis=1))
     out[rows, np.argmax(score[rows], axis=1)] = True
     return out
+
+
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Cross products of vectors (..., 3), componentwise (faster than np.cross on small trailing axes)."""
+    ax, ay, az = a[..., 0], a[..., 1], a[..., 2]
+    bx, by, bz = b[..., 0], b[..., 1], b[..., 2]
+    return np.stack([ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx], axis=-1)
+
+
+def _rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Vectors ``v`` (..., 3) turned by unit quaternions ``q`` (..., 4)."""
+    u, w = q[..., :3], q[..., 3:]
+    t = 2.0 * _cross(u, v)
+    return v + w * t + _cross(u, t)
 
 
 def _refine(info: StreamInfo, motion: Motion, roots, quats, points: PointTargets, check_cm: float, greedy: bool):
