@@ -1,7 +1,7 @@
 """Long captures: peak memory and CPU per frame of every codec's encode and decode at 10k, 100k and 500k frames.
 
     python -m mocapbench.benchmarks.long_captures [--frames 10000,100000,500000] [--codecs a,b] [--tree DIR]
-                                                  [--timeout 900] [--json out.jsonl]
+                                                  [--timeout 900] [--json out.jsonl] [--set KEY=VALUE]
 
 Each (codec, frame count) runs in its own subprocess with the codec's default config (the neural Fourier codecs
 only with ``--neural``: they train a network per clip, tens of ms of CPU per frame). The subprocess builds a
@@ -13,6 +13,8 @@ and wall time), resets the mark again and decodes. Peak memory is the high-water
 (``VmHWM``) above the resident set before the step, so it counts every allocation of the step (numpy, zstd,
 torch, Python objects), not the motion itself; it is printed in MB and as a multiple of the float64 positions
 array (``F * J * 3 * 8`` bytes, 372 MB at 500k frames), the bound the benchmark asks of every non-neural codec.
+The table gives the L-inf and mean error over the whole capture beside the ratio; ``--set KEY=VALUE`` sets a config
+field of every codec run (e.g. ``--codecs pga-ik --set window_frames=7681``).
 
 ``--tree DIR`` runs the subprocesses on another checkout (``PYTHONPATH=DIR``), e.g. the commit before a change,
 so one command prints before and after. ``--cache DIR`` keeps each synthetic capture in DIR (``.npz``) and later
@@ -58,6 +60,7 @@ def reset_peak():
         handle.write("5")
 
 name, frames = sys.argv[1], int(sys.argv[2])
+params = json.loads(sys.argv[3]) if len(sys.argv) > 3 else {}
 from mocapbench.codecs import create
 from mocapbench.motion import Motion
 from mocapbench.synthetic import sinusoidal_motion
@@ -83,7 +86,7 @@ else:
         os.makedirs(cache, exist_ok=True)
         np.savez(cached + ".tmp.npz", root=motion.root_positions, rotations=motion.rotations)
         os.replace(cached + ".tmp.npz", cached)
-codec = create(name)
+codec = create(name, **params)
 codec.decode(codec.encode(motion.slice(0, min(frames, 64))))  # lazy imports and caches, not the capture's cost
 trim()
 positions_bytes = frames * motion.num_joints * 3 * 8
@@ -113,13 +116,14 @@ print("RESULT " + json.dumps(out))
 """
 
 
-def _run_one(name: str, frames: int, tree: Path, timeout: float, cache: str | None = None) -> dict:
+def _run_one(name: str, frames: int, tree: Path, timeout: float, cache: str | None = None,
+             params: dict | None = None) -> dict:
     env = dict(os.environ, PYTHONPATH=str(tree), OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1", MKL_NUM_THREADS="1")
     if cache:
         env["MOCAPBENCH_LONG_CAPTURES_CACHE"] = str(Path(cache).resolve())
     try:
-        done = subprocess.run([sys.executable, "-c", CHILD, name, str(frames)], env=env, capture_output=True,
-                              text=True, timeout=timeout, cwd=tree)
+        done = subprocess.run([sys.executable, "-c", CHILD, name, str(frames), json.dumps(params or {})], env=env,
+                              capture_output=True, text=True, timeout=timeout, cwd=tree)
     except subprocess.TimeoutExpired:
         return {"codec": name, "frames": frames, "status": f"over {timeout:.0f} s"}
     for line in done.stdout.splitlines():
@@ -131,13 +135,13 @@ def _run_one(name: str, frames: int, tree: Path, timeout: float, cache: str | No
 
 def _row(result: dict) -> str:
     if result.get("status") != "ok":
-        return f"| {result['codec']} | {result['frames']:,} | {result['status']} | | | | | |"
+        return f"| {result['codec']} | {result['frames']:,} | {result['status']} | | | | | | |"
     frames, positions = result["frames"], result["positions_mb"]
     return (
         f"| {result['codec']} | {frames:,} | {result['encode_peak_mb']:.0f} ({result['encode_peak_mb'] / positions:.1f}x) "
         f"| {result['decode_peak_mb']:.0f} ({result['decode_peak_mb'] / positions:.1f}x) "
         f"| {1e6 * result['encode_cpu_s'] / frames:.1f} | {1e6 * result['decode_cpu_s'] / frames:.1f} "
-        f"| {result['max_err_cm']:.3g} | {positions * 1e6 / 2 / result['bytes']:.1f} |"
+        f"| {result['max_err_cm']:.3g} | {positions * 1e6 / 2 / result['bytes']:.1f} | {result['mean_err_cm']:.3g} |"
     )
 
 
@@ -153,6 +157,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--cache", default=None,
                         help="folder keeping each synthetic capture (.npz, 0.5 GB at 500k frames) so that later "
                              "subprocesses read it back instead of rebuilding it (32 CPU-s at 500k frames)")
+    parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                        help="a codec config field for every codec run (JSON value), e.g. --set window_frames=7681")
     args = parser.parse_args(argv)
     tree = Path(args.tree).resolve()
     if args.codecs:
@@ -163,13 +169,22 @@ def main(argv: list[str] | None = None) -> int:
                                  capture_output=True, text=True, check=True, cwd=tree)
         names = [n for n in listing.stdout.strip().split(",") if args.neural or n not in NEURAL]
     frame_counts = [int(f) for f in args.frames.split(",")]
+    params = {}
+    for item in args.set:
+        key, _, value = item.partition("=")
+        try:
+            params[key] = json.loads(value)
+        except json.JSONDecodeError:
+            params[key] = value
+    if params:
+        print(f"codec config: {params}")
     print(f"tree {tree}; load average {os.getloadavg()[0]:.1f} at start")
     print("| codec | frames | encode peak MB (x positions) | decode peak MB (x positions) | encode CPU us/frame "
-          "| decode CPU us/frame | L-inf cm | CR |")
-    print("|---|---:|---:|---:|---:|---:|---:|---:|")
+          "| decode CPU us/frame | L-inf cm | CR | mean cm |")
+    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|")
     for frames in frame_counts:
         for name in names:
-            result = _run_one(name, frames, tree, args.timeout, args.cache)
+            result = _run_one(name, frames, tree, args.timeout, args.cache, params)
             print(_row(result), flush=True)
             if args.json:
                 with open(args.json, "a") as handle:

@@ -46,6 +46,23 @@ What is the paper's and what is ours
   - **k by variance** (optional): ``variance_fraction`` > 0 picks the smallest k reaching that share of the
     tangent variance (the paper's Fig. 3 measure), capped by ``num_geodesics``.
   - The skeleton travels in the stream (needed for FK); the paper does not count it.
+  - **Long captures** (more than 7,680 frames; the paper codes every clip whole and suggests "a segment-based
+    approach" for long motions, §4): windows of ``window_frames`` frames (default 1,025), each a stream of its own
+    with its own pose model, the last one lengthened backwards so that it too ends on a kept trajectory sample.
+    Clips up to 7,680 frames are coded whole, as the paper does, and their streams are unchanged. Why (measured
+    with ``python -m mocapbench.benchmarks.long_captures --codecs pga-ik --frames 1000,10000,100000`` and on
+    CMU subject 118's 30 takes joined into one capture):
+    the error of k geodesics grows with the span of poses they must hold (12 geodesics hold 62 % of the tangent
+    variance of 1,024 synthetic frames, 33 % of 7,680; on the joined CMU takes the mean error is 0.50 cm for the
+    first 1,000 frames and 1.04 cm over 10,000 in 7,680-frame windows, 0.47 cm in 1,025-frame windows), so a
+    capture coded in W-frame windows has the error of a W-frame clip whatever its length. More geodesics per
+    window instead (as many as leave the pose variance a 1,024-frame model leaves: 16-30) halved the error on the
+    synthetic capture but raised it on the CMU one (1.62 cm at 10,000 frames against 1.04): with more geodesics
+    than the 15 end-joint coordinates constrain, the IK drifts. The price is the rate: a pose model per 1,025
+    frames (CR about 84 on the joined CMU takes against 173 with 7,680-frame windows); ``window_frames=7681``
+    gives the rate back. Windows of 7,680 frames (the earlier layout, which still decodes: a long capture's
+    payload now starts with a marker) also ended 15 frames off the trajectory grid, so those frames were
+    extrapolated (62 cm at a toe at a window's end on the synthetic capture).
 """
 
 from __future__ import annotations
@@ -96,11 +113,16 @@ END_JOINT_NAMES: tuple[tuple[str, ...], ...] = (
 # not ask for more than 20 per frame (1-5 give the same errors on cmu_test); DecodeLimits.max_ik_iterations bounds F x it.
 _MAX_LM_ITERATIONS = 20
 
-# Frames of a window of a long capture (64 s at 120 fps): a stream of more frames is a sequence of windows, each
-# coded as a stream of its own with its own pose model (encode_payload).
+# The longest clip coded whole (64 s at 120 fps): a stream of more frames is a sequence of windows of
+# `window_frames` frames, each coded as a stream of its own with its own pose model (encode_payload).
 WINDOW_FRAMES = 7680
 #: Frames per block of the decoder's pose model (:func:`geodesic_poses`): bounds its rotation temporaries.
 _POSE_BLOCK_FRAMES = 1024
+
+# A long capture's payload starts with this varint (0: no window is empty, so a stream written before the marker,
+# whose first varint is its first window's length, is told apart), then the layout version, the window length and
+# the trajectory grid (see _long_extents).
+_LONG_MARKER, _LONG_VERSION = 0, 1
 
 
 def select_end_joints(skeleton: Skeleton) -> list[int]:
@@ -140,6 +162,23 @@ def _symmetric_quantize(values: np.ndarray, bits: int) -> tuple[np.ndarray, floa
         return np.zeros(values.shape, dtype=np.int64), 0.0
     step = float(np.float32(amax / ((1 << (bits - 1)) - 1)))
     return quantize(values, step), step
+
+
+def _long_extents(num_frames: int, window_frames: int, grid: int) -> list[tuple[int, int]]:
+    """``(start, stop)`` of the windows of a capture of more than :data:`WINDOW_FRAMES` frames.
+
+    Back-to-back windows of ``window_frames``; the last one ends at the capture's end and is lengthened backwards
+    (over the end of the one before, which it decodes again) to ``1 + a multiple of grid`` frames (at least
+    ``grid + 1``, at most ``window_frames`` or the capture), so that, like every full window when ``grid`` divides
+    ``window_frames - 1``, its last frame is a kept trajectory sample (``grid`` = 2^dropped levels): interpolated,
+    not extrapolated from the last kept samples.
+    """
+    extents = [(start, min(num_frames, start + window_frames)) for start in range(0, num_frames, window_frames)]
+    start, stop = extents[-1]
+    length = 1 + max(1, -(-(stop - start - 1) // grid)) * grid
+    length = max(stop - start, min(length, window_frames, num_frames))
+    extents[-1] = (stop - length, stop)
+    return extents
 
 
 def _kept_levels(num_frames: int, dropped: int) -> int:
@@ -197,19 +236,33 @@ class PgaIkCodec(Codec):
             doc="length unit of the IK objective (default: the CMU ASF unit, 5.6444 cm, the paper's data)",
         )
         lm_iterations: int = param(2, low=1, high=_MAX_LM_ITERATIONS, doc="Levenberg-Marquardt iterations per frame")
+        window_frames: int = param(
+            1025,
+            low=2,
+            high=WINDOW_FRAMES + 1,
+            unit="frames",
+            doc="window of a capture over 7,680 frames, each with its own pose model (1 + a multiple of 2^dropped "
+            "levels ends each window on a kept trajectory sample); clips up to 7,680 frames are coded whole",
+        )
 
     # -- encoder ---------------------------------------------------------------------------------------------
     def encode_payload(self, motion: Motion) -> bytes:
-        """One window (every clip up to :data:`WINDOW_FRAMES` frames), else a sequence of length-prefixed windows.
+        """One window (every clip up to :data:`WINDOW_FRAMES` frames), else a marked sequence of windows.
 
-        A long capture is coded window by window, each with its own pose model: the poses of a long capture
-        spread over more of the pose space than k geodesics can hold (on a 16,000-frame synthetic capture coded
-        whole, the mean error is 2.2x that of 1,000 frames), so one model per window keeps the error of a window
-        whatever the length, and the coder holds one window's arrays.
+        A long capture is coded window by window (``window_frames``, :func:`_long_extents`), each with its own
+        pose model, and the coder holds one window's arrays. Why windows of about 1,000 frames (see the module
+        docstring, "Long captures"): the error of a pose model grows with the span of poses it must hold, so a
+        capture coded in windows of W frames has the error of a W-frame clip, whatever its length.
         """
         if motion.num_frames <= WINDOW_FRAMES:
             return self._encode_window(motion)
-        payload, stats = encode_windows(motion, WINDOW_FRAMES, self._encode_window_with_stats)
+        config = self.config
+        grid = 1 << max(config.root_levels_dropped, config.end_levels_dropped)
+        extents = _long_extents(motion.num_frames, config.window_frames, grid)
+        payload, stats = encode_windows(motion, config.window_frames, self._encode_window_with_stats, extents)
+        head = ByteWriter()
+        head.write_varints([_LONG_MARKER, _LONG_VERSION, config.window_frames, grid])
+        payload = head.getvalue() + payload
         self.last_encode_stats = {
             "windows": len(stats),
             "K": stats[0]["K"],
@@ -371,7 +424,7 @@ class PgaIkCodec(Codec):
         num_frames = header.num_frames
         if num_frames <= WINDOW_FRAMES:
             return self._decode_window(header, payload)
-        windows = split_windows(payload, num_frames, WINDOW_FRAMES)  # every extent checked before decoding
+        windows = self._windows(payload, num_frames)  # every extent checked before decoding
         positions = np.empty((num_frames, header.num_joints, 3))
         roots = np.empty((num_frames, 3))
         rotations = np.empty((num_frames, header.num_joints, 4))
@@ -391,6 +444,24 @@ class PgaIkCodec(Codec):
             del part_positions, part, parsed
         motion = Motion(skeleton=skeleton, fps=header.fps, root_positions=roots, rotations=OwnedQuaternions(rotations))
         return positions, motion
+
+    @staticmethod
+    def _windows(payload: memoryview, num_frames: int) -> list[tuple[int, int, memoryview]]:
+        """The windows of a long capture's payload: after the marker, as its header says (:func:`_long_extents`);
+        without it (a stream written before the marker), back-to-back windows of :data:`WINDOW_FRAMES`."""
+        reader = ByteReader(payload)
+        if reader.read_varint("first window length or long-capture marker") != _LONG_MARKER:
+            return split_windows(payload, num_frames, WINDOW_FRAMES)
+        version = reader.read_varint("long-capture layout version")
+        if version != _LONG_VERSION:
+            raise BitstreamError(f"pga-ik: long-capture layout version {version} is not known (this decoder reads "
+                                 f"{_LONG_VERSION}).")
+        window_frames, grid = reader.read_varints(2, "window frames and trajectory grid")
+        if not (2 <= window_frames <= WINDOW_FRAMES + 1 and 1 <= grid <= 1 << 40):
+            raise BitstreamError(f"pga-ik: expected a window of 2..{WINDOW_FRAMES + 1} frames and a grid in "
+                                 f"1..2^40, found {window_frames} and {grid}.")
+        extents = _long_extents(num_frames, int(window_frames), int(grid))
+        return split_windows(payload[reader.offset :], num_frames, int(window_frames), extents)
 
     def _decode_window(self, header: Header, payload: memoryview):
         return self._decode_parsed(header, self._read(header, payload))
@@ -436,11 +507,10 @@ class PgaIkCodec(Codec):
     def describe_payload(self, header: Header, payload: memoryview) -> dict[str, Any]:
         windows = {}
         if header.num_frames > WINDOW_FRAMES:  # a sequence of windows: describe the first
-            reader = ByteReader(payload)
-            size = reader.read_varint("window length")
-            payload = payload[reader.offset : reader.offset + size]
-            windows = {"windows of frames": f"{-(-header.num_frames // WINDOW_FRAMES)} x {WINDOW_FRAMES} (first shown)"}
-            header = Header(header.codec, WINDOW_FRAMES, header.num_joints, header.fps)
+            parts = self._windows(payload, header.num_frames)
+            start, stop, payload = parts[0]
+            windows = {"windows of frames": f"{len(parts)} x {stop - start} (first shown)"}
+            header = Header(header.codec, stop - start, header.num_joints, header.fps)
         parsed = self._read(header, payload)
         model_bits, trajectory_bits, root_dropped, end_dropped = parsed["settings"]
         names = parsed["skeleton"].names

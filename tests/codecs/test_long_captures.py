@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from mocapbench.codecs import container, create
 from mocapbench.codecs.base import BitstreamError
@@ -34,11 +36,57 @@ def test_mcb_linf_codes_a_long_capture_window_by_window_and_keeps_its_bound(monk
         codec.decode(bytes(payload[:-7]))  # truncated: a window runs past the end
 
 
+@settings(max_examples=300, deadline=None)
+@given(st.integers(7681, 2_000_000), st.sampled_from([2, 257, 1025, 1000, 2049, 7681]), st.integers(0, 10))
+def test_pga_ik_windows_of_a_long_capture_end_on_a_kept_trajectory_sample(num_frames, window_frames, dropped):
+    from mocapbench.codecs.pga import _long_extents
+
+    grid = 1 << dropped
+    extents = _long_extents(num_frames, window_frames, grid)
+    assert extents[0][0] == 0 and extents[-1][1] == num_frames
+    assert all(stop - start == window_frames for start, stop in extents[:-1])
+    assert all(a[1] == b[0] for a, b in zip(extents[:-2], extents[1:-1]))  # back to back
+    start, stop = extents[-1]
+    if len(extents) > 1:  # the last one is lengthened backwards, never past the start of the one before
+        assert extents[-2][0] <= start <= extents[-2][1]
+    assert 1 <= stop - start <= window_frames
+    if (window_frames - 1) % grid == 0:  # full windows end on the grid, and so does the last
+        assert (stop - start - 1) % grid == 0
+
+
+def test_pga_ik_codes_each_window_of_a_long_capture_as_a_clip_of_its_own(monkeypatch):
+    from mocapbench.codecs import pga
+    from mocapbench.codecs.windows import split_windows
+
+    motion = sinusoidal_motion(num_frames=600, seed=4)
+    codec = create("pga-ik", root_levels_dropped=2, end_levels_dropped=2, window_frames=257)
+    whole = _error(codec, motion, codec.encode(motion))  # 600 frames: one clip, one pose model
+    monkeypatch.setattr(pga, "WINDOW_FRAMES", 256)
+    stream = codec.encode(motion)
+    header, payload = container.unpack(stream, "pga-ik")
+    assert bytes(payload[:4]) == bytes([0, 1, 0x81, 0x02]) and payload[4] == 4  # marker, version, 257, grid 2^2
+    extents = pga._long_extents(600, 257, 4)
+    assert extents == [(0, 257), (257, 514), (511, 600)]  # the last: 1 + 22 x 4 frames, its end on the grid
+    for start, stop, part in split_windows(payload[5:], 600, 257, extents):
+        assert bytes(part) == codec._encode_window(motion.slice(start, stop))  # the window is that clip's stream
+    windowed = _error(codec, motion, stream)
+    assert windowed.mean() < 0.8 * whole.mean()  # a pose model per window holds its poses better than one for all
+    # A stream written before the marker (back-to-back windows of WINDOW_FRAMES) still decodes.
+    old, _ = pga.encode_windows(motion, pga.WINDOW_FRAMES, lambda part: (codec._encode_window(part), {}))
+    old_error = _error(codec, motion, container.pack("pga-ik", 600, motion.num_joints, motion.fps, old))
+    assert old_error.mean() < 0.8 * whole.mean()
+    for index, value, message in ((1, 7, "layout version 7"), (2, 1, "window of 2..257 frames.*found 1 and 2")):
+        bad = bytearray(payload)
+        bad[index] = value
+        with pytest.raises(BitstreamError, match=message):
+            codec.decode(container.pack("pga-ik", 600, motion.num_joints, motion.fps, bytes(bad)))
+
+
 def test_pga_ik_fits_one_pose_model_per_window(monkeypatch):
     from mocapbench.codecs import pga
 
     motion = sinusoidal_motion(num_frames=600, seed=4)
-    codec = create("pga-ik", num_geodesics=12, root_levels_dropped=0, end_levels_dropped=0)
+    codec = create("pga-ik", num_geodesics=12, root_levels_dropped=0, end_levels_dropped=0, window_frames=257)
     whole = _error(codec, motion, codec.encode(motion)).max()  # 12.2 cm: IK on this seed's poses
     monkeypatch.setattr(pga, "WINDOW_FRAMES", 256)
     stream = codec.encode(motion)
