@@ -12,7 +12,9 @@ drawn in turn from a seeded generator (the same seed gives the same streams):
 * ``random``: 1-16 random bytes replaced, bytes inserted or deleted, a chunk duplicated.
 
 Each decode runs in a worker process (``resource.setrlimit(RLIMIT_AS)`` caps its address space) with a wall-clock
-timeout enforced by the parent (a worker that does not answer is killed and replaced). For every decode the
+kill enforced by the parent (a worker that does not answer within ``kill_s``, 6 x the slow limit and at least
+30 s, is killed and replaced). A decode is *slow* when its CPU time exceeds the slow limit (5 s): wall time on a
+shared, loaded machine says more about the other processes than about the decoder. For every decode the
 worker reports the outcome (decoded, a :class:`BitstreamError` subclass, any other exception, a crash), its wall
 and CPU time, the growth of its peak resident memory over the decode (``/proc/self/clear_refs`` resets the peak)
 and the bytes of the decoded arrays.
@@ -474,7 +476,7 @@ class FuzzResult:
         self.max_excess[name] = max(self.max_excess[name], memory - 2 * result.get("output_bytes", 0))
         bad = (
             outcome.startswith("other:") or outcome in ("timeout", "crash")
-            or result.get("wall_s", 0.0) > slow_s or result.get("output_bytes", 0) > output_limit
+            or result.get("cpu_s", 0.0) > slow_s or result.get("output_bytes", 0) > output_limit
         )
         if bad:
             self.findings.append((name, kind, data, result))
@@ -574,10 +576,19 @@ class Fuzzer:
             worker.close()
 
 
+def kill_seconds(timeout_s: float) -> float:
+    """Wall seconds after which a decode is killed: 6 x the CPU limit ``timeout_s``, at least 30 s."""
+    return max(30.0, 6.0 * timeout_s)
+
+
 def run_campaign(names: list[str], per_codec: int, *, seed: int = 0, workers: int = 2, timeout_s: float = 5.0,
                  memory_bytes: int = 3 << 30, output_bytes: int = FUZZ_OUTPUT_BYTES, progress: bool = False,
-                 ) -> FuzzResult:
-    """Fuzz ``names`` with ``per_codec`` hostile streams each; returns the counts, extremes and findings."""
+                 kill_s: float | None = None) -> FuzzResult:
+    """Fuzz ``names`` with ``per_codec`` hostile streams each; returns the counts, extremes and findings.
+
+    A decode over ``timeout_s`` of CPU is a finding; one that has not answered after ``kill_s`` wall seconds
+    (default :func:`kill_seconds`) is killed and counted as a timeout.
+    """
     streams = seed_streams(names)
     result = FuzzResult()
 
@@ -600,7 +611,7 @@ def run_campaign(names: list[str], per_codec: int, *, seed: int = 0, workers: in
             print(f"fuzz: {done[0]}/{per_codec * len(names)} streams, {rate:.0f}/s, "
                   f"{len(result.findings)} findings", file=sys.stderr, flush=True)
 
-    fuzzer = Fuzzer(workers, memory_bytes, output_bytes, timeout_s)
+    fuzzer = Fuzzer(workers, memory_bytes, output_bytes, kill_seconds(timeout_s) if kill_s is None else kill_s)
     try:
         fuzzer.decode_all(jobs(), on_result)
     finally:
@@ -724,7 +735,8 @@ def _main(argv: list[str] | None = None) -> int:
     parser.add_argument("--codecs", nargs="*", default=None, help="codec names (default: every registered codec)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--workers", type=int, default=2)
-    parser.add_argument("--timeout-s", type=float, default=5.0, help="a decode slower than this is a finding")
+    parser.add_argument("--timeout-s", type=float, default=5.0,
+                        help="a decode over this many CPU seconds is a finding (killed after 6x, >= 30 s, of wall)")
     parser.add_argument("--memory-mb", type=int, default=3072, help="address-space cap of each worker (RLIMIT_AS)")
     parser.add_argument("--output-mb", type=int, default=FUZZ_OUTPUT_BYTES >> 20, help="DecodeLimits.max_output_bytes")
     parser.add_argument("--save-findings", action="store_true", help=f"write findings to {REGRESSION_DIR}")

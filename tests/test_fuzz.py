@@ -56,3 +56,17 @@ def test_bounded_fuzz_campaign_has_no_findings():
     described = [f"{n} [{k}] {r['outcome']} {r.get('wall_s', 0):.2f} s: {r.get('error', '')}" for n, k, _, r in
                  result.findings]
     assert not described, "\n".join(described)
+
+
+def test_a_slow_decode_is_judged_on_cpu_time_not_on_the_wall_clock_of_a_loaded_machine():
+    from mocapbench.fuzz import FuzzResult, kill_seconds
+
+    result = FuzzResult()
+    result.add("raw-zstd", "header", b"a", {"outcome": "decoded", "wall_s": 9.0, "cpu_s": 0.2}, slow_s=5.0,
+               output_limit=1 << 20)
+    assert result.findings == []  # 9 s of wall on a loaded machine, 0.2 s of CPU: not slow
+    result.add("raw-zstd", "header", b"b", {"outcome": "decoded", "wall_s": 6.0, "cpu_s": 5.5}, slow_s=5.0,
+               output_limit=1 << 20)
+    result.add("raw-zstd", "header", b"c", {"outcome": "timeout", "wall_s": 30.0}, slow_s=5.0, output_limit=1 << 20)
+    assert [data for _, _, data, _ in result.findings] == [b"b", b"c"]
+    assert kill_seconds(5.0) == 30.0 and kill_seconds(10.0) == 60.0
