@@ -138,7 +138,7 @@ def headline_table(
         ``dataset, L∞ bound, rank, codec, config, CR, bits/joint/frame, L∞ cm, mean cm, encode frames/s,
         decode frames/s, rotations (BVH/glTF), needs model, model bytes, latency frames, random access, family,
         clips, note``; ranked rows first (rank 1 = highest ratio), then the rows without a rank, whose ``config``
-        cell says why (no config under the bound, failed, unavailable here); ``note`` holds failures of ranked
+        cell says why (no config under the bound, failed, not run on this dataset, unavailable here); ``note`` holds failures of ranked
         codecs' other jobs.
     """
     if unavailable is None:
@@ -149,10 +149,13 @@ def headline_table(
     failures = failure_reasons(errors) if errors is not None else {}
     datasets = sorted(set(points["dataset"]) if not points.empty else set())
     datasets += sorted({d for d, _ in failures if d and d not in datasets})
+    everywhere = set(points["codec"]) if not points.empty else set()
     out = []
     for dataset in datasets:
         ds = points[points["dataset"] == dataset] if not points.empty else points
         measured = sorted(set(ds["codec"])) if not ds.empty else []
+        # Measured on another dataset of this report but not on this one (left out of this dataset's sweep).
+        not_run = sorted(everywhere - set(measured))
         failed_only = sorted({c for (d, c) in failures if d in (dataset, "") and c not in measured})
         for bound in bounds:
             ranked, unranked = [], []
@@ -179,6 +182,10 @@ def headline_table(
             for codec in failed_only:
                 reason = failures.get((dataset, codec)) or failures.get(("", codec), "failed")
                 unranked.append({"codec": codec, **_traits(codec, None), "config": reason})
+            for codec in not_run:
+                if codec not in failed_only:
+                    unranked.append({"codec": codec, **_traits(codec, None),
+                                     "config": "not run on this dataset (left out of its sweep)"})
             for codec, reason in sorted(unavailable.items()):
                 if codec not in measured and codec not in failed_only:
                     unranked.append({"codec": codec, **_traits(codec, None),

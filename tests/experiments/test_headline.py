@@ -46,6 +46,19 @@ def test_codecs_are_ranked_by_ratio_under_each_bound_and_the_rest_keep_a_reason(
     assert one.loc[one["codec"] == "quant-rot-zstd", "latency frames"].item() == "whole clip"
 
 
+def test_a_codec_measured_on_another_dataset_of_the_report_keeps_a_row_where_it_was_not_run():
+    points = pd.concat([POINTS, pd.DataFrame([_point("quant-delta-zstd", 20.0, 0.7, dataset="cmu_test_24fps",
+                                                     family="generic", codes_rotations=False)])])
+    table = headline_table(points, (1.0,), unavailable={})
+    low = table[table["dataset"] == "cmu_test_24fps"]
+    assert list(low["rank"]) == [1, "–", "–", "–"]
+    notes = dict(zip(low["codec"], low["config"]))
+    assert set(notes) == {"quant-delta-zstd", "mcb-linf", "quant-rot-zstd", "svd"}
+    assert notes["mcb-linf"] == "not run on this dataset (left out of its sweep)"
+    full = table[table["dataset"] == "cmu_test"]
+    assert "not run" not in " ".join(full["config"])
+
+
 def test_the_winner_is_stated_with_its_margin_and_the_best_rotation_codec():
     sentences = winner_sentences(headline_table(POINTS, (0.6, 1.0), unavailable={}))
     assert sentences[0].startswith("cmu_test, L∞ < 0.6 cm: mcb-linf wins at 90:1")
