@@ -7,6 +7,8 @@ black stars; a measured ``acl`` codec is plotted like any other. One figure per 
 
     OUT/rd_max_err_cm.png  OUT/rd_mean_err_cm.png  OUT/rd_kg_percent.png  [OUT/rd_shell_max_err_cm.png]
 
+and, when the files cover several datasets, one per metric and dataset (``OUT/rd_max_err_cm_cmu_test.png``, ...).
+
 ``OUT`` (default ``plots``) is created; existing figures in it are not overwritten unless ``--force``.
 """
 
@@ -54,7 +56,11 @@ def run(args) -> None:
     if out.exists() and not out.is_dir():
         raise ValueError(f"{out}: exists and is not a folder")
     out.mkdir(parents=True, exist_ok=True)
-    targets = {metric: out / f"rd_{metric}.png" for metric, _ in plots.DISTORTIONS}
+    frame = frame.assign(codec=_labels(frame))
+    datasets = sorted(set(frame["dataset"]))
+    # One figure per metric and dataset: a codec's curves on two datasets (e.g. 120 and 24 fps) do not compare.
+    targets = {(metric, dataset): out / (f"rd_{metric}.png" if len(datasets) == 1 else f"rd_{metric}_{dataset}.png")
+               for metric, _ in plots.DISTORTIONS for dataset in datasets}
     if not args.force:
         existing = [str(p) for p in targets.values() if p.exists() or p.with_suffix(".svg").exists()]
         if existing:
@@ -64,12 +70,11 @@ def run(args) -> None:
             for target in (path, path.with_suffix(".svg")):
                 if target.is_symlink() or target.is_file():
                     target.unlink()
-    frame = frame.assign(codec=_labels(frame))
-    datasets = ", ".join(sorted(set(frame["dataset"])))
     published = [] if args.no_published else points_for(None)
     written = []
-    for metric, path in targets.items():
-        figure = plots.rd_metric_figure(frame, datasets, metric, path, bounds=(1.0, 3.0), published=published)
+    for (metric, dataset), path in targets.items():
+        figure = plots.rd_metric_figure(frame[frame["dataset"] == dataset], dataset, metric, path, bounds=(1.0, 3.0),
+                                        published=published)
         if figure is not None:
             written.append(figure)
     if not written:

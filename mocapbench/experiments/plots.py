@@ -240,7 +240,10 @@ def rd_metric_figure(points: pd.DataFrame, title: str, metric: str, path: Path,
     if metric not in points or not points[metric].notna().any():
         return None
     label = dict(DISTORTIONS).get(metric, metric)
-    fig, ax = plt.subplots(figsize=(10, 6), layout="constrained")
+    # The legend sits right of the axes, one line per curve: the figure grows with it (an overlay of two runs
+    # of 17 codecs has 34 curves), so the axes never collapse under it.
+    entries = points["codec"].nunique() + bool(published)
+    fig, ax = plt.subplots(figsize=(10, max(6.0, 0.3 * entries + 1.5)), layout="constrained")
     lossless: list[tuple[str, float]] = []
     for codec, group in points.groupby("codec", sort=True):
         family = group["family"].dropna().iloc[0] if "family" in group and group["family"].notna().any() else None

@@ -77,3 +77,21 @@ def test_mocapbench_plot_overlays_two_report_folders(rows, tmp_path, capsys):
     assert cli(["plot", str(tmp_path / "run-a"), "-o", str(out)]) == 2  # never over existing figures
     assert "exists; pass --force" in capsys.readouterr().err
     assert cli(["plot", str(tmp_path / "nothing-here"), "-o", str(out)]) == 2
+
+
+def test_mocapbench_plot_draws_one_figure_per_dataset_and_grows_with_its_legend(rows, tmp_path):
+    import matplotlib.image
+
+    # Two datasets, 20 codec curves per source, two sources: 40 legend lines on each figure.
+    many = pd.concat([rows.assign(dataset=dataset, codec=rows["codec"] + f"-{copy}")
+                      for dataset in ("synthetic", "synthetic_24fps") for copy in range(10)], ignore_index=True)
+    _report(tmp_path / "run-a", many)
+    _report(tmp_path / "run-b", many)
+    out = tmp_path / "plots"
+    assert cli(["plot", str(tmp_path / "run-a"), str(tmp_path / "run-b"), "-o", str(out)]) == 0
+    assert not (out / "rd_max_err_cm.png").exists()
+    for dataset in ("synthetic", "synthetic_24fps"):
+        svg = (out / f"rd_max_err_cm_{dataset}.svg").read_text()
+        assert f"{dataset}: bits/joint/frame" in svg and "quant-delta-zstd-9 [run-b]" in svg
+        height, width = matplotlib.image.imread(out / f"rd_max_err_cm_{dataset}.png").shape[:2]
+        assert height > 0.8 * width  # 40 legend lines: taller than the 10 x 6 in default, the axes keep their size
