@@ -90,7 +90,7 @@ from mocapbench.codecs.registry import register_codec
 from mocapbench.codecs.segments import find_cuts, read_cuts, write_cuts
 from mocapbench.entropy.ans import TOKEN_COUNT, ClassTables, decode_classed, encode_classed, tokenize
 from mocapbench.entropy.backend import zstd_pack_ints, zstd_unpack_ints
-from mocapbench.codecs.windows import encode_windows, split_windows
+from mocapbench.codecs.windows import WINDOW_FRAMES, encode_windows, split_windows
 from mocapbench.entropy.bitio import ByteReader, ByteWriter
 from mocapbench.entropy.errors import BitstreamError
 from mocapbench.entropy.huffman import decode_symbols, encode_symbols
@@ -127,9 +127,6 @@ _MEAN_TARGET_STEPS = tuple(2.0 ** (i / 4) for i in range(0, 41))
 _SAFETY_MARGIN = 1e-6
 
 
-# Frames of a window of a long capture (64 s at 120 fps; a multiple of every usual clip length L): a stream of more
-# frames is a sequence of windows, each coded as a stream of its own (encode_payload), so memory stays bounded.
-WINDOW_FRAMES = 7680
 
 
 _CODING_HUFFMAN, _CODING_ZSTD, _CODING_EMPTY = 0, 1, 2

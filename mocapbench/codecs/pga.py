@@ -78,7 +78,7 @@ from mocapbench.codecs.base import Codec, CodecConfig, Header, param
 from mocapbench.codecs.limits import current_limits, using_limits
 from mocapbench.codecs.registry import register_codec
 from mocapbench.codecs.skeleton_blob import pack_skeleton, unpack_skeleton
-from mocapbench.codecs.windows import encode_windows, split_windows
+from mocapbench.codecs.windows import WINDOW_FRAMES, encode_windows, split_windows
 from mocapbench.entropy.bitio import ByteReader, ByteWriter
 from mocapbench.entropy.errors import BitstreamError
 from mocapbench.entropy.huffman import decode_symbols, encode_symbols
@@ -113,9 +113,6 @@ END_JOINT_NAMES: tuple[tuple[str, ...], ...] = (
 # not ask for more than 20 per frame (1-5 give the same errors on cmu_test); DecodeLimits.max_ik_iterations bounds F x it.
 _MAX_LM_ITERATIONS = 20
 
-# The longest clip coded whole (64 s at 120 fps): a stream of more frames is a sequence of windows of
-# `window_frames` frames, each coded as a stream of its own with its own pose model (encode_payload).
-WINDOW_FRAMES = 7680
 #: Frames per block of the decoder's pose model (:func:`geodesic_poses`): bounds its rotation temporaries.
 _POSE_BLOCK_FRAMES = 1024
 
