@@ -260,3 +260,105 @@ def test_acl_compresses_a_long_capture_as_one_acl_clip_per_window(acl_codec, mon
     hostile = bytes(payload[:skeleton_end]) + edited.getvalue() + bytes(payload[reader.offset :])
     with pytest.raises(BitstreamError):
         codec.decode(container.pack("acl", 1000, motion.num_joints, motion.fps, hostile))
+
+
+def _mcb_rot_windows(monkeypatch, window_frames: int):
+    """The mcb-rot codec module and its window module, with windows of ``window_frames`` frames."""
+    from mocapbench.codecs.mcb_rot import codec as module
+    from mocapbench.codecs.mcb_rot import windowed
+
+    monkeypatch.setattr(windowed, "WINDOW_FRAMES", window_frames)
+    return module, windowed
+
+
+def test_mcb_rot_codes_a_long_capture_window_by_window_within_eps(monkeypatch):
+    from mocapbench.codecs.windows import split_windows
+
+    motion = sinusoidal_motion(num_frames=800, seed=4)
+    short = motion.slice(0, 200)
+    codec = create("mcb-rot", eps_cm=0.5)
+    short_stream, whole = codec.encode(short), codec.encode(motion)
+    module, windowed = _mcb_rot_windows(monkeypatch, 320)  # 800 frames: windows of 320, 320, 160
+    assert codec.encode(short) == short_stream  # up to a window: the bytes it always had
+    assert container.unpack(short_stream, "mcb-rot")[1][0] != windowed.MARKER
+    stream = codec.encode(motion)
+    assert codec.last_encode_stats["windows"] == 3
+    assert codec.last_encode_stats["segments"] == 3 + 3 + 2  # segments of 128 frames restart at every window
+    header, payload = container.unpack(stream, "mcb-rot")
+    assert bytes(payload[:4]) == bytes([windowed.MARKER, windowed.LAYOUT_VERSION, 0xC0, 0x02])  # varint 320
+    parts = split_windows(payload[4:], 800, 320)
+    assert [(first, end) for first, end, _ in parts] == [(0, 320), (320, 640), (640, 800)]
+    assert bytes(parts[-1][2]) == codec._encode_window(motion.slice(640, 800))  # each window is that clip's stream
+    decoded = codec.decode(stream)
+    assert _error(codec, motion, stream).max() <= 0.5  # the guarantee, on every frame of every window
+    assert decoded.motion.num_frames == 800 and np.allclose(decoded.motion.positions(), decoded.positions)
+    # Each window's rate search and entropy classes cost little at this size (+20 % on 400-frame windows of a
+    # 6 KB stream; -0.8 % to +0.8 % with 7,680-frame windows on a 20,000-frame capture).
+    assert len(stream) <= 1.3 * len(whole)
+    assert codec.describe_payload(header, payload)["windows of frames"] == "3 x 320 (first shown)"
+    # A long stream written before windows existed (one payload) still decodes, whatever the window length.
+    assert np.array_equal(codec.decode(whole).positions, create("mcb-rot", eps_cm=0.5).decode(whole).positions)
+    assert _error(codec, motion, whole).max() <= 0.5
+
+
+def test_mcb_rot_random_access_decodes_only_the_windows_holding_the_frames(monkeypatch):
+    motion = sinusoidal_motion(num_frames=1000, seed=5)
+    module, _ = _mcb_rot_windows(monkeypatch, 400)
+    codec = create("mcb-rot", eps_cm=1.0)
+    stream = codec.encode(motion)
+    decoded = codec.decode(stream)
+    for start, stop in ((350, 850), (399, 401), (400, 800), (0, 1000), (999, 1000), (0, 1)):
+        part = codec.decode_frames(stream, start, stop)
+        assert np.array_equal(part.positions, decoded.positions[start:stop]), (start, stop)
+        assert np.array_equal(part.motion.rotations, decoded.motion.rotations[start:stop])
+        assert np.array_equal(part.motion.root_positions, decoded.motion.root_positions[start:stop])
+    calls = []
+    decode_range = module.decode_range
+
+    def spy(info, payload, start, stop):
+        calls.append((info.layout.num_frames, start, stop))
+        return decode_range(info, payload, start, stop)
+
+    monkeypatch.setattr(module, "decode_range", spy)
+    codec.decode_frames(stream, 450, 500)
+    assert calls == [(400, 50, 100)]  # the second window only, frames 50:100 of it
+    calls.clear()
+    codec.decode_frames(stream, 790, 810)
+    assert calls == [(400, 390, 400), (200, 0, 10)]
+    with pytest.raises(ValueError, match="outside"):
+        codec.decode_frames(stream, 990, 1001)
+
+
+def test_mcb_rot_windowed_stream_with_hostile_window_lengths_is_refused(monkeypatch):
+    from mocapbench.codecs.mcb_rot.stream import read_info
+
+    motion = sinusoidal_motion(num_frames=600, seed=1)
+    _, windowed = _mcb_rot_windows(monkeypatch, 256)  # 600 frames: windows of 256, 256, 88
+    codec = create("mcb-rot", eps_cm=1.0)
+    header, payload = container.unpack(codec.encode(motion), "mcb-rot")
+    body = bytes(payload[4:])  # after the marker, the version and the 2-byte varint of 256
+
+    def stream(head: list[int], rest: bytes = body) -> bytes:
+        writer = ByteWriter()
+        writer.write_u8(windowed.MARKER)
+        writer.write_varints(head)
+        return container.pack("mcb-rot", 600, motion.num_joints, motion.fps, writer.getvalue() + rest)
+
+    assert codec.decode(stream([1, 256])).positions.shape == (600, motion.num_joints, 3)  # the unedited stream
+    for head, message in (([2, 256], "window layout version 1, found 2"), ([1, 0], "windows of 1..599 frames.*found 0"),
+                          ([1, 600], "found 600"), ([1, 1], "windows of 1 frames"),
+                          ([1, 128], "windows of 128 frames")):  # 5 windows asked for, the payload holds 3
+        with pytest.raises(BitstreamError, match=message):
+            codec.decode(stream(head))
+    with pytest.raises(BitstreamError, match="600 windows, more than the 10 bytes left"):
+        codec.decode(stream([1, 1], bytes(10)))  # refused before reading 600 window sizes
+    first = ByteReader(body).read_varint("window size")
+    edited = ByteWriter()
+    edited.write_varint(first + 1)  # the first window's size one byte too long: the windows no longer add up
+    rest = edited.getvalue() + body[len(edited.getvalue()) :]
+    with pytest.raises(BitstreamError, match="mcb-rot"):
+        codec.decode(stream([1, 256], rest))
+    with pytest.raises(BitstreamError):
+        codec.decode(stream([1, 256])[:-9])  # truncated
+    with pytest.raises(BitstreamError, match="mcb-rot"):  # the marker is no one-window format
+        read_info(header, memoryview(bytes([windowed.MARKER])))
