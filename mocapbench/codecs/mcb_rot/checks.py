@@ -8,6 +8,8 @@ itself on the decoded :class:`~mocapbench.motion.Motion`.
 
 from __future__ import annotations
 
+from functools import lru_cache
+
 import numpy as np
 
 from mocapbench.codecs.mcb_rot import kinematics
@@ -18,11 +20,23 @@ __all__ = ["PointTargets", "global_quaternions", "tree_levels"]
 
 
 def tree_levels(parents: np.ndarray) -> list[np.ndarray]:
-    """The joints at tree depth 0 (the root), 1, 2, ... of a parent array (J,) (parents before children)."""
+    """The joints at tree depth 0 (the root), 1, 2, ... of a parent array (J,) (parents before children).
+
+    Cached per tree (the closed loop asks for them every round); the arrays returned are shared: do not modify them.
+    """
+    return _levels(np.asarray(parents, dtype=np.int64).tobytes())
+
+
+@lru_cache(maxsize=64)
+def _levels(key: bytes) -> list[np.ndarray]:
+    parents = np.frombuffer(key, dtype=np.int64)
     depth = np.zeros(len(parents), dtype=np.int64)
     for joint in range(1, len(parents)):
         depth[joint] = depth[parents[joint]] + 1
-    return [np.flatnonzero(depth == d) for d in range(int(depth.max(initial=0)) + 1)]
+    levels = [np.flatnonzero(depth == d) for d in range(int(depth.max(initial=0)) + 1)]
+    for level in levels:
+        level.setflags(write=False)
+    return levels
 
 
 def global_quaternions(quats: np.ndarray, parents: np.ndarray) -> np.ndarray:
@@ -54,7 +68,8 @@ class PointTargets:
         """:meth:`errors` and the decoded joint positions (n, J, 3) cm."""
         decoded = kinematics.positions(quats, roots, self.skeleton)
         moved = self.positions[frames] - decoded  # (n, J, 3)
-        squared = np.sum(moved**2, axis=-1)
+        x, y, z = moved[..., 0], moved[..., 1], moved[..., 2]
+        squared = x * x + y * y + z * z
         if self.vertices is not None:
             axes = self.shell_cm * quat.as_matrix(global_quaternions(quats, self.skeleton.parents))
             displacement = self.vertices[frames] - axes + moved[..., :, None]  # (n, J, 3 coords, 3 vertices)

@@ -431,18 +431,21 @@ def _most_helpful(fix, missing, placed, error, quats, relative, root_error, budg
     """
     rel = relative * np.where(relative[..., 3:] < 0, -1.0, 1.0)
     omega = _rotate(global_quaternions(quats, parents), quat.log_map(rel))  # (n, J, 3) world-frame turns
-    rows, joints = np.nonzero(missing)  # the (frame, missing joint) pairs
+    rows, joints = np.nonzero(missing)  # the (frame, missing joint) pairs, rows ascending
     arm = placed[rows, joints][:, None, :] - placed[rows]  # (m, J, 3): p_k - p_a
     shift = _cross(omega[rows], arm)
     miss = error[rows, joints]  # (m, 3)
-    size = np.sqrt(np.sum(miss**2, axis=-1))
-    gain = size[:, None] - np.sqrt(np.sum((miss[:, None, :] - shift) ** 2, axis=-1))  # (m, J)
+    size = quat.norm3(miss)
+    gain = size[:, None] - quat.norm3(miss[:, None, :] - shift)  # (m, J)
     gain = np.where(budgets.movers[joints], gain, -np.inf)
+    # Best over each frame's missing joints: rows are sorted, so one reduceat per run of equal rows.
+    first = np.flatnonzero(np.diff(rows, prepend=-1))
+    frames_missing = rows[first]
     joint_score = np.full(missing.shape, -np.inf)
-    np.maximum.at(joint_score, rows, gain)
-    root_gain = size - np.sqrt(np.sum((miss - root_error[rows]) ** 2, axis=-1))
+    joint_score[frames_missing] = np.maximum.reduceat(gain, first, axis=0)
+    root_gain = size - quat.norm3(miss - root_error[rows])
     root_score = np.full(len(missing), -np.inf)
-    np.maximum.at(root_score, rows, root_gain)
+    root_score[frames_missing] = np.maximum.reduceat(root_gain, first)
     score = np.concatenate([root_score[:, None], joint_score], axis=1)
     score = np.where(fix, np.maximum(score, -1e300), -np.inf)  # a candidate always beats a non-candidate
     out = np.zeros_like(fix)
@@ -494,7 +497,7 @@ def _refine(info: StreamInfo, motion: Motion, roots, quats, points: PointTargets
         moves_missing = (missing.astype(np.float64) @ movers) > 0  # (n, J): joint a moves a missing point
         relative = quat.multiply(quat.conjugate(quats[frames]), true_quats[frames])
         over = quat.angle(relative) > budgets.rotation_rad
-        root_over = np.sqrt(np.sum((true_roots[frames] - roots[frames]) ** 2, axis=-1)) > budgets.root_cm
+        root_over = quat.norm3(true_roots[frames] - roots[frames]) > budgets.root_cm
         fix = np.concatenate([(root_over & missing.any(axis=1))[:, None], moves_missing & over], axis=1)
         fix &= ~corrected[frames]
         stuck = ~fix.any(axis=1)

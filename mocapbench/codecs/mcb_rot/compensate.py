@@ -16,30 +16,47 @@ AC coefficients), quantized as :func:`mocapbench.codecs.mcb_rot.stream.steps_of`
 from __future__ import annotations
 
 import numpy as np
+import scipy  # scipy.fft loads on first use (see mocapbench.lazy_imports)
 
 from mocapbench.codecs.mcb_rot import quaternions as quat
 from mocapbench.codecs.mcb_rot.axes import from_axes, to_axes
 from mocapbench.codecs.mcb_rot.checks import global_quaternions, tree_levels
-from mocapbench.codecs.mcb_rot.segments import forward, inverse
 from mocapbench.codecs.mcb_rot.stream import StreamInfo, steps_of
 
-__all__ = ["quantize", "quantize_compensated"]
+__all__ = ["quantize", "Compensator"]
 
 
-def _quantize_into(info: StreamInfo, spectra, channels, dc, coefficients) -> dict[int, np.ndarray]:
-    """Quantize per-segment spectra (n, len(channels)) into ``dc``/``coefficients`` at ``channels``; returns the
-    dequantized spectra (segment -> (n, len(channels)))."""
+def _quantize_into(info: StreamInfo, signal: np.ndarray, channels: np.ndarray, dc, coefficients,
+                   steps: dict[int, np.ndarray]) -> np.ndarray:
+    """Quantize the signal (F, len(channels)) of ``channels`` segment by segment into ``dc``/``coefficients``;
+    returns the signal rebuilt from the quantized spectra (F, len(channels)), as the decoder will see it.
+
+    The segments of one length go through one DCT, one quantization and one inverse DCT (a batched call each).
+    ``steps``: length -> (n, C) :func:`steps_of` of the attempt.
+    """
+    layout = info.layout
     rounding = info.settings.rounding
-    dequantized = {}
-    for segment, spectrum in enumerate(spectra):
-        steps = steps_of(info, len(spectrum))[:, channels]
-        mean = np.floor(spectrum[0] / steps[0] + 0.5)
-        scaled = spectrum[1:] / steps[1:]
+    rebuilt = np.empty_like(signal)
+    for length, segments in layout.groups.items():
+        index = layout.starts[segments, None] + np.arange(length)  # (S_g, n)
+        spectra = scipy.fft.dct(signal[index], axis=1, norm="ortho")  # (S_g, n, c)
+        step = steps[length][:, channels]  # (n, c)
+        mean = np.floor(spectra[:, 0] / step[0] + 0.5)
+        scaled = spectra[:, 1:] / step[1:]
         ac = np.sign(scaled) * np.floor(np.abs(scaled) + rounding)
-        dc[segment, channels] = mean.astype(np.int64)
-        coefficients[segment][:, channels] = ac.astype(np.int64)
-        dequantized[segment] = np.concatenate([(mean * steps[0])[None], ac * steps[1:]])
-    return dequantized
+        dc[segments[:, None], channels] = mean.astype(np.int64)
+        quantized = ac.astype(np.int64)
+        for i, segment in enumerate(segments.tolist()):
+            coefficients[segment][:, channels] = quantized[i]
+        spectra[:, 0] = mean * step[0]
+        np.multiply(ac, step[1:], out=spectra[:, 1:])
+        rebuilt[index] = scipy.fft.idct(spectra, axis=1, norm="ortho", overwrite_x=True)
+    return rebuilt
+
+
+def _steps(info: StreamInfo) -> dict[int, np.ndarray]:
+    """length -> (n, C) quantization steps of the segments of that length."""
+    return {length: steps_of(info, length) for length in info.layout.groups}
 
 
 def _empty(info: StreamInfo) -> tuple[np.ndarray, dict[int, np.ndarray]]:
@@ -52,7 +69,13 @@ def _empty(info: StreamInfo) -> tuple[np.ndarray, dict[int, np.ndarray]]:
 def quantize(info: StreamInfo, spectra) -> tuple[np.ndarray, dict[int, np.ndarray]]:
     """Every channel quantized independently from its spectra (segment-ordered list of (n, C))."""
     dc, coefficients = _empty(info)
-    _quantize_into(info, spectra, np.arange(info.channels), dc, coefficients)
+    steps = _steps(info)
+    rounding = info.settings.rounding
+    for segment, spectrum in enumerate(spectra):
+        step = steps[len(spectrum)]
+        dc[segment] = np.floor(spectrum[0] / step[0] + 0.5).astype(np.int64)
+        scaled = spectrum[1:] / step[1:]
+        coefficients[segment][...] = (np.sign(scaled) * np.floor(np.abs(scaled) + rounding)).astype(np.int64)
     return dc, coefficients
 
 
@@ -98,8 +121,8 @@ class Compensator:
 
     def quantize(self, info: StreamInfo) -> tuple[np.ndarray, dict[int, np.ndarray]]:
         """The base layer, joints level by level down the tree, each coding its compensated target."""
-        layout = info.layout
         dc, coefficients = _empty(info)
+        steps = _steps(info)
         axes = info.axes
         decoded = np.empty_like(self.globals)  # decoded global rotations, filled level by level
         for level, joints in enumerate(self.levels):
@@ -113,9 +136,7 @@ class Compensator:
             if level == 0:
                 channels = np.concatenate([np.arange(3), channels])
                 signal = np.concatenate([self.roots, signal], axis=1)
-            dequantized = _quantize_into(info, forward(signal, layout), channels, dc, coefficients)
-            # Each segment's signal (n, c) back from its spectrum (the DCT runs along the last axis).
-            rebuilt = np.concatenate([inverse(dequantized[s].T).T for s in range(layout.num_segments)])
+            rebuilt = _quantize_into(info, signal, channels, dc, coefficients, steps)
             if level == 0:
                 rebuilt = rebuilt[:, 3:]
             local = self._rotations(info, from_axes(rebuilt.reshape(-1, len(joints), 3), axes[joints]), joints)

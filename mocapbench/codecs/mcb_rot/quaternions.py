@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["multiply", "conjugate", "exp_map", "log_map", "angle", "sign_continuous", "as_matrix", "from_matrix"]
+__all__ = ["multiply", "conjugate", "norm3", "exp_map", "log_map", "angle", "sign_continuous", "as_matrix", "from_matrix"]
 
 
 def multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -32,9 +32,16 @@ def conjugate(q: np.ndarray) -> np.ndarray:
     return q * np.array([-1.0, -1.0, -1.0, 1.0])
 
 
+def norm3(v: np.ndarray) -> np.ndarray:
+    """Euclidean norms (...) of vectors (..., 3), summed x + y + z as ``np.sum`` does (same bits, several times
+    faster: numpy reductions over a trailing axis of 3 pay a loop setup per vector)."""
+    x, y, z = v[..., 0], v[..., 1], v[..., 2]
+    return np.sqrt(x * x + y * y + z * z)
+
+
 def exp_map(rotvec: np.ndarray) -> np.ndarray:
     """Unit quaternions (..., 4) of rotation vectors (..., 3) in radians (any length: the map is 4 pi periodic)."""
-    angle_ = np.sqrt(np.sum(rotvec * rotvec, axis=-1))
+    angle_ = norm3(rotvec)
     half = 0.5 * angle_
     small = angle_ < 1e-6
     # sin(theta/2)/theta, with its Taylor series near 0 (exact to float precision below 1e-6 rad).
@@ -50,7 +57,7 @@ def log_map(q: np.ndarray) -> np.ndarray:
     transform along time needs. Call it on ``q * sign(w)`` for the usual angle in [0, pi].
     """
     vector = q[..., :3]
-    norm = np.sqrt(np.sum(vector * vector, axis=-1))
+    norm = norm3(vector)
     angle_ = 2.0 * np.arctan2(norm, q[..., 3])
     small = norm < 1e-9
     scale = np.where(small, 2.0 / np.where(small, q[..., 3], 1.0), angle_ / np.where(small, 1.0, norm))
@@ -59,7 +66,7 @@ def log_map(q: np.ndarray) -> np.ndarray:
 
 def angle(q: np.ndarray) -> np.ndarray:
     """Rotation angle in [0, pi] (radians) of quaternions (..., 4)."""
-    norm = np.sqrt(np.sum(q[..., :3] ** 2, axis=-1))
+    norm = norm3(q)
     return 2.0 * np.arctan2(norm, np.abs(q[..., 3]))
 
 
