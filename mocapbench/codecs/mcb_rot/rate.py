@@ -1,0 +1,102 @@
+"""The size of an ``mcb-rot`` payload estimated without entropy coding it: what the rate search compares.
+
+The rate search (``codec._search``) tries several step multipliers per stream and keeps the smallest stream. Writing
+each attempt's payload (choosing the entropy classes of the whole stream, then ANS coding every chunk) was a sixth
+of the encoding time at 120 fps and a fifth at 24 fps; the search only needs to *rank* the attempts, so it ranks them
+by this estimate and writes the winner alone.
+
+The estimate is the ideal code length of what :func:`mocapbench.codecs.mcb_rot.stream.write_payload` codes, in bytes:
+
+* AC coefficients (the dominant part): those up to each channel's last nonzero one, as the stream codes them, each
+  (channel, band) cell under the class (token distribution of :mod:`.classes`) that codes it best, plus their raw
+  bits (escape low bits and signs). The stream's classes are separable (a channel scale plus a band tilt, fitted
+  by coordinate descent), so the stream costs a little more than this per-cell optimum, by a similar share in every
+  attempt of one stream;
+* segment means (as differences along the segments), significance counts (as differences along each chunk),
+  correction gaps and correction values: each stream under its best single class, plus raw bits.
+
+Header bytes common to all attempts of a stream (skeleton, cuts, axes, class bytes) are left out: the estimate
+compares attempts of one stream, it is not a stream size. ``tests/codecs/test_mcb_rot_rate.py`` checks that it
+ranks attempts as their real sizes do.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from mocapbench.codecs.mcb_rot import classes as model
+from mocapbench.codecs.mcb_rot.stream import StreamInfo
+from mocapbench.entropy.ans import TOKEN_COUNT, tokenize
+
+__all__ = ["estimate_bytes"]
+
+_NEAREST = 0.5  # rounding of the tables every side stream is coded with
+
+
+def _raw_bits(values: np.ndarray) -> float:
+    """Bits sent raw for int64 ``values``: escape low bits and one sign bit per nonzero value."""
+    _, _, widths = tokenize(values)
+    return float(widths.sum() + np.count_nonzero(values))
+
+
+def _single_class_bits(values: np.ndarray) -> float:
+    """Ideal bits of ``values`` under the one side class that codes them best, raw bits included."""
+    if values.size == 0:
+        return 0.0
+    tokens, _, widths = tokenize(values)
+    histogram = np.bincount(tokens, minlength=TOKEN_COUNT).astype(np.float64)
+    tokens_bits = float(np.min(-(model.tables(_NEAREST).log2_probabilities @ histogram)))
+    return tokens_bits + float(widths.sum() + np.count_nonzero(values))
+
+
+def _ac_bits(info: StreamInfo, coefficients: dict[int, np.ndarray]) -> tuple[float, dict[int, np.ndarray]]:
+    """Ideal bits of the coded AC coefficients, each (channel, band) cell under its best class, and the
+    significance counts (segment -> (C,)) the stream writes."""
+    layout, settings = info.layout, info.settings
+    channels = info.channels
+    log2p = model.tables(settings.rounding).log2_probabilities  # (K, T)
+    histogram = np.zeros((channels * model.NUM_BANDS, TOKEN_COUNT))
+    counts: dict[int, np.ndarray] = {}
+    raw = 0.0
+    for length, segments in layout.groups.items():
+        if length < 2:
+            for segment in segments.tolist():
+                counts[segment] = np.zeros(channels, dtype=np.int64)
+            continue
+        stacked = np.stack([coefficients[segment] for segment in segments.tolist()])  # (S_g, n - 1, C)
+        nonzero = stacked != 0
+        last = np.where(nonzero.any(axis=1), length - 1 - np.argmax(nonzero[:, ::-1], axis=1), 0)  # (S_g, C)
+        for i, segment in enumerate(segments.tolist()):
+            counts[segment] = last[i]
+        coded = np.arange(length - 1)[None, :, None] < last[:, None, :]  # (S_g, n - 1, C)
+        values = stacked[coded]
+        bands = model.band_of(np.arange(1, length), length, settings.segment_frames)  # (n - 1,)
+        cells = np.broadcast_to(np.arange(channels)[None, None, :] * model.NUM_BANDS + bands[None, :, None],
+                                stacked.shape)[coded]
+        tokens, _, widths = tokenize(values)
+        histogram += np.bincount(cells * TOKEN_COUNT + tokens,
+                                 minlength=histogram.size).reshape(histogram.shape)
+        raw += float(widths.sum() + np.count_nonzero(values))
+    cost = histogram @ -log2p.T  # (cells, K)
+    return float(cost.min(axis=1).sum()) + raw, counts
+
+
+def estimate_bytes(info: StreamInfo, coefficients: dict[int, np.ndarray], corrections) -> float:
+    """Estimated payload bytes (less the header common to every attempt) of a stream whose ``info.dc`` is set,
+    with AC coefficients ``coefficients`` (segment -> (n - 1, C) int) and ``corrections`` (flat indices (N,),
+    values (N, 3)), as :func:`~mocapbench.codecs.mcb_rot.stream.write_payload` would write it."""
+    layout = info.layout
+    bits, counts = _ac_bits(info, coefficients)
+    bits += _single_class_bits(np.diff(info.dc, axis=0, prepend=0).ravel())
+    count_diffs = [np.diff(np.stack([counts[int(s)] for s in layout.chunk_segments(chunk)]), axis=0, prepend=0)
+                   for chunk in range(layout.num_chunks)]
+    bits += _single_class_bits(np.concatenate(count_diffs).ravel())
+    flat, values = corrections
+    slots = len(info.correction_steps)
+    chunk_first = layout.starts[layout.chunk_starts[:-1]] * slots
+    chunk_of = np.searchsorted(chunk_first, flat, side="right") - 1
+    within = flat - chunk_first[chunk_of]  # each chunk codes its gaps from its own first slot
+    first_of_chunk = np.diff(chunk_of, prepend=-1) != 0
+    gaps = within - np.where(first_of_chunk, -1, np.concatenate([[-1], within[:-1]])) - 1
+    bits += _single_class_bits(gaps) + _single_class_bits(np.asarray(values).ravel())
+    return bits / 8.0
