@@ -56,7 +56,7 @@ def test_pga_ik_windows_of_a_long_capture_end_on_a_kept_trajectory_sample(num_fr
 
 def test_pga_ik_codes_each_window_of_a_long_capture_as_a_clip_of_its_own(monkeypatch):
     from mocapbench.codecs import pga
-    from mocapbench.codecs.windows import split_windows
+    from mocapbench.codecs.windows import encode_windows, split_windows
 
     motion = sinusoidal_motion(num_frames=600, seed=4)
     codec = create("pga-ik", root_levels_dropped=2, end_levels_dropped=2, window_frames=257)
@@ -72,7 +72,7 @@ def test_pga_ik_codes_each_window_of_a_long_capture_as_a_clip_of_its_own(monkeyp
     windowed = _error(codec, motion, stream)
     assert windowed.mean() < 0.8 * whole.mean()  # a pose model per window holds its poses better than one for all
     # A stream written before the marker (back-to-back windows of WINDOW_FRAMES) still decodes.
-    old, _ = pga.encode_windows(motion, pga.WINDOW_FRAMES, lambda part: (codec._encode_window(part), {}))
+    old, _ = encode_windows(motion, pga.WINDOW_FRAMES, lambda part: (codec._encode_window(part), {}))
     old_error = _error(codec, motion, container.pack("pga-ik", 600, motion.num_joints, motion.fps, old))
     assert old_error.mean() < 0.8 * whole.mean()
     for index, value, message in ((1, 7, "layout version 7"), (2, 1, "window of 2..257 frames.*found 1 and 2")):
