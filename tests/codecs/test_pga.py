@@ -174,3 +174,59 @@ def test_cmu_09_06_lossless_trajectories_and_paper_setting(cmu_09_06):
     data = paper.encode(motion)
     assert paper.last_encode_stats["paper_compression_ratio"] == pytest.approx(13113 / 735)
     assert metrics.raw_position_bytes(31, 141) / len(data) > 15
+
+
+# -- long captures: the encoder's closed loop --------------------------------------------------------------------
+def _capture_with_one_rare_window(window: int, windows: int):
+    """A synthetic capture of ``windows`` windows in which the sixth alone has hands, feet, toes and head turning
+    fast and independently (80 frames): poses the window's few geodesics hold badly, as in a rare movement."""
+    from mocapbench.motion import Motion
+
+    motion = sinusoidal_motion(num_frames=window * windows, seed=4)
+    rotations = np.array(motion.rotations)
+    rare = slice(5 * window + 20, 5 * window + 100)
+    time_s = np.arange(80) / motion.fps
+    envelope = np.sin(np.pi * time_s / time_s[-1]) ** 2
+    rng = np.random.default_rng(0)
+    for joint, name in enumerate(motion.skeleton.names):
+        if name in ("LeftFoot", "RightFoot", "LeftHand", "RightHand", "Head", "LeftToeBase", "RightToeBase"):
+            hz, phase = rng.uniform(1.0, 4.0, 3), rng.uniform(0.0, 2 * np.pi, 3)
+            turn = Rotation.from_rotvec(0.8 * envelope[:, None] * np.sin(2 * np.pi * hz * time_s[:, None] + phase))
+            rotations[rare, joint] = (Rotation.from_quat(rotations[rare, joint]) * turn).as_quat()
+    return Motion(motion.skeleton, motion.fps, motion.root_positions, rotations)
+
+
+def test_closed_loop_recodes_the_window_of_a_rare_pose_and_no_other(monkeypatch):
+    from mocapbench.codecs import pga
+
+    window, windows = 129, 8
+    motion = _capture_with_one_rare_window(window, windows)
+    monkeypatch.setattr(pga, "WINDOW_FRAMES", 256)  # 1,032 frames count as a long capture
+    params = dict(num_geodesics=6, root_levels_dropped=2, end_levels_dropped=2, window_frames=window)
+    open_loop, closed_loop = create("pga-ik", **params, refine_ratio=0.0), create("pga-ik", **params)
+    assert closed_loop.config.refine_ratio == 1.5  # on by default
+    plain, refined = open_loop.encode(motion), closed_loop.encode(motion)
+    stats = closed_loop.last_encode_stats
+    before = np.linalg.norm(open_loop.decode(plain).positions - motion.positions(), axis=-1)
+    after = np.linalg.norm(closed_loop.decode(refined).positions - motion.positions(), axis=-1)
+    per_window = [(before[s : s + window].max(), after[s : s + window].max()) for s in range(0, len(before), window)]
+    typical = np.median([b for b, _ in per_window])
+    assert per_window[5][0] > 5 * typical  # the rare window blows up without the loop (22 cm against 1.3)
+    assert per_window[5][1] < 0.75 * per_window[5][0]  # the loop lowers it (to 14 cm)
+    for index, (b, a) in enumerate(per_window):
+        if index != 5:
+            assert a == b  # every other window keeps its stream
+    assert stats["refined_windows"] == 1 and stats["window_linf_max_cm"] == pytest.approx(after.max(), rel=1e-6)
+    assert len(plain) < len(refined) < 1.15 * len(plain)  # one window's extra geodesics / samples
+    # The refined window's stream says what it holds: more geodesics or fewer dropped end-joint levels.
+    header, payload = container.unpack(refined, "pga-ik")
+    extents = pga._long_extents(motion.num_frames, window, 4)
+    start, stop, part = pga.split_windows(payload[5:], motion.num_frames, window, extents)[5]
+    info = closed_loop.describe_payload(pga.Header("pga-ik", stop - start, motion.num_joints, motion.fps), part)
+    assert info["num_geodesics"] > 6 or info["end_levels_dropped"] < 2
+
+
+def test_refine_ratio_is_off_or_at_least_one():
+    with pytest.raises(ValueError, match="refine_ratio must be 0 .off. or >= 1"):
+        create("pga-ik", refine_ratio=0.5)
+    assert create("pga-ik", refine_ratio=0).config.refine_ratio == 0.0
