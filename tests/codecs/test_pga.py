@@ -230,3 +230,22 @@ def test_refine_ratio_is_off_or_at_least_one():
     with pytest.raises(ValueError, match="refine_ratio must be 0 .off. or >= 1"):
         create("pga-ik", refine_ratio=0.5)
     assert create("pga-ik", refine_ratio=0).config.refine_ratio == 0.0
+
+
+def test_joined_takes_continue_the_root_and_play_back_and_forth_and_window_linf_counts_each_frame_once():
+    from mocapbench.benchmarks.pga_long import joined_takes, synthetic_capture, window_linf
+
+    takes = [sinusoidal_motion(num_frames=n, seed=s) for n, s in ((5, 1), (7, 2))]
+    motion, cuts = joined_takes(takes, 30)
+    roots = np.asarray(motion.root_positions)
+    assert motion.num_frames == 30 and list(cuts) == [5, 18, 27]  # passes of 12 frames: forwards, back, forwards
+    # The second take starts where the first ended (x, z), at its own height; backwards retraces the same path.
+    np.testing.assert_allclose(roots[5, [0, 2]], roots[4, [0, 2]])
+    np.testing.assert_allclose(roots[12:23], roots[10::-1])
+    np.testing.assert_allclose(np.asarray(motion.rotations)[12:23], np.asarray(motion.rotations)[10::-1])
+    assert synthetic_capture(40).num_frames == 40
+    error = np.zeros(7700)
+    error[7699], error[7000] = 5.0, 9.0  # 7,700 frames: windows of 1,025, the last lengthened backwards over 7,175
+    worst = window_linf(error, 1025, 16)
+    assert len(worst) == 8 and worst[6] == 9.0 and worst[7] == 5.0  # frame 7,000 counts for window 6 only
+    assert list(window_linf(error[:7680], 1025, 16)) == [9.0]  # a clip up to 7,680 frames is one window
