@@ -1,12 +1,14 @@
-"""mcb-rot's rate estimate (what the rate search ranks attempts by) ranks them as their real payload sizes do."""
+"""mcb-rot's rate search: its estimate ranks attempts as their real payload sizes do, and its walk finds the minimum."""
 
 from __future__ import annotations
+
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
 from mocapbench.codecs import create
-from mocapbench.codecs.mcb_rot.codec import _SEARCH_GRID
+from mocapbench.codecs.mcb_rot.codec import _SEARCH_GRID, _SEARCH_START, _search
 from mocapbench.synthetic import sinusoidal_motion
 
 
@@ -50,3 +52,46 @@ def test_estimate_counts_the_corrections():
     plain.encode(motion)
     assert plain.last_encode_stats["corrections"] > coarse.last_encode_stats["corrections"] > 0
     assert plain.last_encode_stats["estimated_bytes"] > coarse.last_encode_stats["estimated_bytes"]
+
+
+class _FakeAttempts:
+    """Attempts with given sizes per grid index (sloped) and per index (flat), recording what was asked."""
+
+    def __init__(self, sloped, flat, share):
+        self.sloped, self.flat, self.share, self.asked = sloped, flat, share, []
+
+    def __call__(self, multiplier, slope=None, budget=np.inf):
+        index = _SEARCH_GRID.index(multiplier)
+        self.asked.append((index, slope))
+        size = float((self.flat if slope == 0.0 else self.sloped)[index])
+        if size > budget:
+            size = np.inf  # given up, as the encoder does over budget
+        return SimpleNamespace(size=size, base=(1.0 - self.share) * size, multiplier=multiplier)
+
+
+@pytest.mark.parametrize("best", range(len(_SEARCH_GRID)))
+@pytest.mark.parametrize("share", [0.02, 0.5])
+def test_search_finds_the_minimum_of_a_unimodal_size_whichever_way_it_walks_first(best, share):
+    sloped = [1000.0 + 10.0 * (i - best) ** 2 for i in range(len(_SEARCH_GRID))]
+    flat = [size + 50.0 for size in sloped]  # flat never wins here
+    fake = _FakeAttempts(sloped, flat, share)
+    chosen = _search(fake, flat_too=True)
+    assert chosen.size == min(sloped)
+    assert _SEARCH_GRID.index(chosen.multiplier) == best
+    sloped_asked = [index for index, slope in fake.asked if slope is None]
+    assert len(sloped_asked) == len(set(sloped_asked))  # no attempt twice
+    assert len(sloped_asked) <= abs(best - _SEARCH_START) + 3
+
+
+def test_search_walks_finer_first_when_corrections_dominate_and_takes_a_winning_flat_step():
+    best = _SEARCH_START - 1
+    sloped = [1000.0 + 10.0 * (i - best) ** 2 for i in range(len(_SEARCH_GRID))]
+    flat = [size - 20.0 if i == best + 1 else size + 100.0 for i, size in enumerate(sloped)]
+    fake = _FakeAttempts(sloped, flat, share=0.5)
+    chosen = _search(fake, flat_too=True)
+    # start, one finer (wins), one finer still (loses): the coarser side is never tried.
+    assert [index for index, slope in fake.asked if slope is None] == [_SEARCH_START, best, best - 1]
+    assert chosen.size == flat[best + 1]
+    coarse = _FakeAttempts(sloped, flat, share=0.02)
+    _search(coarse, flat_too=True)
+    assert len(coarse.asked) == len(fake.asked) + 1  # the coarse-first walk pays one attempt more

@@ -28,7 +28,7 @@ from mocapbench.codecs.mcb_rot import classes as model
 from mocapbench.codecs.mcb_rot.stream import StreamInfo
 from mocapbench.entropy.ans import TOKEN_COUNT, tokenize
 
-__all__ = ["estimate_bytes"]
+__all__ = ["base_bytes", "corrections_bytes", "estimate_bytes"]
 
 _NEAREST = 0.5  # rounding of the tables every side stream is coded with
 
@@ -81,22 +81,33 @@ def _ac_bits(info: StreamInfo, coefficients: dict[int, np.ndarray]) -> tuple[flo
     return float(cost.min(axis=1).sum()) + raw, counts
 
 
-def estimate_bytes(info: StreamInfo, coefficients: dict[int, np.ndarray], corrections) -> float:
-    """Estimated payload bytes (less the header common to every attempt) of a stream whose ``info.dc`` is set,
-    with AC coefficients ``coefficients`` (segment -> (n - 1, C) int) and ``corrections`` (flat indices (N,),
-    values (N, 3)), as :func:`~mocapbench.codecs.mcb_rot.stream.write_payload` would write it."""
+def base_bytes(info: StreamInfo, coefficients: dict[int, np.ndarray]) -> float:
+    """Estimated bytes of the base layer of a stream whose ``info.dc`` is set, with AC coefficients
+    ``coefficients`` (segment -> (n - 1, C) int): AC coefficients, segment means and significance counts."""
     layout = info.layout
     bits, counts = _ac_bits(info, coefficients)
     bits += _single_class_bits(np.diff(info.dc, axis=0, prepend=0).ravel())
     count_diffs = [np.diff(np.stack([counts[int(s)] for s in layout.chunk_segments(chunk)]), axis=0, prepend=0)
                    for chunk in range(layout.num_chunks)]
-    bits += _single_class_bits(np.concatenate(count_diffs).ravel())
-    flat, values = corrections
+    return (bits + _single_class_bits(np.concatenate(count_diffs).ravel())) / 8.0
+
+
+def corrections_bytes(info: StreamInfo, flat: np.ndarray, values: np.ndarray) -> float:
+    """Estimated bytes of corrections at sorted ``flat`` indices (N,) with ``values`` (N, 3): each chunk codes the
+    gaps between its corrected slots and their values."""
+    layout = info.layout
     slots = len(info.correction_steps)
     chunk_first = layout.starts[layout.chunk_starts[:-1]] * slots
     chunk_of = np.searchsorted(chunk_first, flat, side="right") - 1
     within = flat - chunk_first[chunk_of]  # each chunk codes its gaps from its own first slot
     first_of_chunk = np.diff(chunk_of, prepend=-1) != 0
     gaps = within - np.where(first_of_chunk, -1, np.concatenate([[-1], within[:-1]])) - 1
-    bits += _single_class_bits(gaps) + _single_class_bits(np.asarray(values).ravel())
-    return bits / 8.0
+    return (_single_class_bits(gaps) + _single_class_bits(np.asarray(values).ravel())) / 8.0
+
+
+def estimate_bytes(info: StreamInfo, coefficients: dict[int, np.ndarray], corrections) -> float:
+    """Estimated payload bytes (less the header common to every attempt) of a stream whose ``info.dc`` is set,
+    with AC coefficients ``coefficients`` (segment -> (n - 1, C) int) and ``corrections`` (flat indices (N,),
+    values (N, 3)), as :func:`~mocapbench.codecs.mcb_rot.stream.write_payload` would write it: the sum of
+    :func:`base_bytes` and :func:`corrections_bytes`."""
+    return base_bytes(info, coefficients) + corrections_bytes(info, *corrections)
