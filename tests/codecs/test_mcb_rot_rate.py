@@ -95,3 +95,19 @@ def test_search_walks_finer_first_when_corrections_dominate_and_takes_a_winning_
     coarse = _FakeAttempts(sloped, flat, share=0.02)
     _search(coarse, flat_too=True)
     assert len(coarse.asked) == len(fake.asked) + 1  # the coarse-first walk pays one attempt more
+
+
+def test_closed_loop_kinematics_match_the_decoders():
+    """The encoder's forward kinematics (positions and global rotations) agree with the decoder's and scipy's."""
+    from scipy.spatial.transform import Rotation
+
+    from mocapbench.codecs.mcb_rot.checks import forward_kinematics
+    from mocapbench.codecs.mcb_rot.kinematics import positions
+
+    motion = sinusoidal_motion(num_frames=40, seed=2, amplitude_deg=60.0, max_frequency_hz=5.0)
+    placed, glob = forward_kinematics(motion.rotations, motion.root_positions, motion.skeleton)
+    np.testing.assert_allclose(placed, positions(motion.rotations, motion.root_positions, motion.skeleton), atol=1e-9)
+    np.testing.assert_allclose(placed, motion.positions(), atol=1e-9)
+    matrices, _ = motion.global_transforms()
+    np.testing.assert_allclose(Rotation.from_quat(glob.reshape(-1, 4)).as_matrix(), matrices.reshape(-1, 3, 3),
+                               atol=1e-12)

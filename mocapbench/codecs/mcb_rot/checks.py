@@ -12,11 +12,10 @@ from functools import lru_cache
 
 import numpy as np
 
-from mocapbench.codecs.mcb_rot import kinematics
 from mocapbench.codecs.mcb_rot import quaternions as quat
 from mocapbench.motion import Skeleton
 
-__all__ = ["PointTargets", "global_quaternions", "tree_levels"]
+__all__ = ["PointTargets", "forward_kinematics", "global_quaternions", "tree_levels"]
 
 
 def tree_levels(parents: np.ndarray) -> list[np.ndarray]:
@@ -47,6 +46,26 @@ def global_quaternions(quats: np.ndarray, parents: np.ndarray) -> np.ndarray:
     return glob
 
 
+def forward_kinematics(quats: np.ndarray, roots: np.ndarray, skeleton: Skeleton) -> tuple[np.ndarray, np.ndarray]:
+    """Joint positions (n, J, 3) cm and global rotations (n, J, 4) of local rotations ``quats`` (n, J, 4) and root
+    positions ``roots`` (n, 3) cm, one tree depth at a time.
+
+    The closed loop's forward kinematics: it needs the global rotations too (to score corrections and for the
+    shell), which the decoder's :func:`.kinematics.positions` does not keep. Equal to it up to float rounding
+    (~1e-13 cm), far inside the encoder's safety margin; the encoder's final check decodes with the decoder's.
+    """
+    parents, offsets = skeleton.parents, skeleton.offsets
+    glob = np.empty(quats.shape)
+    positions = np.empty(quats.shape[:-1] + (3,))
+    glob[:, 0] = quats[:, 0]
+    positions[:, 0] = roots
+    for joints in tree_levels(parents)[1:]:
+        above = glob[:, parents[joints]]
+        positions[:, joints] = positions[:, parents[joints]] + quat.rotate(above, offsets[joints])
+        glob[:, joints] = quat.multiply(above, quats[:, joints])
+    return positions, glob
+
+
 class PointTargets:
     """The original motion's checked points: joint positions (F, J, 3) cm and, with a shell of ``shell_cm`` > 0,
     its vertices' offsets from their joints, ``d R e_i`` as (F, J, 3, 3) (column i: vertex i)."""
@@ -64,14 +83,14 @@ class PointTargets:
         position error, or with a shell the larger of it and its vertices' errors."""
         return self.evaluate(frames, quats, roots)[0]
 
-    def evaluate(self, frames: np.ndarray, quats: np.ndarray, roots: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """:meth:`errors` and the decoded joint positions (n, J, 3) cm."""
-        decoded = kinematics.positions(quats, roots, self.skeleton)
+    def evaluate(self, frames: np.ndarray, quats: np.ndarray, roots: np.ndarray) -> tuple[np.ndarray, ...]:
+        """:meth:`errors`, the decoded joint positions (n, J, 3) cm and global rotations (n, J, 4)."""
+        decoded, glob = forward_kinematics(quats, roots, self.skeleton)
         moved = self.positions[frames] - decoded  # (n, J, 3)
         x, y, z = moved[..., 0], moved[..., 1], moved[..., 2]
         squared = x * x + y * y + z * z
         if self.vertices is not None:
-            axes = self.shell_cm * quat.as_matrix(global_quaternions(quats, self.skeleton.parents))
+            axes = self.shell_cm * quat.as_matrix(glob)
             displacement = self.vertices[frames] - axes + moved[..., :, None]  # (n, J, 3 coords, 3 vertices)
             squared = np.maximum(squared, np.sum(displacement**2, axis=-2).max(axis=-1))
-        return np.sqrt(squared), decoded
+        return np.sqrt(squared), decoded, glob

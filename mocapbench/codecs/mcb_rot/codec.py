@@ -73,7 +73,7 @@ from mocapbench.codecs.mcb_rot.decoder import decode_range
 from mocapbench.codecs.mcb_rot import quaternions as quat
 from mocapbench.codecs.mcb_rot.axes import axes_from_codes, principal_axes, to_axes
 from mocapbench.codecs.mcb_rot.budgets import joint_budgets, offset_discrepancy_cm
-from mocapbench.codecs.mcb_rot.checks import PointTargets, global_quaternions
+from mocapbench.codecs.mcb_rot.checks import PointTargets
 from mocapbench.codecs.mcb_rot.compensate import Compensator, quantize
 from mocapbench.codecs.mcb_rot.rate import base_bytes, corrections_bytes
 from mocapbench.codecs.mcb_rot.classes import NUM_BANDS
@@ -477,19 +477,20 @@ class _Encoder:
         return write_payload(chosen.info, self.skeleton_blob, chosen.coefficients, chosen.corrections)
 
 
-def _most_helpful(fix, missing, placed, error, quats, relative, root_error, budgets, parents) -> np.ndarray:
+def _most_helpful(fix, missing, placed, error, glob, relative, root_error, budgets) -> np.ndarray:
     """``fix`` (n, J + 1) reduced to one slot per row: the candidate whose full correction most reduces a missing
     joint's error (to first order: joint a's correction turns its subtree about ``p_a`` by its rotation error, seen
     in the world frame; the root's moves every joint by its translation error).
 
-    ``placed`` (n, J, 3) decoded positions, ``error`` (n, J, 3) original minus decoded positions, ``quats`` (n, J, 4)
-    decoded local rotations, ``relative`` (n, J, 4) their errors ``conj(decoded) original``, ``root_error`` (n, 3).
+    ``placed`` (n, J, 3) decoded positions, ``error`` (n, J, 3) original minus decoded positions, ``glob`` (n, J, 4)
+    decoded global rotations, ``relative`` (n, J, 4) the local rotation errors ``conj(decoded) original``,
+    ``root_error`` (n, 3).
     """
     rel = relative * np.where(relative[..., 3:] < 0, -1.0, 1.0)
-    omega = _rotate(global_quaternions(quats, parents), quat.log_map(rel))  # (n, J, 3) world-frame turns
+    omega = quat.rotate(glob, quat.log_map(rel))  # (n, J, 3) world-frame turns
     rows, joints = np.nonzero(missing)  # the (frame, missing joint) pairs, rows ascending
     arm = placed[rows, joints][:, None, :] - placed[rows]  # (m, J, 3): p_k - p_a
-    shift = _cross(omega[rows], arm)
+    shift = quat.cross(omega[rows], arm)
     miss = error[rows, joints]  # (m, 3)
     size = quat.norm3(miss)
     gain = size[:, None] - quat.norm3(miss[:, None, :] - shift)  # (m, J)
@@ -508,20 +509,6 @@ def _most_helpful(fix, missing, placed, error, quats, relative, root_error, budg
     rows = np.flatnonzero(fix.any(axis=1))
     out[rows, np.argmax(score[rows], axis=1)] = True
     return out
-
-
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Cross products of vectors (..., 3), componentwise (faster than np.cross on small trailing axes)."""
-    ax, ay, az = a[..., 0], a[..., 1], a[..., 2]
-    bx, by, bz = b[..., 0], b[..., 1], b[..., 2]
-    return np.stack([ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx], axis=-1)
-
-
-def _rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Vectors ``v`` (..., 3) turned by unit quaternions ``q`` (..., 4)."""
-    u, w = q[..., :3], q[..., 3:]
-    t = 2.0 * _cross(u, v)
-    return v + w * t + _cross(u, t)
 
 
 def _refine(info: StreamInfo, motion: Motion, roots, quats, points: PointTargets, check_cm: float, greedy: bool,
@@ -544,13 +531,12 @@ def _refine(info: StreamInfo, motion: Motion, roots, quats, points: PointTargets
     corrected = np.zeros((motion.num_frames, slots), dtype=bool)
     values = np.zeros((motion.num_frames, slots, 3), dtype=np.int64)
     everything = np.arange(motion.num_frames)
-    frames = np.flatnonzero(np.any(points.errors(everything, quats, roots) > check_cm, axis=1))
-    errors = None
+    errors, placed, glob = points.evaluate(everything, quats, roots)  # (F, J), (F, J, 3), (F, J, 4)
+    still = np.any(errors > check_cm, axis=1)
+    frames, errors, placed, glob = everything[still], errors[still], placed[still], glob[still]
     for _ in range(slots + 1):
         if frames.size == 0:
             break
-        if errors is None:
-            errors, placed = points.evaluate(frames, quats[frames], roots[frames])  # (n, J), (n, J, 3)
         missing = errors > check_cm
         moves_missing = (missing.astype(np.float64) @ movers) > 0  # (n, J): joint a moves a missing point
         relative = quat.multiply(quat.conjugate(quats[frames]), true_quats[frames])
@@ -562,8 +548,8 @@ def _refine(info: StreamInfo, motion: Motion, roots, quats, points: PointTargets
         if stuck.any():  # cannot happen by the budget argument; fix every over-budget slot to be sure
             fix[stuck] = np.concatenate([root_over[:, None], over], axis=1)[stuck] & ~corrected[frames[stuck]]
         if greedy:
-            fix = _most_helpful(fix, missing, placed, points.positions[frames] - placed, quats[frames], relative,
-                                true_roots[frames] - roots[frames], budgets, info.skeleton.parents)
+            fix = _most_helpful(fix, missing, placed, points.positions[frames] - placed, glob, relative,
+                                true_roots[frames] - roots[frames], budgets)
         rows, slot = np.nonzero(fix)
         if rows.size == 0:
             raise RuntimeError("mcb-rot: refinement made no progress; the error budgets are inconsistent.")
@@ -584,9 +570,9 @@ def _refine(info: StreamInfo, motion: Motion, roots, quats, points: PointTargets
                 return None
         flat = at * slots + slot
         apply_corrections(info, roots, quats, flat, values[at, slot])
-        errors, placed = points.evaluate(frames, quats[frames], roots[frames])
+        errors, placed, glob = points.evaluate(frames, quats[frames], roots[frames])
         still = np.any(errors > check_cm, axis=1)
-        frames, errors, placed = frames[still], errors[still], placed[still]
+        frames, errors, placed, glob = frames[still], errors[still], placed[still], glob[still]
     if frames.size:
         raise RuntimeError("mcb-rot: refinement did not converge; not writing.")
     flat = np.flatnonzero(corrected.ravel())
