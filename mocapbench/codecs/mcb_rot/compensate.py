@@ -19,7 +19,6 @@ import numpy as np
 import scipy  # scipy.fft loads on first use (see mocapbench.lazy_imports)
 
 from mocapbench.codecs.mcb_rot import quaternions as quat
-from mocapbench.codecs.mcb_rot.axes import from_axes, to_axes
 from mocapbench.codecs.mcb_rot.checks import global_quaternions, tree_levels
 from mocapbench.codecs.mcb_rot.stream import StreamInfo, steps_of
 
@@ -52,6 +51,18 @@ def _quantize_into(info: StreamInfo, signal: np.ndarray, channels: np.ndarray, d
         np.multiply(ac, step[1:], out=spectra[:, 1:])
         rebuilt[index] = scipy.fft.idct(spectra, axis=1, norm="ortho", overwrite_x=True)
     return rebuilt
+
+
+def _onto(rotvecs: np.ndarray, axes: np.ndarray) -> np.ndarray:
+    """:func:`.axes.to_axes` (components (F, n, 3) of rotation vectors (F, n, 3) on axes (n, 3, 3)), the same bits in
+    three multiply-adds instead of a (F, n, 3, 3) product summed over a middle axis (3x faster)."""
+    return rotvecs[..., 0, None] * axes[:, 0] + rotvecs[..., 1, None] * axes[:, 1] + rotvecs[..., 2, None] * axes[:, 2]
+
+
+def _off(components: np.ndarray, axes: np.ndarray) -> np.ndarray:
+    """:func:`.axes.from_axes`, the same bits, as :func:`_onto`."""
+    return (components[..., 0, None] * axes[:, :, 0] + components[..., 1, None] * axes[:, :, 1]
+            + components[..., 2, None] * axes[:, :, 2])
 
 
 def _steps(info: StreamInfo) -> dict[int, np.ndarray]:
@@ -130,7 +141,7 @@ class Compensator:
                 targets = self.globals[:, joints]
             else:
                 targets = quat.multiply(quat.conjugate(decoded[:, self.parents[joints]]), self.globals[:, joints])
-            components = to_axes(self._rotvecs(info, targets, joints), axes[joints])  # (F, n, 3)
+            components = _onto(self._rotvecs(info, targets, joints), axes[joints])  # (F, n, 3)
             channels = (3 + 3 * joints[:, None] + np.arange(3)).ravel()
             signal = components.reshape(len(components), -1)
             if level == 0:
@@ -139,6 +150,6 @@ class Compensator:
             rebuilt = _quantize_into(info, signal, channels, dc, coefficients, steps)
             if level == 0:
                 rebuilt = rebuilt[:, 3:]
-            local = self._rotations(info, from_axes(rebuilt.reshape(-1, len(joints), 3), axes[joints]), joints)
+            local = self._rotations(info, _off(rebuilt.reshape(-1, len(joints), 3), axes[joints]), joints)
             decoded[:, joints] = local if level == 0 else quat.multiply(decoded[:, self.parents[joints]], local)
         return dc, coefficients
