@@ -1,7 +1,14 @@
 """Forward kinematics on quaternions, component-major: the decoder's hot loop.
 
-Equal to :meth:`mocapbench.motion.Motion.positions` up to float rounding (~1e-13 cm), several times faster: one
-quaternion product and one vector rotation per tree depth, on (4, n, F) arrays whose components are contiguous.
+Equal to :meth:`mocapbench.motion.Motion.positions` up to float rounding (~1e-13 cm), several times faster. Two
+steps on (4, J, F) arrays whose components are contiguous:
+
+1. the global rotations of the joints that have children, one quaternion product per tree depth (a leaf's global
+   rotation moves nothing: it is never computed);
+2. every bone's offset turned by its parent's global rotation, all bones in one vectorized step, then the
+   positions a depth at a time: each joint's is its parent's plus its turned offset (elementwise, so the result
+   does not depend on how many frames are decoded together, as a BLAS product's summation order may).
+
 The encoder verifies its bound on these positions, so the guarantee is about exactly what the decoder returns.
 """
 
@@ -15,33 +22,39 @@ from mocapbench.motion import Skeleton
 __all__ = ["positions"]
 
 
-_PLANS: dict[tuple[bytes, bytes], list] = {}  # plans of recent skeletons
+_PLANS: dict[tuple[bytes, bytes], tuple] = {}  # plans of recent skeletons
 _R1, _R2 = [1, 2, 0], [2, 0, 1]  # (y, z, x) and (z, x, y): a x b = a[_R1] b[_R2] - a[_R2] b[_R1]
 
 
-def _plan(parents: np.ndarray, offsets: np.ndarray) -> list[tuple]:
-    """Per tree depth 1, 2, ...: the joints, their parents, the joints with children (cached by tree and offsets).
+def _plan(parents: np.ndarray, offsets: np.ndarray) -> tuple:
+    """The levels, bones and chain matrix of a skeleton (cached by tree and offsets).
 
-    A joint without children needs its position only: its global rotation is never computed. The offsets are kept
-    as (3, n, 1) columns, with 2 v rotated for the cross products.
+    Returns ``(levels, bone_parents, v, v2a, v2b, depths)``: ``levels`` lists, per tree depth 1, 2, ..., the
+    joints with children at that depth and their parents; ``bone_parents`` (J - 1,) the parent of joints 1..J-1;
+    ``v`` (3, J - 1, 1) their offsets, cm, with ``2 v`` rotated for the cross products; ``depths`` lists, per tree
+    depth, all its joints and their parents.
     """
     key = (np.asarray(parents, dtype=np.int64).tobytes(), np.asarray(offsets).tobytes())
     if key not in _PLANS:
         if len(_PLANS) > 64:
             _PLANS.clear()
-        depth = np.zeros(len(parents), dtype=np.int64)
-        for j in range(1, len(parents)):
+        num_joints = len(parents)
+        depth = np.zeros(num_joints, dtype=np.int64)
+        for j in range(1, num_joints):  # parents come before their children
             depth[j] = depth[parents[j]] + 1
-        has_children = np.zeros(len(parents), dtype=bool)
+        has_children = np.zeros(num_joints, dtype=bool)
         has_children[parents[1:]] = True
-        plan = []
+        levels, depths = [], []
         for d in range(1, int(depth.max(initial=0)) + 1):
+            inner = np.flatnonzero((depth == d) & has_children)
+            if inner.size:
+                levels.append((inner, parents[inner]))
             joints = np.flatnonzero(depth == d)
-            inner = np.flatnonzero(has_children[joints])
-            v = offsets[joints].T[:, :, None]  # (3, n, 1)
-            v2 = 2.0 * v
-            plan.append((joints, parents[joints], inner if inner.size < joints.size else None, joints[inner], v, v2[_R2], v2[_R1]))
-        _PLANS[key] = plan
+            depths.append((joints, parents[joints]))
+        bone_parents = np.asarray(parents[1:], dtype=np.int64)
+        v = np.asarray(offsets[1:], dtype=np.float64).T[:, :, None]  # (3, J - 1, 1)
+        v2 = 2.0 * v
+        _PLANS[key] = (levels, bone_parents, v, v2[_R2], v2[_R1], depths)
     return _PLANS[key]
 
 
@@ -50,42 +63,49 @@ def positions(
 ) -> np.ndarray:
     """Global joint positions (F, J, 3) cm of local rotations ``quats`` (F, J, 4), unit, and ``roots`` (F, 3) cm.
 
-    Written into ``out`` (F, J, 3) when given (and returned); ``scratch`` then holds the work arrays. ``quats`` laid out as a transposed (4, J, F) array
-    (what :func:`.stream.assemble` returns) is read without a copy. The x, y, z components go through each step as
-    one (3, n, F) array (cross products by rolling the component axis): half the numpy calls of a per-component loop.
+    Written into ``out`` (F, J, 3) when given (and returned); ``scratch`` then holds the work arrays. ``quats`` laid
+    out as a transposed (4, J, F) array (what :func:`.stream.assemble` returns) is read without a copy. The x, y, z
+    components go through each step as one (3, n, F) array (cross products by rolling the component axis).
     """
     num_frames, num_joints, _ = quats.shape
     local = np.ascontiguousarray(quats.transpose(2, 1, 0))  # (4, J, F)
     reuse = scratch is not None and out is not None
+    levels, bone_parents, v, v2a, v2b, depths = _plan(skeleton.parents, skeleton.offsets)
     glob = scratch.take("glob", local.shape) if reuse else np.empty_like(local)
     glob[:, 0] = local[:, 0]
-    result = scratch.take("fk", (3, num_joints, num_frames)) if reuse else np.empty((3, num_joints, num_frames))
-    result[:, 0] = roots.T
-    for joints, parents, inner, inner_joints, v, v2a, v2b in _plan(skeleton.parents, skeleton.offsets):
+    for inner, parents in levels:  # global rotations of the joints with children, a depth at a time
         p = glob[:, parents]  # (4, n, F)
         pv, pw = p[:3], p[3]
-        p1, p2 = pv[_R1], pv[_R2]
-        t = p1 * v2a
-        t -= p2 * v2b  # t = 2 q x v
-        u = p1 * t[_R2]
-        u -= p2 * t[_R1]  # q x t
+        b = local[:, inner]
+        bv, bw = b[:3], b[3]
+        xyz = pv[_R1] * bv[_R2]
+        xyz -= pv[_R2] * bv[_R1]
+        xyz += pw * bv
+        xyz += bw * pv
+        glob[:3, inner] = xyz
+        pv *= bv
+        glob[3, inner] = pw * bw - pv.sum(axis=0)
+    result = scratch.take("fk", (3, num_joints, num_frames)) if reuse else np.empty((3, num_joints, num_frames))
+    if num_joints > 1:  # (leaves only the root, whose position is ``roots``)
+        # Bone-sized temporaries (a few hundred KB on a 465-frame clip) would be mapped and page-faulted afresh on
+        # every call: with ``scratch`` they are its reused buffers.
+        shape = (3, num_joints - 1, num_frames)
+        work = (lambda name: scratch.take(name, shape)) if reuse else (lambda name: np.empty(shape))
+        p = np.take(glob, bone_parents, axis=1, mode="clip", out=scratch.take("bone parents", (4,) + shape[1:]) if reuse else None)
+        pv, pw = p[:3], p[3]
+        p1 = np.take(pv, _R1, axis=0, mode="clip", out=work("p1"))
+        p2 = np.take(pv, _R2, axis=0, mode="clip", out=work("p2"))
+        t, turned, other = work("t"), work("turned"), work("other")
+        np.multiply(p1, v2a, out=t)
+        t -= np.multiply(p2, v2b, out=other)  # t = 2 q x v
+        np.multiply(p1, np.take(t, _R2, axis=0, mode="clip", out=other), out=turned)
+        turned -= np.multiply(p2, np.take(t, _R1, axis=0, mode="clip", out=other), out=other)  # q x t
         t *= pw
-        base = result[:, parents]
-        base += v
-        base += t
-        base += u
-        result[:, joints] = base
-        if inner_joints.size:
-            if inner is not None:
-                pv, pw, p1, p2 = pv[:, inner], pw[inner], p1[:, inner], p2[:, inner]
-            b = local[:, inner_joints]
-            bv, bw = b[:3], b[3]
-            xyz = p1 * bv[_R2]
-            xyz -= p2 * bv[_R1]
-            xyz += pw * bv
-            xyz += bw * pv
-            glob[:3, inner_joints] = xyz
-            glob[3, inner_joints] = pw * bw - (pv * bv).sum(axis=0)
+        turned += t
+        turned += v  # v + w t + q x t: each bone's offset turned into the world frame
+    result[:, 0] = roots.T
+    for joints, parents in depths:  # each joint: its parent's position plus its turned offset
+        result[:, joints] = result[:, parents] + turned[:, joints - 1]
     if out is None:
         return result.transpose(2, 1, 0)
     out[...] = result.transpose(2, 1, 0)
