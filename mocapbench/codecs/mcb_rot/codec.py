@@ -23,8 +23,8 @@ Design::
          flat step over frequency, which wins at small ε: +1-2 % at 24 fps). Each attempt is quantized and
          refined (below) but not entropy coded: attempts are ranked by their estimated size (:mod:`.rate`, ideal
          code lengths; it picks the stream the real sizes pick on cmu_test to 0.02 %) and only the winner is
-         written. Segment means (DC) are coded as
-         differences along the segments in one small track that random access reads whole.
+         written. Segment means (DC) and the significance counts are coded as differences along the segments in one
+         small track that random access reads whole.
       └─ compensated quantization (:mod:`.compensate`, encoder only): joints are quantized level by level down the
          tree, each coding the local rotation that puts its *global* rotation on the original's given its parent as
          the decoder rebuilds it, so the errors of the hips and spine do not add up down to the hands and feet
@@ -87,6 +87,7 @@ from mocapbench.codecs.mcb_rot.stream import (
     base_signal,
     _f32,
     read_info,
+    skeleton_step_exponent,
     steps_of,
     write_payload,
 )
@@ -191,8 +192,8 @@ class McbRotCodec(Codec):
                 f"mcb-rot: the stream holds at most {container.MAX_JOINTS} joints, the motion has {motion.num_joints}."
             )
         config = self.config
-        skeleton_blob = pack_skeleton_compact(motion.skeleton)
-        stored = unpack_skeleton_compact(ByteReader(skeleton_blob))
+        skeleton_blob = pack_skeleton_compact(motion.skeleton, skeleton_step_exponent(config.eps_cm, motion.skeleton))
+        stored = unpack_skeleton_compact(ByteReader(skeleton_blob), stepped=True)
         discrepancy = offset_discrepancy_cm(motion.skeleton, stored)
         bound = config.eps_cm * (1.0 - 2 * _SAFETY_MARGIN) - 2.0 * discrepancy
         if bound <= 0.5 * config.eps_cm:

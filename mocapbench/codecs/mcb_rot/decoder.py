@@ -159,7 +159,7 @@ def read_chunks(
     lengths = layout.lengths[segments]
     local_first = first_segment - first_segment[0]  # first segment of each chunk, within the block
     chunk_frames = np.add.reduceat(lengths, local_first)
-    # Pass 1: the correction count and the significance counts' ANS stream of every chunk.
+    # Pass 1: the correction count of every chunk and (before format 4) its significance counts' ANS stream.
     readers, count_runs, corrections = [], [], []
     offsets = info.chunk_offsets
     for chunk, held, frames in zip(chunks.tolist(), per_chunk.tolist(), chunk_frames.tolist()):
@@ -167,24 +167,14 @@ def read_chunks(
         count = reader.read_varint("correction count")
         if count > frames * slots:
             raise BitstreamError(f"mcb-rot: chunk {chunk}: expected at most {frames * slots} corrections, found {count}.")
-        count_runs.append(read_tokens(reader, _count_groups(info, held)[1], coder_tables, f"mcb-rot: chunk {chunk}"))
+        if info.counts is None:
+            count_runs.append(read_tokens(reader, _count_groups(info, held)[1], coder_tables, f"mcb-rot: chunk {chunk}"))
         readers.append(reader)
         corrections.append(count)
-    if np.all(per_chunk == per_chunk[0]):
-        order = _count_groups(info, int(per_chunk[0]))[0]
-        order = (order[None, :] + len(order) * np.arange(len(chunks))[:, None]).ravel()
+    if info.counts is not None:  # format 4: in the payload header, checked there
+        counts = info.counts[segments[0] : segments[-1] + 1]
     else:
-        sizes = per_chunk * channels
-        order = np.concatenate([_count_groups(info, int(n))[0] + at for n, at in zip(per_chunk, np.cumsum(sizes) - sizes)])
-    counts = values_of_tokens(count_runs, order).reshape(len(segments), channels)
-    if len(segments) > len(chunks):  # differences from the previous segment of the same chunk
-        counts = np.cumsum(counts, axis=0)
-        before = np.concatenate([np.zeros((1, channels), dtype=np.int64), counts])[local_first]
-        counts -= np.repeat(before, per_chunk, axis=0)
-    bad = (counts < 0) | (counts > (lengths - 1)[:, None])
-    if bad.any():
-        chunk = chunks[np.searchsorted(local_first, int(np.argmax(bad.any(axis=1))), side="right") - 1]
-        raise BitstreamError(f"mcb-rot: chunk {chunk}: significance counts outside their segments.")
+        counts = _chunk_counts(info, chunks, count_runs, per_chunk, local_first, lengths)
     # Pass 2: the coefficients and corrections, one ANS stream per chunk, classes found for the whole block.
     padded = max(int(lengths.max()) - 1, 0)
     shape = (len(segments), channels, padded)
@@ -227,6 +217,29 @@ def read_chunks(
     chunk_offset = (np.cumsum(chunk_frames) - chunk_frames) * slots
     flat = local + np.repeat(chunk_offset, corrections)
     return ac, flat, decoded[at_values].reshape(-1, 3)
+
+
+def _chunk_counts(info: StreamInfo, chunks: np.ndarray, count_runs: list, per_chunk: np.ndarray,
+                  local_first: np.ndarray, lengths: np.ndarray) -> np.ndarray:
+    """(S, C) significance counts of the ``chunks`` of a stream before format 4, from their count streams
+    (differences from the previous segment of the same chunk), checked against the segment lengths."""
+    channels = info.channels
+    if np.all(per_chunk == per_chunk[0]):
+        order = _count_groups(info, int(per_chunk[0]))[0]
+        order = (order[None, :] + len(order) * np.arange(len(chunks))[:, None]).ravel()
+    else:
+        sizes = per_chunk * channels
+        order = np.concatenate([_count_groups(info, int(n))[0] + at for n, at in zip(per_chunk, np.cumsum(sizes) - sizes)])
+    counts = values_of_tokens(count_runs, order).reshape(len(lengths), channels)
+    if len(lengths) > len(chunks):  # differences from the previous segment of the same chunk
+        counts = np.cumsum(counts, axis=0)
+        before = np.concatenate([np.zeros((1, channels), dtype=np.int64), counts])[local_first]
+        counts -= np.repeat(before, per_chunk, axis=0)
+    bad = (counts < 0) | (counts > (lengths - 1)[:, None])
+    if bad.any():
+        chunk = chunks[np.searchsorted(local_first, int(np.argmax(bad.any(axis=1))), side="right") - 1]
+        raise BitstreamError(f"mcb-rot: chunk {chunk}: significance counts outside their segments.")
+    return counts
 
 
 def _runs(starts: np.ndarray, counts: np.ndarray) -> np.ndarray:

@@ -1,19 +1,25 @@
 """The ``mcb-rot`` payload: its header, its chunks, and the decoder's path from bytes to rotations.
 
-Layout (after the container header)::
+Layout (after the container header), format 4::
 
-    u8 format | f32 eps | f64 bound | f32 x 6 settings | varint segment, chunk frames | f32 shell distance (format 3)
-    skeleton (compact blob) | cuts (varint gaps) | re-referenced (segment, joint) pairs, f32 rotation vectors
+    u8 format | f32 eps | f32 bound | varint flags | u8 multiplier code (or f32) | the settings that differ from
+    the defaults (:class:`Settings`)
+    skeleton (compact blob: offsets on a grid of 2^e cm that follows eps, bit-packed) | cuts (varint gaps) |
+    re-referenced (segment, joint) pairs, f32 rotation vectors
     principal axes: J flag bits, int16 x 3 per flagged joint
-    classes: u8 per channel (scale), u8 per band (tilt), u8 tilts of the segment means and significance counts,
-    u8 classes of correction gaps and values
-    segment means: one ANS stream of their differences along the segments (S x C)
+    classes: channel scales and band tilts bit-packed (:func:`write_small_ints`), u8 tilts of the segment means
+    and significance counts, u8 classes of correction gaps and values
+    one ANS stream: the segment means (S x C, differences along the segments), then the significance counts (per
+    segment and channel, the number of AC coefficients up to the last nonzero one, differences along the segments)
     varint size of every chunk | chunks
 
-    chunk: varint correction count | ANS stream of the significance counts (per segment and channel, the number
-    of AC coefficients up to the last nonzero one, as differences from the previous segment of the chunk) |
-    ANS stream of the significant coefficients (segment by segment, channel-major), then the correction gaps
-    and values.
+    chunk: varint correction count | ANS stream of the significant coefficients (segment by segment,
+    channel-major), then the correction gaps and values.
+
+Formats 2 and 3 (still read) wrote every setting (the bound as f64), the skeleton's offsets on a fixed 2^-16 cm
+grid as varints, the classes one byte each, the segment means alone in their stream, and each chunk's
+significance counts in an ANS stream of its own (differences from the previous segment of the chunk). Format 4
+saves 2-3 % of a 24 fps stream, and a full decode reads one count stream instead of one per chunk.
 
 Coding only the coefficients up to each channel's last nonzero one (as JPEG's end-of-block) skips the runs of
 zeros at high frequencies: at ε = 1 cm 85 % of the AC coefficients of cmu_test are never coded, so decoding reads a
@@ -35,17 +41,20 @@ from mocapbench.codecs.mcb_rot.budgets import Budgets, joint_budgets
 from mocapbench.codecs.mcb_rot.scratch import Scratch
 from mocapbench.codecs.mcb_rot.segments import SegmentLayout, inverse, segment_starts
 from mocapbench.codecs.segments import read_cuts, write_cuts
-from mocapbench.codecs.skeleton_blob import unpack_skeleton_compact
+from mocapbench.codecs.skeleton_blob import STEP_EXPONENTS, unpack_skeleton_compact
 from mocapbench.entropy.ans import ClassTables, decode_classed, encode_classed
 from mocapbench.entropy.bitio import ByteReader, ByteWriter
 from mocapbench.entropy.errors import BitstreamError
 from mocapbench.motion import Skeleton
 
 __all__ = ["Settings", "StreamInfo", "steps_of", "base_signal", "assemble", "apply_corrections", "write_payload",
-           "read_info", "segment_signal", "tables"]
+           "read_info", "segment_signal", "tables", "skeleton_step_exponent", "write_small_ints", "read_small_ints"]
 
-FORMAT = 3  # payload layout version; BE CAREFUL WHEN CHANGING: append only
-_READABLE = (2, 3)  # 3 appended the shell distance (f32, cm) to the settings; a format 2 stream has none
+FORMAT = 4  # payload layout version; BE CAREFUL WHEN CHANGING: append only
+# 3 appended the shell distance (f32, cm) to the settings; a format 2 stream has none. 4 leaned the header: settings
+# that equal the defaults are left out, the skeleton's offsets are on a grid that follows eps, the class offsets
+# are bit-packed.
+_READABLE = (2, 3, 4)
 _SQRT3 = np.sqrt(3.0)
 _SIDE = model.NUM_CLASSES  # classes >= this are coded with the nearest-rounding tables
 
@@ -54,12 +63,44 @@ def _f32(value: float) -> float:
     return float(np.float32(value))
 
 
+def _f32_below(value: float) -> float:
+    """The largest float32 not above ``value``."""
+    rounded = np.float32(value)
+    if float(rounded) > value:
+        rounded = np.nextafter(rounded, np.float32(-np.inf))
+    return float(rounded)
+
+
+#: Format 4 writes a setting only where it differs from these (the codec's defaults; part of the format: BE CAREFUL
+#: WHEN CHANGING): (field, value, how it is written), in the order of their flag bits 2, 3, ...
+_DEFAULTS = (
+    ("shell_cm", 0.0, "f32"),
+    ("segment_frames", 128, "varint"),
+    ("chunk_frames", 128, "varint"),
+    ("slope", 1.0, "f32"),
+    ("rounding", _f32(0.45), "f32"),
+    ("root_share", _f32(0.05), "f32"),
+    ("free_angle_rad", _f32(np.deg2rad(1.0)), "f32"),
+    ("allocation_power", 0.0, "f32"),
+)
+_MULTIPLIER_F32, _FLAT, _DEFAULT_BIT = 1, 2, 2  # flags: 1 multiplier as f32 (else a grid code), 2 slope 0; bit 2.. a default
+_GRID_ZERO = 64  # multiplier code k stands for 2^((k - 64) / 2)
+
+
+def _multiplier_code(multiplier: float) -> int | None:
+    """The code ``k`` in [0, 256) with ``multiplier == f32(2^((k - 64) / 2))``, or None (then written as f32)."""
+    if not multiplier > 0:
+        return None
+    k = int(np.round(2 * np.log2(multiplier))) + _GRID_ZERO
+    return k if 0 <= k < 256 and _f32(2.0 ** ((k - _GRID_ZERO) / 2)) == multiplier else None
+
+
 @dataclass(frozen=True)
 class Settings:
-    """The stream's coding settings, exactly as written (floats other than ``bound_cm`` rounded to float32)."""
+    """The stream's coding settings, exactly as written (floats rounded to float32; ``bound_cm`` rounded down)."""
 
     eps_cm: float  # nominal bound (for display; the decoder does not use it)
-    bound_cm: float  # bound the budgets are computed for: eps less the safety margins, float64
+    bound_cm: float  # bound the budgets are computed for: eps less the safety margins
     multiplier: float  # base step over the channel's relative step
     slope: float
     rounding: float
@@ -73,32 +114,60 @@ class Settings:
     @classmethod
     def create(cls, eps_cm, bound_cm, multiplier, slope, rounding, root_share, free_angle_rad, power, segment, chunk,
                shell_cm=0.0):
-        """Settings with every float32 field rounded as it will be read back."""
-        return cls(_f32(eps_cm), float(bound_cm), _f32(multiplier), _f32(slope), _f32(rounding), _f32(root_share),
+        """Settings with every field rounded as it will be read back (the bound down, so it never grows)."""
+        return cls(_f32(eps_cm), _f32_below(bound_cm), _f32(multiplier), _f32(slope), _f32(rounding), _f32(root_share),
                    _f32(free_angle_rad), _f32(power), int(segment), int(chunk), _f32(shell_cm))
 
     def write(self, writer: ByteWriter) -> None:
+        """Format 4: u8 format | f32 eps | f32 bound | varint flags | multiplier (u8 grid code or f32) | the
+        settings that differ from :data:`_DEFAULTS` (flag bits 2, 3, ...; a flat slope is flag bit 1)."""
         writer.write_u8(FORMAT)
         writer.write_f32(self.eps_cm)
-        writer.write_f64(self.bound_cm)
-        for value in (self.multiplier, self.slope, self.rounding, self.root_share, self.free_angle_rad,
-                      self.allocation_power):
-            writer.write_f32(value)
-        writer.write_varint(self.segment_frames)
-        writer.write_varint(self.chunk_frames)
-        writer.write_f32(self.shell_cm)
+        writer.write_f32(self.bound_cm)
+        code = _multiplier_code(self.multiplier)
+        flags = (code is None) * _MULTIPLIER_F32 | (self.slope == 0.0) * _FLAT
+        differing = []
+        for bit, (name, default, kind) in enumerate(_DEFAULTS, start=_DEFAULT_BIT):
+            value = getattr(self, name)
+            if value != default and not (name == "slope" and value == 0.0):
+                flags |= 1 << bit
+                differing.append((value, kind))
+        writer.write_varint(flags)
+        if code is None:
+            writer.write_f32(self.multiplier)
+        else:
+            writer.write_u8(code)
+        for value, kind in differing:
+            writer.write_f32(value) if kind == "f32" else writer.write_varint(value)
 
     @classmethod
-    def read(cls, reader: ByteReader) -> "Settings":
-        version = reader.read_u8("mcb-rot format")
-        if version not in _READABLE:
-            raise BitstreamError(f"mcb-rot: expected payload format {' or '.join(map(str, _READABLE))}, found {version}.")
+    def read(cls, reader: ByteReader, version: int) -> "Settings":
+        """The settings of a payload of format ``version`` (its format byte already read)."""
         eps = reader.read_f32("eps")
-        bound = reader.read_f64("bound")
-        multiplier, slope, rounding, root_share, free, power = (reader.read_f32("setting") for _ in range(6))
-        segment_frames = reader.read_varint("segment frames")
-        chunk_frames = reader.read_varint("chunk frames")
-        shell = reader.read_f32("shell distance") if version >= 3 else 0.0
+        if version >= 4:
+            bound = reader.read_f32("bound")
+            flags = reader.read_varint("settings flags", max_bytes=2)
+            if flags >> (_DEFAULT_BIT + len(_DEFAULTS)):
+                raise BitstreamError(f"mcb-rot: unknown settings flags {flags:#x}.")
+            if flags & _MULTIPLIER_F32:
+                multiplier = reader.read_f32("multiplier")
+            else:
+                multiplier = _f32(2.0 ** ((reader.read_u8("multiplier code") - _GRID_ZERO) / 2))
+            values = {}
+            for bit, (name, default, kind) in enumerate(_DEFAULTS, start=_DEFAULT_BIT):
+                if flags & (1 << bit):
+                    values[name] = reader.read_f32(name) if kind == "f32" else reader.read_varint(name)
+                else:
+                    values[name] = 0.0 if name == "slope" and flags & _FLAT else default
+            slope, rounding, root_share, free, power, segment_frames, chunk_frames, shell = (
+                values[n] for n in ("slope", "rounding", "root_share", "free_angle_rad", "allocation_power",
+                                    "segment_frames", "chunk_frames", "shell_cm"))
+        else:
+            bound = reader.read_f64("bound")
+            multiplier, slope, rounding, root_share, free, power = (reader.read_f32("setting") for _ in range(6))
+            segment_frames = reader.read_varint("segment frames")
+            chunk_frames = reader.read_varint("chunk frames")
+            shell = reader.read_f32("shell distance") if version >= 3 else 0.0
         if not (
             0 < bound <= 100 and 0 < eps <= 101 and 0 < multiplier <= 1e6 and 0 <= slope <= 64
             and 0 <= rounding <= 0.5 and 0 < root_share < 1 and 0 < free <= np.pi and 0 <= power <= 64
@@ -131,6 +200,7 @@ class StreamInfo:
     value_class: int = 0
     dc: np.ndarray | None = None  # (S, C) quantized segment means
     chunk_offsets: np.ndarray | None = None  # (K + 1,) byte offsets of the chunks in the payload
+    counts: np.ndarray | None = None  # (S, C) significance counts (format 4; earlier formats have them in the chunks)
     _cache: dict = field(default_factory=dict, repr=False)
 
     def replace(self, **changes) -> "StreamInfo":
@@ -332,6 +402,24 @@ def apply_corrections(info: StreamInfo, roots, quats, flat: np.ndarray, values: 
 
 
 # -- writing ---------------------------------------------------------------------------------------------------
+def skeleton_step_exponent(eps_cm: float, skeleton: Skeleton) -> int:
+    """Exponent ``e`` of the grid (2^e cm) the stream keeps the skeleton's offsets on: the coarsest power of two
+    with ``50 sqrt(3) depth 2^e <= eps``.
+
+    Rounding moves each offset by at most ``sqrt(3) / 2`` steps, so a joint ``depth`` bones down moves by at most
+    ``sqrt(3) / 2 depth`` steps, and the encoder takes twice the actual change off its bound
+    (:func:`~mocapbench.codecs.mcb_rot.budgets.offset_discrepancy_cm`): at most 2 % of eps. Each halving of the
+    grid costs a bit per offset coordinate (on the CMU rig about 11 bytes, 0.3 % of a 24 fps clip at eps 0.05 cm),
+    about what 1 % of eps is worth in coefficient bits, hence the balance.
+    """
+    depth = np.zeros(skeleton.num_joints, dtype=np.int64)
+    for joint in range(1, skeleton.num_joints):
+        depth[joint] = depth[skeleton.parents[joint]] + 1
+    exponent = int(np.floor(np.log2(eps_cm / (50.0 * np.sqrt(3.0) * max(int(depth.max()), 1)))))
+    return int(np.clip(exponent, STEP_EXPONENTS[0], STEP_EXPONENTS[-1]))
+
+
+
 def write_payload(info: StreamInfo, skeleton_blob: bytes, coefficients: dict, corrections) -> bytes:
     """The payload of ``info`` (whose ``dc`` is set), the AC coefficients (segment -> (n - 1, C) int) and the
     corrections (flat indices, values (N, 3)); the entropy classes are chosen here, on the whole stream."""
@@ -353,7 +441,7 @@ def write_payload(info: StreamInfo, skeleton_blob: bytes, coefficients: dict, co
                                     np.concatenate(bands), channels, settings.rounding)
     all_channels = np.tile(np.arange(channels), layout.num_segments)
     dc_diff = np.diff(info.dc, axis=0, prepend=0).ravel()
-    count_diff = np.concatenate([_count_differences(counts, layout, chunk) for chunk in range(layout.num_chunks)])
+    count_diff = np.diff(np.stack([counts[s] for s in range(layout.num_segments)]), axis=0, prepend=0).ravel()
     info = info.replace(
         scale=scale, tilt=tilt,
         dc_tilt=model.fit_tilt(dc_diff, all_channels, scale, 0.5),
@@ -371,8 +459,6 @@ def write_payload(info: StreamInfo, skeleton_blob: bytes, coefficients: dict, co
         gaps = np.diff(flat[mine] - chunk_first_frame[chunk] * slots, prepend=-1) - 1
         writer = ByteWriter()
         writer.write_varint(int(mine.sum()))
-        encode_classed(writer, _count_differences(counts, layout, chunk), info.count_classes(len(segments)),
-                       coder_tables)
         classes = [info.class_matrix(int(layout.lengths[s])).T[_significant_mask(counts[s], int(layout.lengths[s]))]
                    for s in segments]
         encode_classed(
@@ -396,29 +482,70 @@ def write_payload(info: StreamInfo, skeleton_blob: bytes, coefficients: dict, co
     turned = np.any(info.axis_codes != 0, axis=1)
     writer.write_bytes(np.packbits(turned).tobytes())
     writer.write_array(info.axis_codes[turned], np.int16)
-    writer.write_array(scale, np.uint8)
-    writer.write_array(tilt + model.NUM_CLASSES, np.uint8)
+    write_small_ints(writer, scale)
+    write_small_ints(writer, tilt[1:] + model.NUM_CLASSES)  # band 0 (the DC) has no AC coefficients
     writer.write_bytes(bytes([info.dc_tilt + model.NUM_CLASSES, info.count_tilt + model.NUM_CLASSES,
                               info.gap_class, info.value_class]))
-    encode_classed(writer, dc_diff, _tilted(scale, info.dc_tilt, layout.num_segments), coder_tables)
+    side = layout.num_segments
+    encode_classed(writer, np.concatenate([dc_diff, count_diff]),
+                   np.concatenate([_tilted(scale, info.dc_tilt, side), _tilted(scale, info.count_tilt, side)]),
+                   coder_tables)
     writer.write_varints([len(chunk) for chunk in chunks])
     for chunk in chunks:
         writer.write_bytes(chunk)
     return writer.getvalue()
 
 
-def _count_differences(counts: dict, layout: SegmentLayout, chunk: int) -> np.ndarray:
-    """Significance counts of a chunk's segments as differences from the previous segment of the chunk."""
-    stacked = np.stack([counts[int(s)] for s in layout.chunk_segments(chunk)])
-    return np.diff(stacked, axis=0, prepend=0).ravel()
+_OFFSET_LIMIT = 2 * model.NUM_CLASSES  # channel scales and band tilts (+ 64) lie in [0, 128)
+
+
+def write_small_ints(writer: ByteWriter, values: np.ndarray) -> None:
+    """Small non-negative ints (N,), bit-packed: a bitmap of the nonzero ones, then (when any) u8 ``low``, u8
+    ``width`` and ``value - low`` of each nonzero value in ``width`` bits (MSB first, byte-padded). Class offsets of
+    one stream span a few octaves and many are 0: about 6 bits each instead of 8."""
+    values = np.asarray(values, dtype=np.int64)
+    nonzero = values[values != 0]
+    writer.write_bytes(np.packbits(values != 0).tobytes())
+    if nonzero.size == 0:
+        return
+    low = int(nonzero.min())
+    width = int(nonzero.max() - low).bit_length()
+    writer.write_bytes(bytes([low, width]))
+    if width:
+        bits = ((nonzero - low)[:, None] >> np.arange(width - 1, -1, -1)) & 1
+        writer.write_bytes(np.packbits(bits.astype(np.uint8)).tobytes())
+
+
+def read_small_ints(reader: ByteReader, count: int, limit: int, what: str) -> np.ndarray:
+    """Inverse of :func:`write_small_ints`: ``count`` values (int64), each checked to be below ``limit``."""
+    present = np.unpackbits(np.frombuffer(reader.read_bytes((count + 7) // 8, what), np.uint8), count=count)
+    values = np.zeros(count, dtype=np.int64)
+    nonzero = int(present.sum())
+    if nonzero == 0:
+        return values
+    low, width = reader.read_bytes(2, what)
+    if not 1 <= low < limit or width > 8:
+        raise BitstreamError(f"mcb-rot: {what}: expected values below {limit}, found a low of {low}, width {width}.")
+    if width:
+        bits = np.unpackbits(np.frombuffer(reader.read_bytes((nonzero * width + 7) // 8, what), np.uint8),
+                             count=nonzero * width).reshape(nonzero, width).astype(np.int64)
+        values[present.astype(bool)] = low + bits @ (1 << np.arange(width - 1, -1, -1))
+    else:
+        values[present.astype(bool)] = low
+    if values.max() >= limit:
+        raise BitstreamError(f"mcb-rot: {what}: expected values below {limit}, found {int(values.max())}.")
+    return values
 
 
 # -- reading ---------------------------------------------------------------------------------------------------
 def read_info(header: Header, payload: memoryview) -> StreamInfo:
     """Parse and check everything before the chunks."""
     reader = ByteReader(payload)
-    settings = Settings.read(reader)
-    skeleton = unpack_skeleton_compact(reader)
+    version = reader.read_u8("mcb-rot format")
+    if version not in _READABLE:
+        raise BitstreamError(f"mcb-rot: expected payload format {' or '.join(map(str, _READABLE))}, found {version}.")
+    settings = Settings.read(reader, version)
+    skeleton = unpack_skeleton_compact(reader, stepped=version >= 4)
     num_frames, num_joints = header.num_frames, header.num_joints
     if skeleton.num_joints != num_joints:
         raise BitstreamError(f"mcb-rot: the skeleton has {skeleton.num_joints} joints, the header says {num_joints}.")
@@ -442,15 +569,32 @@ def read_info(header: Header, payload: memoryview) -> StreamInfo:
     axis_codes = np.zeros((num_joints, 3), dtype=np.int64)
     axis_codes[turned] = reader.read_array(3 * int(turned.sum()), np.int16, "joint axes").reshape(-1, 3)
     channels = 3 + 3 * num_joints
-    scale = reader.read_array(channels, np.uint8, "channel classes").astype(np.int64)
-    tilt = reader.read_array(model.NUM_BANDS, np.uint8, "band classes").astype(np.int64) - model.NUM_CLASSES
+    if version >= 4:
+        scale = read_small_ints(reader, channels, _OFFSET_LIMIT, "channel classes")
+        tilt = np.concatenate([[0], read_small_ints(reader, model.NUM_BANDS - 1, _OFFSET_LIMIT, "band classes")])
+    else:
+        scale = reader.read_array(channels, np.uint8, "channel classes").astype(np.int64)
+        tilt = reader.read_array(model.NUM_BANDS, np.uint8, "band classes").astype(np.int64)
+    tilt = tilt - model.NUM_CLASSES
     dc_tilt, count_tilt, gap_class, value_class = reader.read_bytes(4, "classes")
     dc_tilt, count_tilt = dc_tilt - model.NUM_CLASSES, count_tilt - model.NUM_CLASSES
     if max(dc_tilt, count_tilt, gap_class, value_class) >= model.NUM_CLASSES:
         raise BitstreamError(f"mcb-rot: classes must be < {model.NUM_CLASSES}.")
     coder_tables = tables(settings.rounding)
-    dc_diff = decode_classed(reader, _tilted(scale, dc_tilt, num_segments), coder_tables, "mcb-rot: segment means")
-    dc = np.cumsum(dc_diff.reshape(num_segments, channels), axis=0)
+    counts = None
+    if version >= 4:  # the segment means and the significance counts, one stream
+        side = decode_classed(reader, np.concatenate([_tilted(scale, dc_tilt, num_segments),
+                                                      _tilted(scale, count_tilt, num_segments)]),
+                              coder_tables, "mcb-rot: segment means and significance counts")
+        dc = np.cumsum(side[: num_segments * channels].reshape(num_segments, channels), axis=0)
+        counts = np.cumsum(side[num_segments * channels :].reshape(num_segments, channels), axis=0)
+        bad = (counts < 0) | (counts > (layout.lengths - 1)[:, None])
+        if bad.any():
+            raise BitstreamError(f"mcb-rot: segment {int(np.argmax(bad.any(axis=1)))}: significance counts outside "
+                                 "the segment.")
+    else:
+        dc_diff = decode_classed(reader, _tilted(scale, dc_tilt, num_segments), coder_tables, "mcb-rot: segment means")
+        dc = np.cumsum(dc_diff.reshape(num_segments, channels), axis=0)
     sizes = reader.read_varints(layout.num_chunks, "chunk sizes").astype(np.int64)
     offsets = reader.offset + np.concatenate([[0], np.cumsum(sizes)])
     if offsets[-1] != len(payload):
@@ -458,4 +602,4 @@ def read_info(header: Header, payload: memoryview) -> StreamInfo:
     budgets = joint_budgets(skeleton, settings.bound_cm, settings.root_share, settings.free_angle_rad,
                             settings.allocation_power, settings.shell_cm)
     return StreamInfo(settings, skeleton, budgets, layout, cuts, overrides, axis_codes, scale, tilt, dc_tilt,
-                      count_tilt, gap_class, value_class, dc, offsets)
+                      count_tilt, gap_class, value_class, dc, offsets, counts)
