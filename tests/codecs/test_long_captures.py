@@ -362,3 +362,24 @@ def test_mcb_rot_windowed_stream_with_hostile_window_lengths_is_refused(monkeypa
         codec.decode(stream([1, 256])[:-9])  # truncated
     with pytest.raises(BitstreamError, match="mcb-rot"):  # the marker is no one-window format
         read_info(header, memoryview(bytes([windowed.MARKER])))
+
+
+def test_mcb_rot_encoder_memory_does_not_grow_with_the_capture(monkeypatch):
+    """Traced (tracemalloc counts numpy's arrays): windows of 128 frames, a capture 4 times longer, the same peak.
+    Without windows the peak grows with the capture (about 16x its positions array: 14 MB at 1,200 frames)."""
+    import tracemalloc
+
+    _mcb_rot_windows(monkeypatch, 128)
+    codec = create("mcb-rot", eps_cm=1.0, step_rel=8.0)  # one attempt, no rate search: fast, the same arrays
+    codec.encode(sinusoidal_motion(num_frames=64, seed=3))  # lazy imports and tables, not the capture's cost
+    peaks = []
+    for frames in (300, 1200):
+        motion = sinusoidal_motion(num_frames=frames, seed=3)
+        tracemalloc.start()
+        try:
+            codec.encode(motion)
+            peaks.append(tracemalloc.get_traced_memory()[1])
+        finally:
+            tracemalloc.stop()
+    assert peaks[1] <= 1.2 * peaks[0], f"encode peaks {peaks[0] / 2**20:.1f} MB, then {peaks[1] / 2**20:.1f} MB"
+    assert codec.last_encode_stats["windows"] == 10
