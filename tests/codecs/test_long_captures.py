@@ -274,28 +274,28 @@ def _mcb_rot_windows(monkeypatch, window_frames: int):
 def test_mcb_rot_codes_a_long_capture_window_by_window_within_eps(monkeypatch):
     from mocapbench.codecs.windows import split_windows
 
-    motion = sinusoidal_motion(num_frames=800, seed=4)
+    motion = sinusoidal_motion(num_frames=768, seed=4)
     short = motion.slice(0, 200)
     codec = create("mcb-rot", eps_cm=0.5)
     short_stream, whole = codec.encode(short), codec.encode(motion)
-    module, windowed = _mcb_rot_windows(monkeypatch, 320)  # 800 frames: windows of 320, 320, 160
+    module, windowed = _mcb_rot_windows(monkeypatch, 300)  # 768 frames: 3 windows, made equal: 256 frames each
     assert codec.encode(short) == short_stream  # up to a window: the bytes it always had
     assert container.unpack(short_stream, "mcb-rot")[1][0] != windowed.MARKER
     stream = codec.encode(motion)
     assert codec.last_encode_stats["windows"] == 3
-    assert codec.last_encode_stats["segments"] == 3 + 3 + 2  # segments of 128 frames restart at every window
+    assert codec.last_encode_stats["segments"] == 3 * 2  # segments of 128 frames restart at every window
     header, payload = container.unpack(stream, "mcb-rot")
-    assert bytes(payload[:4]) == bytes([windowed.MARKER, windowed.LAYOUT_VERSION, 0xC0, 0x02])  # varint 320
-    parts = split_windows(payload[4:], 800, 320)
-    assert [(first, end) for first, end, _ in parts] == [(0, 320), (320, 640), (640, 800)]
-    assert bytes(parts[-1][2]) == codec._encode_window(motion.slice(640, 800))  # each window is that clip's stream
+    assert bytes(payload[:4]) == bytes([windowed.MARKER, windowed.LAYOUT_VERSION, 0x80, 0x02])  # varint 256
+    parts = split_windows(payload[4:], 768, 256)
+    assert [(first, end) for first, end, _ in parts] == [(0, 256), (256, 512), (512, 768)]
+    assert bytes(parts[-1][2]) == codec._encode_window(motion.slice(512, 768))  # each window is that clip's stream
     decoded = codec.decode(stream)
     assert _error(codec, motion, stream).max() <= 0.5  # the guarantee, on every frame of every window
-    assert decoded.motion.num_frames == 800 and np.allclose(decoded.motion.positions(), decoded.positions)
-    # Each window's rate search and entropy classes cost little at this size (+20 % on 400-frame windows of a
-    # 6 KB stream; -0.8 % to +0.8 % with 7,680-frame windows on a 20,000-frame capture).
+    assert decoded.motion.num_frames == 768 and np.allclose(decoded.motion.positions(), decoded.positions)
+    # Each window's header, rate search and entropy classes cost little (here +20 % on windows of a 2 KB stream;
+    # -0.7 % to +0.8 % on a 20,000-frame capture in windows of 6,784 frames).
     assert len(stream) <= 1.3 * len(whole)
-    assert codec.describe_payload(header, payload)["windows of frames"] == "3 x 320 (first shown)"
+    assert codec.describe_payload(header, payload)["windows of frames"] == "3 x 256 (first shown)"
     # A long stream written before windows existed (one payload) still decodes, whatever the window length.
     assert np.array_equal(codec.decode(whole).positions, create("mcb-rot", eps_cm=0.5).decode(whole).positions)
     assert _error(codec, motion, whole).max() <= 0.5
@@ -303,11 +303,11 @@ def test_mcb_rot_codes_a_long_capture_window_by_window_within_eps(monkeypatch):
 
 def test_mcb_rot_random_access_decodes_only_the_windows_holding_the_frames(monkeypatch):
     motion = sinusoidal_motion(num_frames=1000, seed=5)
-    module, _ = _mcb_rot_windows(monkeypatch, 400)
+    module, _ = _mcb_rot_windows(monkeypatch, 400)  # 1,000 frames: windows of 384, 384, 232 (whole segments)
     codec = create("mcb-rot", eps_cm=1.0)
     stream = codec.encode(motion)
     decoded = codec.decode(stream)
-    for start, stop in ((350, 850), (399, 401), (400, 800), (0, 1000), (999, 1000), (0, 1)):
+    for start, stop in ((350, 850), (383, 385), (384, 768), (0, 1000), (999, 1000), (0, 1)):
         part = codec.decode_frames(stream, start, stop)
         assert np.array_equal(part.positions, decoded.positions[start:stop]), (start, stop)
         assert np.array_equal(part.motion.rotations, decoded.motion.rotations[start:stop])
@@ -321,10 +321,10 @@ def test_mcb_rot_random_access_decodes_only_the_windows_holding_the_frames(monke
 
     monkeypatch.setattr(module, "decode_range", spy)
     codec.decode_frames(stream, 450, 500)
-    assert calls == [(400, 50, 100)]  # the second window only, frames 50:100 of it
+    assert calls == [(384, 66, 116)]  # the second window only, frames 66:116 of it
     calls.clear()
-    codec.decode_frames(stream, 790, 810)
-    assert calls == [(400, 390, 400), (200, 0, 10)]
+    codec.decode_frames(stream, 760, 780)
+    assert calls == [(384, 376, 384), (232, 0, 12)]
     with pytest.raises(ValueError, match="outside"):
         codec.decode_frames(stream, 990, 1001)
 
@@ -383,3 +383,17 @@ def test_mcb_rot_encoder_memory_does_not_grow_with_the_capture(monkeypatch):
             tracemalloc.stop()
     assert peaks[1] <= 1.2 * peaks[0], f"encode peaks {peaks[0] / 2**20:.1f} MB, then {peaks[1] / 2**20:.1f} MB"
     assert codec.last_encode_stats["windows"] == 10
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.integers(7681, 10_000_000), st.sampled_from([1, 3, 100, 128, 1000, 4096]))
+def test_mcb_rot_windows_of_a_long_capture_are_about_equal(num_frames, segment_frames):
+    from mocapbench.codecs.mcb_rot.windowed import WINDOW_FRAMES, window_length
+
+    window = window_length(num_frames, segment_frames)
+    count = -(-num_frames // window)
+    assert 1 <= window < num_frames
+    assert count == -(-num_frames // WINDOW_FRAMES)  # as many windows as windows of WINDOW_FRAMES need
+    assert window <= -(-num_frames // count) + segment_frames - 1  # no longer than an equal share, in segments
+    if WINDOW_FRAMES % segment_frames == 0:
+        assert window % segment_frames == 0 and window <= WINDOW_FRAMES

@@ -9,7 +9,8 @@ window's arrays whatever the length; the decoder writes each window into the mot
     u8 MARKER (0) | varint LAYOUT_VERSION | varint window frames W | per window: varint size, mcb-rot payload
 
 Windows are back to back (``[0, W)``, ``[W, 2W)``, ..., the last one shorter), each decoded with a header of its
-own frame count. A one-window payload starts with its format byte (2 or more), never 0, so the marker tells the two
+own frame count; the encoder makes them about equal (:func:`window_length`: as many as windows of
+:data:`WINDOW_FRAMES` frames need, each a whole number of segments where it can). A one-window payload starts with its format byte (2 or more), never 0, so the marker tells the two
 apart: every stream written before windows existed (of any length) decodes as before, and every clip up to
 :data:`WINDOW_FRAMES` frames keeps its bytes. The skeleton (about 0.3 KB on a 31-joint skeleton) is repeated in
 every window: under 1 % of a 7,680-frame window's payload, and it keeps each window a plain ``mcb-rot`` payload.
@@ -26,7 +27,7 @@ from mocapbench.codecs.base import Header
 from mocapbench.entropy.bitio import ByteReader, ByteWriter
 from mocapbench.entropy.errors import BitstreamError
 
-__all__ = ["MARKER", "LAYOUT_VERSION", "WINDOW_FRAMES", "is_windowed", "encode", "read_windows", "window_header",
+__all__ = ["MARKER", "LAYOUT_VERSION", "WINDOW_FRAMES", "is_windowed", "window_length", "encode", "read_windows", "window_header",
            "windows_of_range", "merged_stats"]
 
 #: First byte of a windowed payload (a one-window payload starts with its format, 2 or more).
@@ -44,16 +45,30 @@ def is_windowed(payload: memoryview) -> bool:
     return len(payload) > 0 and payload[0] == MARKER
 
 
-def encode(num_frames: int, encode_window: Callable[[int, int], tuple[bytes, dict]]) -> tuple[bytes, list[dict]]:
-    """The windowed payload of a capture of ``num_frames`` frames, and every window's stats.
+def window_length(num_frames: int, segment_frames: int) -> int:
+    """Frames of the windows of a capture of ``num_frames`` > :data:`WINDOW_FRAMES` frames (the last one may be
+    shorter): as many windows as windows of :data:`WINDOW_FRAMES` need, made about equal and rounded up to whole
+    segments of ``segment_frames``, so that no window is a short remainder (7,681 frames: two windows of 3,840 and
+    3,841 frames, not 7,680 and 1) and the largest window, which sets the encoder's peak memory, is as small as that
+    count allows (10,000 frames: 5,120 and 4,880)."""
+    count = -(-num_frames // WINDOW_FRAMES)
+    length = -(-num_frames // count)
+    rounded = -(-length // segment_frames) * segment_frames
+    return rounded if rounded < num_frames and -(-num_frames // rounded) == count else length
 
-    ``encode_window(start, stop) -> (payload, stats)`` codes frames ``start:stop`` (at most :data:`WINDOW_FRAMES`)
-    as a one-window ``mcb-rot`` payload; it is called window after window, so only one window's arrays live at once.
+
+def encode(num_frames: int, segment_frames: int,
+           encode_window: Callable[[int, int], tuple[bytes, dict]]) -> tuple[bytes, list[dict]]:
+    """The windowed payload of a capture of ``num_frames`` > :data:`WINDOW_FRAMES` frames, and every window's stats.
+
+    ``encode_window(start, stop) -> (payload, stats)`` codes frames ``start:stop`` (windows of
+    :func:`window_length` frames, back to back) as a one-window ``mcb-rot`` payload; it is called window after
+    window, so only one window's arrays live at once.
     """
-    window_frames = WINDOW_FRAMES
-    if not 1 <= window_frames < num_frames:
-        raise ValueError(f"mcb-rot: windows of {window_frames} frames are for captures longer than that, "
+    if num_frames <= WINDOW_FRAMES:
+        raise ValueError(f"mcb-rot: windows of {WINDOW_FRAMES} frames are for captures longer than that, "
                          f"not {num_frames} frames.")
+    window_frames = window_length(num_frames, segment_frames)
     head = ByteWriter()
     head.write_u8(MARKER)
     head.write_varints([LAYOUT_VERSION, window_frames])
