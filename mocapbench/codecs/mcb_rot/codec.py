@@ -250,22 +250,8 @@ class McbRotCodec(Codec):
     # -- decoding --------------------------------------------------------------------------------------
     def decode_payload(self, header: Header, payload: memoryview):
         if windowed.is_windowed(payload):
-            return self._decode_windows(header, payload)
+            return self._frames_of_windows(header, payload, 0, header.num_frames)
         return self._decode_window(header, payload)
-
-    def _decode_windows(self, header: Header, payload: memoryview):
-        """Positions (F, J, 3) cm and the motion of a windowed payload, each window decoded on its own and copied
-        into the outputs (memory: the outputs and one window's arrays)."""
-        _, parts = windowed.read_windows(payload, header.num_frames)  # every extent checked before decoding
-        positions = np.empty((header.num_frames, header.num_joints, 3))
-        roots = np.empty((header.num_frames, 3))
-        quats = np.empty((header.num_frames, header.num_joints, 4))
-        skeleton = None
-        for start, stop, part in parts:
-            info = read_info(windowed.window_header(header, start, stop), part)
-            skeleton = info.skeleton if skeleton is None else skeleton
-            positions[start:stop], roots[start:stop], quats[start:stop] = decode_range(info, part, 0, stop - start)
-        return positions, Motion(skeleton, header.fps, roots, OwnedQuaternions(quats))
 
     def _decode_window(self, header: Header, payload: memoryview):
         """Positions (F, J, 3) cm and the motion of a one-window payload."""
@@ -300,21 +286,30 @@ class McbRotCodec(Codec):
         with using_limits(limits) as active:
             active.check_header(stop - start, header.num_joints, self.codes_rotations)
         try:
-            if windowed.is_windowed(payload):
-                return self._decode_frames_of_windows(header, payload, start, stop)
-            info = self._stream_info(header, payload)
-            positions, roots, quats = decode_range(info, payload, start, stop)
+            with np.errstate(all="ignore"):  # as in decode: what a hostile payload overflows is refused below
+                if windowed.is_windowed(payload):
+                    positions, motion = self._frames_of_windows(header, payload, start, stop)
+                else:
+                    info = self._stream_info(header, payload)
+                    positions, roots, quats = decode_range(info, payload, start, stop)
+                    motion = Motion(info.skeleton, header.fps, roots, OwnedQuaternions(quats))
         except BitstreamError:
             raise
         except (ValueError, IndexError, KeyError, OverflowError, EOFError, TypeError) as error:
             raise BitstreamError(f"{self.name}: payload is inconsistent with its header: {error}") from error
-        motion = Motion(info.skeleton, header.fps, roots, OwnedQuaternions(quats))
+        if not np.all(np.isfinite(positions)):
+            raise BitstreamError(f"{self.name}: decoded positions hold non-finite values.")
         return Decoded(positions=positions, motion=motion, header=header)
 
-    def _decode_frames_of_windows(self, header: Header, payload: memoryview, start: int, stop: int) -> Decoded:
-        """Frames ``start:stop`` of a windowed payload: only the windows holding them, and in each only the chunks
-        holding them (the last window's parsed header is kept, as for a one-window stream)."""
-        _, parts = windowed.read_windows(payload, header.num_frames)
+    def _frames_of_windows(self, header: Header, payload: memoryview, start: int,
+                           stop: int) -> tuple[np.ndarray, Motion]:
+        """Positions (n, J, 3) cm and the motion of frames ``start:stop`` (n of them) of a windowed payload.
+
+        Decodes only the windows holding those frames, and in each only the chunks holding them, into the outputs
+        (memory: the outputs and one window's arrays). The last window's parsed header is kept, as for a one-window
+        stream, so that sampling one window at many times parses it once.
+        """
+        _, parts = windowed.read_windows(payload, header.num_frames)  # every extent checked before decoding
         count = stop - start
         positions = np.empty((count, header.num_joints, 3))
         roots = np.empty((count, 3))
@@ -326,8 +321,7 @@ class McbRotCodec(Codec):
             low, high = max(start, first), min(stop, end)
             out = slice(low - start, high - start)
             positions[out], roots[out], quats[out] = decode_range(info, part, low - first, high - first)
-        motion = Motion(skeleton, header.fps, roots, OwnedQuaternions(quats))
-        return Decoded(positions=positions, motion=motion, header=header)
+        return positions, Motion(skeleton, header.fps, roots, OwnedQuaternions(quats))
 
     def describe_payload(self, header: Header, payload: memoryview):
         if windowed.is_windowed(payload):
