@@ -136,13 +136,20 @@ _POSE_BLOCK_FRAMES = 1024
 # whose first varint is its first window's length, is told apart), then the layout version, the window length and
 # the trajectory grid (see _long_extents).
 _LONG_MARKER, _LONG_VERSION = 0, 1
+# Layout 2: as 1, and every window's payload ends with its end-joint trajectory corrections (_write_corrections). A
+# capture whose windows carry none is written as layout 1, byte for byte as before the corrections existed.
+_LONG_VERSION_CORRECTED = 2
+#: Step of the corrections' quantizer as a fraction of the threshold they are made over (cm / cm).
+_CORRECTION_STEP = 1 / 8
 
 #: The encoder's closed loop (``refine_ratio``): what a window over the limit tries, cheapest first, as (extra
-#: geodesics, end-joint trajectory levels dropped fewer). Measured on 1,025-frame windows of the long captures: 4 more
-#: geodesics (+14 % of a window's bytes) bring the synthetic capture's worst windows from 1.5-1.9x the median
-#: window's L-inf to under it; one more end-joint level (+20-30 %) is what lowers a window whose worst frame is an
-#: end-joint trajectory smoothed over a cut between takes (CMU 118 joined: 13.1 -> 8.6 cm).
-_REFINEMENTS = ((4, 0), (0, 1), (4, 1), (8, 1))
+#: geodesics, end-joint trajectory levels dropped fewer, corrections of the end-joint samples missed by over half
+#: the limit). Measured on 1,025-frame windows of the long captures: corrections (+1-2 % of a window's bytes) take a
+#: window whose worst frame is an end-joint trajectory smoothed over a cut between takes from 19.1 to 11.7 cm (CMU
+#: 118 joined; one end-joint level more: 18.0 cm for +20 %); 4 more geodesics (+14 %) bring the synthetic
+#: capture's worst windows, toes below feet whose poses 12 geodesics hold badly, from 1.5-1.9x the median window's
+#: L-inf to under it.
+_REFINEMENTS = ((0, 0, True), (4, 0, False), (4, 0, True), (0, 1, False), (4, 1, False), (4, 1, True), (8, 1, True))
 
 
 def select_end_joints(skeleton: Skeleton) -> list[int]:
@@ -182,6 +189,62 @@ def _symmetric_quantize(values: np.ndarray, bits: int) -> tuple[np.ndarray, floa
         return np.zeros(values.shape, dtype=np.int64), 0.0
     step = float(np.float32(amax / ((1 << (bits - 1)) - 1)))
     return quantize(values, step), step
+
+
+#: A window coded with the configured settings (extra geodesics, end-joint levels dropped fewer, corrections).
+_NO_REFINEMENT = (0, 0, False)
+#: The corrections section of a layout-2 window that has none (a varint 0).
+_NO_CORRECTIONS = b"\x00"
+
+
+def _write_corrections(writer: ByteWriter, misses: np.ndarray, over_cm: float) -> int:
+    """Write the end-joint trajectory corrections of one window: every sample the decoder misses by over ``over_cm``.
+
+    The paper's closing remark (§4): "quantization may be used to compress the trajectories reconstruction errors
+    while controlling additional overhead". Layout: a varint count n; if n > 0, the quantizer step (f32, cm:
+    ``over_cm`` x :data:`_CORRECTION_STEP`) and, Huffman-coded, the n frame gaps (from the previous corrected
+    sample's frame, the first from 0), the n end-joint indices and the 3n quantized components, frame by frame.
+
+    Parameters
+    ----------
+    misses : ndarray, shape (F, d, 3), cm
+        Original minus decoded end-joint positions (global).
+    over_cm : float
+        Threshold: samples whose miss is longer are corrected (to within half a step per component).
+
+    Returns
+    -------
+    int
+        n, the corrected samples.
+    """
+    frames, joints = np.nonzero(np.linalg.norm(misses, axis=-1) > over_cm)  # frame-major order
+    writer.write_varint(len(frames))
+    if len(frames):
+        step = float(np.float32(over_cm * _CORRECTION_STEP))
+        writer.write_f32(step)
+        gaps = np.diff(frames, prepend=0)
+        writer.write_bytes(encode_symbols(np.concatenate([gaps, joints, quantize(misses[frames, joints], step).ravel()])))
+    return len(frames)
+
+
+def _read_corrections(payload: memoryview, reader: ByteReader, num_frames: int, num_ends: int):
+    """The corrections section written by :func:`_write_corrections` at ``reader``, checked: ``(frames (n,),
+    end-joint indices (n,), corrections (n, 3) cm)`` and the offset after the section."""
+    count = reader.read_varint("number of end-joint corrections")
+    if count > num_frames * num_ends:
+        raise BitstreamError(f"pga-ik: at most {num_frames} x {num_ends} end-joint corrections, found {count}.")
+    if count == 0:
+        return (np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64), np.zeros((0, 3))), reader.offset
+    step = reader.read_f32("end-joint correction step")
+    if not (np.isfinite(step) and step > 0):
+        raise BitstreamError(f"pga-ik: expected a finite correction step > 0 cm, found {step}.")
+    symbols, offset = decode_symbols(payload, reader.offset, expected_count=5 * count)
+    gaps, joints = symbols[:count], symbols[count : 2 * count]
+    frames = np.cumsum(gaps)
+    if np.any(gaps < 0) or frames[-1] >= num_frames or np.any(joints < 0) or np.any(joints >= num_ends):
+        raise BitstreamError(f"pga-ik: end-joint corrections must fall on frames 0..{num_frames - 1} and end joints "
+                             f"0..{num_ends - 1}.")
+    return (frames, joints, symbols[2 * count :].reshape(count, 3) * float(step)), offset
 
 
 def _long_extents(num_frames: int, window_frames: int, grid: int) -> list[tuple[int, int]]:
@@ -305,11 +368,17 @@ class PgaIkCodec(Codec):
         grid = 1 << max(config.root_levels_dropped, config.end_levels_dropped)
         extents = _long_extents(motion.num_frames, config.window_frames, grid)
         windows = self._encode_long_windows(motion, extents)
+        # Layout 2 when a window carries corrections: then every window ends with its (maybe empty) section.
+        corrected = any(stats["refinement"][2] for _, stats in windows.values())
+        if corrected:
+            windows = {key: (payload if stats["refinement"][2] else payload + _NO_CORRECTIONS, stats)
+                       for key, (payload, stats) in windows.items()}
         payload, stats = encode_frame_windows(
             motion.num_frames, config.window_frames, lambda start, stop: windows.pop((start, stop)), extents
         )
         head = ByteWriter()
-        head.write_varints([_LONG_MARKER, _LONG_VERSION, config.window_frames, grid])
+        version = _LONG_VERSION_CORRECTED if corrected else _LONG_VERSION
+        head.write_varints([_LONG_MARKER, version, config.window_frames, grid])
         payload = head.getvalue() + payload
         errors = [w["window_linf_cm"] for w in stats if "window_linf_cm" in w]
         self.last_encode_stats = {
@@ -320,7 +389,8 @@ class PgaIkCodec(Codec):
             "paper_numbers_stored": sum(w["paper_numbers_stored"] for w in stats),
             "paper_compression_ratio": pga_raw_numbers(motion.num_joints - 1, motion.num_frames)
             / sum(w["paper_numbers_stored"] for w in stats),
-            "refined_windows": sum(1 for w in stats if w.get("refinement", (0, 0)) != (0, 0)),
+            "refined_windows": sum(1 for w in stats if w["refinement"] != _NO_REFINEMENT),
+            "corrections": sum(w.get("corrections", 0) for w in stats),
             **({"window_linf_median_cm": float(np.median(errors)), "window_linf_max_cm": max(errors)} if errors else {}),
         }
         return payload
@@ -330,14 +400,16 @@ class PgaIkCodec(Codec):
 
         Holds the windows' payloads (a few KB each) and one window's arrays at a time. Each window's stats carry
         its decoded L-inf (``window_linf_cm``, cm) and the refinement it was coded with (``refinement``: extra
-        geodesics, end-joint levels dropped fewer; (0, 0) for the configured settings).
+        geodesics, end-joint levels dropped fewer, corrections or not; :data:`_NO_REFINEMENT` for the configured
+        settings). Corrections are made over half the limit, so a corrected end joint's trajectory error leaves
+        at least half of the limit to the IK.
         """
         ratio = self.config.refine_ratio
         windows = {}
         for start, stop in extents:
             part = motion.slice(start, stop)
             payload = self._encode_window(part)
-            stats = {**self.last_encode_stats, "refinement": (0, 0)}
+            stats = {**self.last_encode_stats, "refinement": _NO_REFINEMENT}
             if ratio > 0:
                 stats["window_linf_cm"] = self._window_linf(part, payload)
             windows[(start, stop)] = (payload, stats)
@@ -349,10 +421,11 @@ class PgaIkCodec(Codec):
                 continue
             part = motion.slice(start, stop)
             best = (payload, stats)
-            for extra_geodesics, fewer_levels in _REFINEMENTS:
-                trial = self._encode_window(part, extra_geodesics, fewer_levels)
-                trial_stats = {**self.last_encode_stats, "refinement": (extra_geodesics, fewer_levels),
-                               "window_linf_cm": self._window_linf(part, trial)}
+            for refinement in _REFINEMENTS:
+                extra_geodesics, fewer_levels, correct = refinement
+                trial = self._encode_window(part, extra_geodesics, fewer_levels, limit / 2 if correct else None)
+                trial_stats = {**self.last_encode_stats, "refinement": refinement,
+                               "window_linf_cm": self._window_linf(part, trial, correct)}
                 if trial_stats["window_linf_cm"] < best[1]["window_linf_cm"]:
                     best = (trial, trial_stats)
                 if trial_stats["window_linf_cm"] <= limit:
@@ -360,16 +433,20 @@ class PgaIkCodec(Codec):
             windows[(start, stop)] = best
         return windows
 
-    def _window_linf(self, part: Motion, payload: bytes) -> float:
-        """L-inf (cm) of one window's payload decoded as the decoder does, against the window's positions."""
+    def _window_linf(self, part: Motion, payload: bytes, corrections: bool = False) -> float:
+        """L-inf (cm) of one window's payload (ending with corrections or not) decoded as the decoder does,
+        against the window's positions."""
         header = Header(self.name, part.num_frames, part.num_joints, part.fps)
-        positions, _ = self._decode_window(header, memoryview(payload))
+        positions, _ = self._decode_parsed(header, self._read(header, memoryview(payload), corrections))
         return float(np.max(np.linalg.norm(positions - part.positions(), axis=-1)))
 
-    def _encode_window(self, motion: Motion, extra_geodesics: int = 0, fewer_end_levels: int = 0) -> bytes:
-        """The stream of one clip or window; ``extra_geodesics`` above the configured k (at most 3 x inner joints)
-        and ``fewer_end_levels`` end-joint levels dropped below ``end_levels_dropped`` (at least 0) are the
-        closed loop's refinements (:meth:`_encode_long_windows`). Stats in ``last_encode_stats``."""
+    def _encode_window(self, motion: Motion, extra_geodesics: int = 0, fewer_end_levels: int = 0,
+                       correct_over_cm: float | None = None) -> bytes:
+        """The stream of one clip or window; ``extra_geodesics`` above the configured k (at most 3 x inner joints),
+        ``fewer_end_levels`` end-joint levels dropped below ``end_levels_dropped`` (at least 0) and end-joint
+        trajectory corrections over ``correct_over_cm`` (a section at the end of the stream, layout 2 only; None:
+        no section) are the closed loop's refinements (:meth:`_encode_long_windows`). Stats in
+        ``last_encode_stats`` (``corrections``: how many end-joint samples were corrected)."""
         config = self.config
         end_dropped = max(0, config.end_levels_dropped - fewer_end_levels)
         skeleton = motion.skeleton
@@ -404,8 +481,11 @@ class PgaIkCodec(Codec):
             indices.append(q.ravel())
             return q * step
 
-        for _, samples, space, dropped in tracks:
-            lifting_decompose(samples, space, dropped, quantize_details)
+        end_track = None
+        for name, samples, space, dropped in tracks:
+            reconstruction = lifting_decompose(samples, space, dropped, quantize_details)[2]
+            if name == "end-joint positions":
+                end_track = (samples - reconstruction).reshape(num_frames, len(ends), 3)  # what the decoder misses
 
         writer = ByteWriter()
         writer.write_bytes(pack_skeleton(skeleton))
@@ -418,6 +498,7 @@ class PgaIkCodec(Codec):
         writer.write_bytes(encode_symbols(model_indices))
         writer.write_array(np.array(steps), np.float32)
         writer.write_bytes(encode_symbols(np.concatenate(indices)))
+        corrections = 0 if correct_over_cm is None else _write_corrections(writer, end_track, correct_over_cm)
 
         kept_root = _kept_samples(num_frames, config.root_levels_dropped)
         kept_end = _kept_samples(num_frames, end_dropped)
@@ -433,12 +514,14 @@ class PgaIkCodec(Codec):
             "end_lod": f"{_kept_levels(num_frames, end_dropped) + 1}/{total_lod}",
             "paper_numbers_stored": stored,
             "paper_compression_ratio": pga_raw_numbers(num_inner, num_frames) / stored,
+            "corrections": corrections,
         }
         return writer.getvalue()
 
     # -- decoder ---------------------------------------------------------------------------------------------
-    def _read(self, header: Header, payload: memoryview) -> dict[str, Any]:
-        """Parse and check a payload; returns the model, settings and dequantized trajectory coefficients."""
+    def _read(self, header: Header, payload: memoryview, corrections: bool = False) -> dict[str, Any]:
+        """Parse and check a payload; returns the model, settings and dequantized trajectory coefficients, and the
+        end-joint corrections (``corrections``: the payload ends with their section, a window of layout 2)."""
         reader = ByteReader(payload)
         skeleton = unpack_skeleton(reader)
         if skeleton.num_joints != header.num_joints or skeleton.num_joints < 2:
@@ -492,6 +575,9 @@ class PgaIkCodec(Codec):
             raise BitstreamError("pga-ik: trajectory quantizer steps must be finite and >= 0.")
         total = sum(channels * sum(counts) for channels, counts in layout)
         symbols, offset = decode_symbols(payload, reader.offset, expected_count=total)
+        fixes = None
+        if corrections:
+            fixes, offset = _read_corrections(payload, ByteReader(payload, offset), num_frames, num_ends)
         ByteReader(payload, offset).expect_end()
         coefficients, position, step_index = [], 0, 0
         for channels, counts in layout:
@@ -511,6 +597,7 @@ class PgaIkCodec(Codec):
             "lambda": float(lam),
             "iterations": iterations,
             "coefficients": coefficients,
+            "corrections": fixes,
             "settings": (model_bits, trajectory_bits, root_dropped, end_dropped),
         }
 
@@ -518,7 +605,7 @@ class PgaIkCodec(Codec):
         num_frames = header.num_frames
         if num_frames <= WINDOW_FRAMES:
             return self._decode_window(header, payload)
-        windows = self._windows(payload, num_frames)  # every extent checked before decoding
+        windows, corrections = self._windows(payload, num_frames)  # every extent checked before decoding
         positions = np.empty((num_frames, header.num_joints, 3))
         roots = np.empty((num_frames, 3))
         rotations = np.empty((num_frames, header.num_joints, 4))
@@ -529,7 +616,7 @@ class PgaIkCodec(Codec):
             window = Header(header.codec, stop - start, header.num_joints, header.fps)
             left = dataclasses.replace(limits, max_ik_iterations=max(0, limits.max_ik_iterations - work))
             with using_limits(left):
-                parsed = self._read(window, part)
+                parsed = self._read(window, part, corrections)
                 # Each window's rotations and root go straight into the motion's arrays (views of them).
                 part_positions, part = self._decode_parsed(window, parsed, roots[start:stop], rotations[start:stop])
             work += (stop - start) * parsed["iterations"]
@@ -540,22 +627,24 @@ class PgaIkCodec(Codec):
         return positions, motion
 
     @staticmethod
-    def _windows(payload: memoryview, num_frames: int) -> list[tuple[int, int, memoryview]]:
+    def _windows(payload: memoryview, num_frames: int) -> tuple[list[tuple[int, int, memoryview]], bool]:
         """The windows of a long capture's payload: after the marker, as its header says (:func:`_long_extents`);
-        without it (a stream written before the marker), back-to-back windows of :data:`WINDOW_FRAMES`."""
+        without it (a stream written before the marker), back-to-back windows of :data:`WINDOW_FRAMES`. Also
+        whether each window ends with its corrections (layout 2)."""
         reader = ByteReader(payload)
         if reader.read_varint("first window length or long-capture marker") != _LONG_MARKER:
-            return split_windows(payload, num_frames, WINDOW_FRAMES)
+            return split_windows(payload, num_frames, WINDOW_FRAMES), False
         version = reader.read_varint("long-capture layout version")
-        if version != _LONG_VERSION:
+        if version not in (_LONG_VERSION, _LONG_VERSION_CORRECTED):
             raise BitstreamError(f"pga-ik: long-capture layout version {version} is not known (this decoder reads "
-                                 f"{_LONG_VERSION}).")
+                                 f"{_LONG_VERSION} and {_LONG_VERSION_CORRECTED}).")
         window_frames, grid = reader.read_varints(2, "window frames and trajectory grid")
         if not (2 <= window_frames <= WINDOW_FRAMES + 1 and 1 <= grid <= 1 << 40):
             raise BitstreamError(f"pga-ik: expected a window of 2..{WINDOW_FRAMES + 1} frames and a grid in "
                                  f"1..2^40, found {window_frames} and {grid}.")
         extents = _long_extents(num_frames, int(window_frames), int(grid))
-        return split_windows(payload[reader.offset :], num_frames, int(window_frames), extents)
+        windows = split_windows(payload[reader.offset :], num_frames, int(window_frames), extents)
+        return windows, version == _LONG_VERSION_CORRECTED
 
     def _decode_window(self, header: Header, payload: memoryview):
         return self._decode_parsed(header, self._read(header, payload))
@@ -574,6 +663,10 @@ class PgaIkCodec(Codec):
             tracks.append(lifting_reconstruct(num_frames, levels[0], details, space))
         root_positions, root_quats, end_positions = tracks
         del tracks
+        if parsed.get("corrections") is not None:
+            frames, joints, values = parsed["corrections"]
+            end_positions = end_positions.reshape(num_frames, len(parsed["ends"]), 3)
+            np.add.at(end_positions, (frames, joints), values)
         root_quats = root_quats / np.linalg.norm(root_quats, axis=1, keepdims=True)
         ends = parsed["ends"]
         targets = to_root_frame(root_quats, root_positions, end_positions.reshape(num_frames, len(ends), 3))
@@ -601,11 +694,13 @@ class PgaIkCodec(Codec):
     def describe_payload(self, header: Header, payload: memoryview) -> dict[str, Any]:
         windows = {}
         if header.num_frames > WINDOW_FRAMES:  # a sequence of windows: describe the first
-            parts = self._windows(payload, header.num_frames)
+            parts, corrections = self._windows(payload, header.num_frames)
             start, stop, payload = parts[0]
             windows = {"windows of frames": f"{len(parts)} x {stop - start} (first shown)"}
             header = Header(header.codec, stop - start, header.num_joints, header.fps)
-        parsed = self._read(header, payload)
+        else:
+            corrections = False
+        parsed = self._read(header, payload, corrections)
         model_bits, trajectory_bits, root_dropped, end_dropped = parsed["settings"]
         names = parsed["skeleton"].names
         return {
@@ -618,4 +713,5 @@ class PgaIkCodec(Codec):
             "end_levels_dropped": end_dropped,
             "ik_lambda_cm2": parsed["lambda"],
             "lm_iterations": parsed["iterations"],
+            **({"end_joint_corrections": len(parsed["corrections"][0])} if corrections else {}),
         }

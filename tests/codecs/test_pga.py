@@ -220,10 +220,10 @@ def test_closed_loop_recodes_the_window_of_a_rare_pose_and_no_other(monkeypatch)
     assert len(plain) < len(refined) < 1.15 * len(plain)  # one window's extra geodesics / samples
     # The refined window's stream says what it holds: more geodesics or fewer dropped end-joint levels.
     header, payload = container.unpack(refined, "pga-ik")
-    extents = pga._long_extents(motion.num_frames, window, 4)
-    start, stop, part = pga.split_windows(payload[5:], motion.num_frames, window, extents)[5]
-    info = closed_loop.describe_payload(pga.Header("pga-ik", stop - start, motion.num_joints, motion.fps), part)
-    assert info["num_geodesics"] > 6 or info["end_levels_dropped"] < 2
+    windows, corrections = closed_loop._windows(payload, motion.num_frames)
+    start, stop, part = windows[5]
+    parsed = closed_loop._read(pga.Header("pga-ik", stop - start, motion.num_joints, motion.fps), part, corrections)
+    assert parsed["k"] > 6 or parsed["settings"][3] < 2
 
 
 def test_refine_ratio_is_off_or_at_least_one():
@@ -249,3 +249,49 @@ def test_joined_takes_continue_the_root_and_play_back_and_forth_and_window_linf_
     worst = window_linf(error, 1025, 16)
     assert len(worst) == 8 and worst[6] == 9.0 and worst[7] == 5.0  # frame 7,000 counts for window 6 only
     assert list(window_linf(error[:7680], 1025, 16)) == [9.0]  # a clip up to 7,680 frames is one window
+
+
+def test_closed_loop_corrects_the_end_joints_across_a_cut_between_takes(monkeypatch):
+    """Two takes joined mid-window (the poses jump): the dropped trajectory levels smooth the end joints across the
+    jump; the window's corrections (layout 2) bring them back. Layout 1 streams still decode; bad sections fail."""
+    from mocapbench.codecs import pga
+    from mocapbench.motion import Motion
+
+    window, windows = 129, 8
+    first, second = sinusoidal_motion(num_frames=window * windows, seed=4), sinusoidal_motion(
+        num_frames=window * windows, seed=9, amplitude_deg=60.0)
+    cut = 5 * window + 60
+    rotations = np.concatenate([np.asarray(first.rotations)[:cut], np.asarray(second.rotations)[cut:]])
+    motion = Motion(first.skeleton, first.fps, first.root_positions, rotations)
+    monkeypatch.setattr(pga, "WINDOW_FRAMES", 256)
+    params = dict(num_geodesics=6, root_levels_dropped=2, end_levels_dropped=3, window_frames=window)
+    open_loop, closed_loop = create("pga-ik", **params, refine_ratio=0.0), create("pga-ik", **params)
+    plain, corrected = open_loop.encode(motion), closed_loop.encode(motion)
+    stats = closed_loop.last_encode_stats
+    before = np.linalg.norm(open_loop.decode(plain).positions - motion.positions(), axis=-1)
+    after = np.linalg.norm(closed_loop.decode(corrected).positions - motion.positions(), axis=-1)
+    at_cut = slice(5 * window, 6 * window)
+    assert before[at_cut].max() > 2 * np.median(before.max(axis=1))
+    assert after[at_cut].max() < 0.75 * before[at_cut].max() and after.max() < before.max()
+    assert stats["corrections"] > 0
+    _, plain_payload = container.unpack(plain, "pga-ik")
+    header, payload = container.unpack(corrected, "pga-ik")
+    assert plain_payload[1] == 1 and payload[1] == 2  # layout 1 without corrections (as before), 2 with
+    assert closed_loop.describe_payload(header, payload)["end_joint_corrections"] >= 0
+    # A corrupted corrections section is one BitstreamError: the count past what the window can hold, or cut short.
+    windows, _ = closed_loop._windows(payload, motion.num_frames)
+    start, stop, part = next(w for w in windows if w[0] <= cut < w[1])
+    window_header = pga.Header("pga-ik", stop - start, motion.num_joints, motion.fps)
+    fixes = closed_loop._read(window_header, part, True)["corrections"]
+    assert len(fixes[0]) > 0 and np.all(fixes[0] < stop - start)
+    with pytest.raises(BitstreamError):
+        closed_loop._read(window_header, part, False)  # the section is not read as trajectory data
+    with pytest.raises(BitstreamError):
+        closed_loop._read(window_header, part[:-1], True)
+    with pytest.raises(BitstreamError):
+        closed_loop._read(window_header, bytes(part) + b"\x00", True)  # a byte after the section
+    from mocapbench.entropy.bitio import ByteReader
+
+    too_many = bytes([0x80 | ((5 * (stop - start) + 1) & 0x7F), (5 * (stop - start) + 1) >> 7])  # varint n
+    with pytest.raises(BitstreamError, match="at most"):
+        pga._read_corrections(too_many, ByteReader(too_many), stop - start, 5)
