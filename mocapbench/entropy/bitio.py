@@ -438,6 +438,9 @@ def decode_varints(data, offset: int, count: int, what: str = "varints") -> tupl
     # One byte more than count maximal varints: if that window holds too few terminators, one is over-long.
     window = MAX_VARINT_BYTES * count + 1
     buf = np.frombuffer(data, dtype=np.uint8)[offset : offset + window]
+    head = buf[:count]
+    if len(head) == count and head.max() < 0x80:  # every varint is one byte (small values): nothing to scan
+        return head.astype(np.uint64), offset + count
     ends = np.flatnonzero(buf < 0x80)
     if ends.size < count:
         if buf.size == window:
