@@ -46,24 +46,45 @@ def global_quaternions(quats: np.ndarray, parents: np.ndarray) -> np.ndarray:
     return glob
 
 
+_ROLL1, _ROLL2 = [1, 2, 0], [2, 0, 1]  # a x b = a[_ROLL1] b[_ROLL2] - a[_ROLL2] b[_ROLL1] on component-major arrays
+
+
 def forward_kinematics(quats: np.ndarray, roots: np.ndarray, skeleton: Skeleton) -> tuple[np.ndarray, np.ndarray]:
     """Joint positions (n, J, 3) cm and global rotations (n, J, 4) of local rotations ``quats`` (n, J, 4) and root
     positions ``roots`` (n, 3) cm, one tree depth at a time.
 
-    The closed loop's forward kinematics: it needs the global rotations too (to score corrections and for the
-    shell), which the decoder's :func:`.kinematics.positions` does not keep. Equal to it up to float rounding
-    (~1e-13 cm), far inside the encoder's safety margin; the encoder's final check decodes with the decoder's.
+    The closed loop's forward kinematics: it needs the global rotations of every joint too (to score corrections
+    and for the shell), which the decoder's :func:`.kinematics.positions` does not keep. Component-major (4, J, n)
+    arrays with x, y, z stacked, as there (a few numpy calls per depth; the loop runs on few frames, where the calls
+    cost more than the arithmetic). Equal to it up to float rounding (~1e-13 cm), far inside the encoder's safety
+    margin; the encoder's final check decodes with the decoder's. The results are transposed views.
     """
     parents, offsets = skeleton.parents, skeleton.offsets
-    glob = np.empty(quats.shape)
-    positions = np.empty(quats.shape[:-1] + (3,))
-    glob[:, 0] = quats[:, 0]
-    positions[:, 0] = roots
+    local = np.moveaxis(quats, -1, 0).swapaxes(1, 2)  # (4, J, n) view
+    glob = np.empty(local.shape)
+    positions = np.empty((3,) + local.shape[1:])
+    glob[:, 0] = local[:, 0]
+    positions[:, 0] = roots.T
     for joints in tree_levels(parents)[1:]:
-        above = glob[:, parents[joints]]
-        positions[:, joints] = positions[:, parents[joints]] + quat.rotate(above, offsets[joints])
-        glob[:, joints] = quat.multiply(above, quats[:, joints])
-    return positions, glob
+        above = parents[joints]
+        p = glob[:, above]  # (4, m, n)
+        pv, pw = p[:3], p[3]
+        v = offsets[joints].T[:, :, None]  # (3, m, 1)
+        t = 2.0 * (pv[_ROLL1] * v[_ROLL2] - pv[_ROLL2] * v[_ROLL1])  # 2 u x v
+        turned = pv[_ROLL1] * t[_ROLL2]
+        turned -= pv[_ROLL2] * t[_ROLL1]  # u x t
+        turned += pw * t
+        turned += v
+        positions[:, joints] = positions[:, above] + turned
+        b = local[:, joints]
+        bv, bw = b[:3], b[3]
+        xyz = pv[_ROLL1] * bv[_ROLL2]
+        xyz -= pv[_ROLL2] * bv[_ROLL1]
+        xyz += pw * bv
+        xyz += bw * pv
+        glob[:3, joints] = xyz
+        glob[3, joints] = pw * bw - (pv[0] * bv[0] + pv[1] * bv[1] + pv[2] * bv[2])
+    return positions.transpose(2, 1, 0), glob.transpose(2, 1, 0)
 
 
 class PointTargets:
