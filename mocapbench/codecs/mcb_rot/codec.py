@@ -22,7 +22,7 @@ Design::
          multiplier chosen per stream by a rate search (the smallest stream wins; it also tries slope 0, a
          flat step over frequency, which wins at small ε: +1-2 % at 24 fps). Each attempt is quantized and
          refined (below) but not entropy coded: attempts are ranked by their estimated size (:mod:`.rate`, ideal
-         code lengths; it picks the stream the real sizes pick on cmu_test to 0.02 %) and only the winner is
+         code lengths; on cmu_test its pick is at most 0.03 % larger than the real sizes' pick) and only the winner is
          written. An attempt gives up as soon as its estimate exceeds the best so far (its base layer alone, or
          its corrections after a round of the closed loop), and the walk goes first towards finer steps when the
          start's corrections are over 12 % of its size (:data:`_FINER_FIRST_SHARE`): 4-6 attempts per stream, of

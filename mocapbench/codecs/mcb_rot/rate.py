@@ -12,7 +12,7 @@ The estimate is the ideal code length of what :func:`mocapbench.codecs.mcb_rot.s
   bits (escape low bits and signs). The stream's classes are separable (a channel scale plus a band tilt, fitted
   by coordinate descent), so the stream costs a little more than this per-cell optimum, by a similar share in every
   attempt of one stream;
-* segment means (as differences along the segments), significance counts (as differences along each chunk),
+* segment means and significance counts (each as differences along the segments),
   correction gaps and correction values: each stream under its best single class, plus raw bits.
 
 Header bytes common to all attempts of a stream (skeleton, cuts, axes, class bytes) are left out: the estimate
@@ -87,9 +87,8 @@ def base_bytes(info: StreamInfo, coefficients: dict[int, np.ndarray]) -> float:
     layout = info.layout
     bits, counts = _ac_bits(info, coefficients)
     bits += _single_class_bits(np.diff(info.dc, axis=0, prepend=0).ravel())
-    count_diffs = [np.diff(np.stack([counts[int(s)] for s in layout.chunk_segments(chunk)]), axis=0, prepend=0)
-                   for chunk in range(layout.num_chunks)]
-    return (bits + _single_class_bits(np.concatenate(count_diffs).ravel())) / 8.0
+    count_diffs = np.diff(np.stack([counts[s] for s in range(layout.num_segments)]), axis=0, prepend=0)
+    return (bits + _single_class_bits(count_diffs.ravel())) / 8.0
 
 
 def corrections_bytes(info: StreamInfo, flat: np.ndarray, values: np.ndarray) -> float:
