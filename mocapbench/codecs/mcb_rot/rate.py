@@ -77,8 +77,11 @@ def _ac_bits(info: StreamInfo, coefficients: dict[int, np.ndarray]) -> tuple[flo
         histogram += np.bincount(cells * TOKEN_COUNT + tokens,
                                  minlength=histogram.size).reshape(histogram.shape)
         raw += float(widths.sum() + np.count_nonzero(values))
-    cost = histogram @ -log2p.T  # (cells, K)
-    return float(cost.min(axis=1).sum()) + raw, counts
+    # Only the cells and tokens that occur (a short clip fills a few of the 12 C cells, small tokens only).
+    used = histogram[histogram.any(axis=1)]
+    tokens_used = int(np.flatnonzero(used.any(axis=0)).max(initial=-1)) + 1
+    cost = used[:, :tokens_used] @ -log2p[:, :tokens_used].T  # (used cells, K)
+    return (float(cost.min(axis=1).sum()) if len(cost) else 0.0) + raw, counts
 
 
 def base_bytes(info: StreamInfo, coefficients: dict[int, np.ndarray]) -> float:
