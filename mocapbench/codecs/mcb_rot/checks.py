@@ -61,21 +61,12 @@ def forward_kinematics(quats: np.ndarray, roots: np.ndarray, skeleton: Skeleton)
     """
     parents, offsets = skeleton.parents, skeleton.offsets
     local = np.moveaxis(quats, -1, 0).swapaxes(1, 2)  # (4, J, n) view
+    levels = tree_levels(parents)[1:]
     glob = np.empty(local.shape)
-    positions = np.empty((3,) + local.shape[1:])
     glob[:, 0] = local[:, 0]
-    positions[:, 0] = roots.T
-    for joints in tree_levels(parents)[1:]:
-        above = parents[joints]
-        p = glob[:, above]  # (4, m, n)
+    for joints in levels:  # global rotations, a depth at a time
+        p = glob[:, parents[joints]]  # (4, m, n)
         pv, pw = p[:3], p[3]
-        v = offsets[joints].T[:, :, None]  # (3, m, 1)
-        t = 2.0 * (pv[_ROLL1] * v[_ROLL2] - pv[_ROLL2] * v[_ROLL1])  # 2 u x v
-        turned = pv[_ROLL1] * t[_ROLL2]
-        turned -= pv[_ROLL2] * t[_ROLL1]  # u x t
-        turned += pw * t
-        turned += v
-        positions[:, joints] = positions[:, above] + turned
         b = local[:, joints]
         bv, bw = b[:3], b[3]
         xyz = pv[_ROLL1] * bv[_ROLL2]
@@ -84,6 +75,22 @@ def forward_kinematics(quats: np.ndarray, roots: np.ndarray, skeleton: Skeleton)
         xyz += bw * pv
         glob[:3, joints] = xyz
         glob[3, joints] = pw * bw - (pv[0] * bv[0] + pv[1] * bv[1] + pv[2] * bv[2])
+    positions = np.empty((3,) + local.shape[1:])
+    positions[:, 0] = roots.T
+    if len(parents) > 1:  # every bone's offset turned into the world frame by its parent, in one step
+        p = glob[:, parents[1:]]
+        pv, pw = p[:3], p[3]
+        p1, p2 = pv[_ROLL1], pv[_ROLL2]
+        v = offsets[1:].T[:, :, None]  # (3, J - 1, 1)
+        t = p1 * (2.0 * v[_ROLL2])
+        t -= p2 * (2.0 * v[_ROLL1])  # 2 u x v
+        turned = p1 * t[_ROLL2]
+        turned -= p2 * t[_ROLL1]  # u x t
+        t *= pw
+        turned += t
+        turned += v
+        for joints in levels:
+            positions[:, joints] = positions[:, parents[joints]] + turned[:, joints - 1]
     return positions.transpose(2, 1, 0), glob.transpose(2, 1, 0)
 
 
