@@ -325,6 +325,10 @@ def test_mcb_rot_random_access_decodes_only_the_windows_holding_the_frames(monke
     calls.clear()
     codec.decode_frames(stream, 760, 780)
     assert calls == [(384, 376, 384), (232, 0, 12)]
+    calls.clear()
+    monkeypatch.setattr(module, "BLOCK_FRAMES", 256)  # a window is decoded in runs of whole chunks (128 frames)
+    assert np.array_equal(codec.decode(stream).positions, decoded.positions)
+    assert calls == [(384, 0, 256), (384, 256, 384)] * 2 + [(232, 0, 232)]
     with pytest.raises(ValueError, match="outside"):
         codec.decode_frames(stream, 990, 1001)
 
@@ -397,3 +401,27 @@ def test_mcb_rot_windows_of_a_long_capture_are_about_equal(num_frames, segment_f
     assert window <= -(-num_frames // count) + segment_frames - 1  # no longer than an equal share, in segments
     if WINDOW_FRAMES % segment_frames == 0:
         assert window % segment_frames == 0 and window <= WINDOW_FRAMES
+
+
+def test_mcb_rot_windowed_stream_mutated_decodes_or_is_one_bitstream_error(monkeypatch):
+    """The fuzzer's mutations (header fields, byte edits, truncations; CRC restamped) of a windowed stream: every
+    decode and random-access decode returns or raises BitstreamError, never anything else."""
+    from mocapbench.fuzz import mutations
+
+    _mcb_rot_windows(monkeypatch, 128)  # 300 frames: windows of 128, 128, 44
+    codec = create("mcb-rot", eps_cm=1.0, step_rel=8.0)
+    stream = codec.encode(sinusoidal_motion(num_frames=300, seed=2))
+    refused = 0
+    def frames_of(data: bytes):  # a range inside the frames the (maybe edited) header says
+        frames = container.read_header(data)[0].num_frames
+        return codec.decode_frames(data, frames // 3, max(frames // 3 + 1, 2 * frames // 3))
+
+    for kind, data in mutations(stream, 200, seed=11):
+        for decode in (lambda: codec.decode(data), lambda: frames_of(data)):
+            try:
+                decoded = decode()
+            except BitstreamError:
+                refused += 1
+                continue
+            assert np.all(np.isfinite(decoded.positions)), kind
+    assert refused > 200  # most edits are caught (the rest edit a value the stream allows)
