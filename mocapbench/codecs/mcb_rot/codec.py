@@ -75,7 +75,6 @@ from mocapbench.codecs.limits import DecodeLimits, using_limits
 from mocapbench.codecs.mcb_rot import kinematics
 from mocapbench.codecs.mcb_rot import windowed
 from mocapbench.codecs.mcb_rot.decoder import decode_range
-from mocapbench.codecs.mcb_rot.decoder import BLOCK_FRAMES
 from mocapbench.codecs.mcb_rot import quaternions as quat
 from mocapbench.codecs.mcb_rot.axes import axes_from_codes, principal_axes, to_axes
 from mocapbench.codecs.mcb_rot.budgets import joint_budgets, offset_discrepancy_cm
@@ -311,7 +310,7 @@ class McbRotCodec(Codec):
         """Positions (n, J, 3) cm and the motion of frames ``start:stop`` (n of them) of a windowed payload.
 
         Decodes only the windows holding those frames, and in each only the chunks holding them, into the outputs
-        (memory: the outputs and one decoder block's arrays). The last window's parsed header is kept, as for a one-window
+        (memory: the outputs and one decoder block's temporaries: each window is decoded straight into them). The last window's parsed header is kept, as for a one-window
         stream, so that sampling one window at many times parses it once.
         """
         _, parts = windowed.read_windows(payload, header.num_frames)  # every extent checked before decoding
@@ -323,11 +322,9 @@ class McbRotCodec(Codec):
         for first, end, part in windowed.windows_of_range(parts, start, stop):
             info = self._stream_info(windowed.window_header(header, first, end), part)
             skeleton = info.skeleton if skeleton is None else skeleton
-            # In runs of whole chunks (one decoder block each): a run's arrays are copied out, not a window's.
-            for low, high in windowed.pieces(info.layout, max(start, first) - first, min(stop, end) - first,
-                                             BLOCK_FRAMES):
-                out = slice(first + low - start, first + high - start)
-                positions[out], roots[out], quats[out] = decode_range(info, part, low, high)
+            low, high = max(start, first), min(stop, end)
+            out = slice(low - start, high - start)
+            decode_range(info, part, low - first, high - first, (positions[out], roots[out], quats[out]))
         return positions, Motion(skeleton, header.fps, roots, OwnedQuaternions(quats))
 
     def describe_payload(self, header: Header, payload: memoryview):

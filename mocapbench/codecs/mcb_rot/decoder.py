@@ -48,12 +48,14 @@ _KEY_STRIDE = 2 * NUM_CLASSES  # classes of one stream lie in [0, 128)
 
 
 def decode_range(
-    info: StreamInfo, payload: memoryview, start: int, stop: int
+    info: StreamInfo, payload: memoryview, start: int, stop: int,
+    out: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Positions (n, J, 3) cm, roots (n, 3) cm and rotations (n, J, 4) of frames ``start:stop`` (n = stop - start).
 
-    Decodes the blocks of chunks that hold those frames, each into the preallocated outputs. The rotations are the
-    decoded quaternions as forward kinematics used them (unit up to float rounding).
+    Decodes the blocks of chunks that hold those frames, each into the preallocated outputs (``out``, C-contiguous
+    arrays of those shapes, when given: a window of a long capture decodes straight into the motion's arrays). The
+    rotations are the decoded quaternions as forward kinematics used them (unit up to float rounding).
 
     Raises
     ------
@@ -63,9 +65,9 @@ def decode_range(
     layout = info.layout
     num_joints = info.skeleton.num_joints
     count = stop - start
-    positions = np.empty((count, num_joints, 3))
-    roots = np.empty((count, 3))
-    quats = np.empty((count, num_joints, 4))
+    if out is None:
+        out = np.empty((count, num_joints, 3)), np.empty((count, 3)), np.empty((count, num_joints, 4))
+    positions, roots, quats = out
     scratch = thread_scratch()
     for chunks in _blocks(info, layout.chunks_of_frames(start, stop)):
         first = int(layout.starts[layout.chunk_starts[chunks[0]]])

@@ -25,7 +25,6 @@ import numpy as np
 
 from mocapbench.codecs import windows
 from mocapbench.codecs.base import Header
-from mocapbench.codecs.mcb_rot.segments import SegmentLayout
 from mocapbench.entropy.bitio import ByteReader, ByteWriter
 from mocapbench.entropy.errors import BitstreamError
 
@@ -121,20 +120,6 @@ def windows_of_range(parts: list[Window], start: int, stop: int) -> list[Window]
     low = int(np.searchsorted(firsts, start, side="right")) - 1
     high = int(np.searchsorted(firsts, stop, side="left"))
     return parts[low:high]
-
-
-def pieces(layout: SegmentLayout, start: int, stop: int, frames: int) -> list[tuple[int, int]]:
-    """Frames ``start:stop`` of a window cut at chunk starts into runs of at least ``frames`` frames (the last may
-    be shorter), so that each run decodes whole chunks once and its arrays stay a run's size, not a window's."""
-    chunk_firsts = layout.starts[layout.chunk_starts[:-1]]
-    cuts = chunk_firsts[(chunk_firsts > start) & (chunk_firsts < stop)].tolist()
-    runs, low = [], start
-    for cut in cuts:
-        if cut - low >= frames:
-            runs.append((low, cut))
-            low = cut
-    runs.append((low, stop))
-    return runs
 
 
 def merged_stats(stats: list[dict]) -> dict:
