@@ -1,6 +1,6 @@
 """``mcb-rot`` long captures: a capture longer than one window is coded as independent windows (bounded memory).
 
-The encoder's working set is about 19 times the positions array of what it codes (the signal, its spectra, the
+The encoder's working set is about 20 times the positions array of what it codes (the signal, its spectra, the
 compensated quantizer's levels, the closed loop's decoded rotations and targets). A capture of more than
 :data:`WINDOW_FRAMES` frames is therefore coded window by window, each window a self-contained ``mcb-rot`` payload
 (its own skeleton, cuts, rate search, entropy classes, closed loop and check of the bound), so the encoder holds one
