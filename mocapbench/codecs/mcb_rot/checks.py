@@ -13,6 +13,7 @@ from functools import lru_cache
 import numpy as np
 
 from mocapbench.codecs.mcb_rot import quaternions as quat
+from mocapbench.codecs.mcb_rot.kinematics import compose
 from mocapbench.motion import Skeleton
 
 __all__ = ["PointTargets", "forward_kinematics", "global_quaternions", "tree_levels"]
@@ -65,16 +66,7 @@ def forward_kinematics(quats: np.ndarray, roots: np.ndarray, skeleton: Skeleton)
     glob = np.empty(local.shape)
     glob[:, 0] = local[:, 0]
     for joints in levels:  # global rotations, a depth at a time
-        p = glob[:, parents[joints]]  # (4, m, n)
-        pv, pw = p[:3], p[3]
-        b = local[:, joints]
-        bv, bw = b[:3], b[3]
-        xyz = pv[_ROLL1] * bv[_ROLL2]
-        xyz -= pv[_ROLL2] * bv[_ROLL1]
-        xyz += pw * bv
-        xyz += bw * pv
-        glob[:3, joints] = xyz
-        glob[3, joints] = pw * bw - (pv[0] * bv[0] + pv[1] * bv[1] + pv[2] * bv[2])
+        glob[:3, joints], glob[3, joints] = compose(glob[:, parents[joints]], local[:, joints])
     positions = np.empty((3,) + local.shape[1:])
     positions[:, 0] = roots.T
     if len(parents) > 1:  # every bone's offset turned into the world frame by its parent, in one step

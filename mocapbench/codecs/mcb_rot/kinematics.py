@@ -19,7 +19,7 @@ import numpy as np
 from mocapbench.codecs.mcb_rot.scratch import Scratch
 from mocapbench.motion import Skeleton
 
-__all__ = ["positions"]
+__all__ = ["compose", "positions"]
 
 
 _PLANS: dict[tuple[bytes, bytes], tuple] = {}  # plans of recent skeletons
@@ -58,6 +58,19 @@ def _plan(parents: np.ndarray, offsets: np.ndarray) -> tuple:
     return _PLANS[key]
 
 
+def compose(p: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Quaternion products ``p b`` of component-major arrays ``p``, ``b`` (4, ...) (x, y, z, w first): returns the
+    vector parts (3, ...) and the scalar parts (...). ``p`` must be a copy (a fancy-indexed gather): it is reused."""
+    pv, pw = p[:3], p[3]
+    bv, bw = b[:3], b[3]
+    xyz = pv[_R1] * bv[_R2]
+    xyz -= pv[_R2] * bv[_R1]
+    xyz += pw * bv
+    xyz += bw * pv
+    pv *= bv
+    return xyz, pw * bw - pv.sum(axis=0)
+
+
 def positions(
     quats: np.ndarray, roots: np.ndarray, skeleton: Skeleton, out: np.ndarray | None = None, scratch: Scratch | None = None
 ) -> np.ndarray:
@@ -74,17 +87,7 @@ def positions(
     glob = scratch.take("glob", local.shape) if reuse else np.empty_like(local)
     glob[:, 0] = local[:, 0]
     for inner, parents in levels:  # global rotations of the joints with children, a depth at a time
-        p = glob[:, parents]  # (4, n, F)
-        pv, pw = p[:3], p[3]
-        b = local[:, inner]
-        bv, bw = b[:3], b[3]
-        xyz = pv[_R1] * bv[_R2]
-        xyz -= pv[_R2] * bv[_R1]
-        xyz += pw * bv
-        xyz += bw * pv
-        glob[:3, inner] = xyz
-        pv *= bv
-        glob[3, inner] = pw * bw - pv.sum(axis=0)
+        glob[:3, inner], glob[3, inner] = compose(glob[:, parents], local[:, inner])
     result = scratch.take("fk", (3, num_joints, num_frames)) if reuse else np.empty((3, num_joints, num_frames))
     if num_joints > 1:  # (leaves only the root, whose position is ``roots``)
         # Bone-sized temporaries (a few hundred KB on a 465-frame clip) would be mapped and page-faulted afresh on
