@@ -67,18 +67,24 @@ What is the paper's and what is ours
     the kept levels per motion by hand (Table 2: 6-17 geodesics, 4-12 of 9-16 levels) and notes that what the
     trajectories need "highly depends on the dynamics" (§4); a long capture's windows differ the same way. The
     encoder decodes every window, and a window whose L-inf is over ``refine_ratio`` x the capture's median window
-    L-inf is coded again with 4 more geodesics, or one end-joint level more, or both, or 8 more geodesics
-    (:data:`_REFINEMENTS`, cheapest first; the first under the limit is kept, else the lowest L-inf, never worse
-    than the first coding). Each window's stream holds its own k and levels, so the decoder and the format are
-    those of any window. Why: a capture's L-inf is its worst window's, and the per-window L-inf has a tail
-    (1,025-frame windows of the synthetic capture: median 17.3 cm, 90th percentile 25.2, worst 32.6 of 98; the worst
-    are toes, below the feet the IK constrains, in windows whose poses 12 geodesics hold badly: 4 more bring them
-    to 15 cm), so more windows draw more of the tail. Measured with ``python -m mocapbench.benchmarks.pga_long``:
-    100,000 synthetic frames 32.6 -> 25.7 cm at 1 % less ratio (69.9 against 70.6), CMU subject 118's takes joined
-    38.0 -> 17.8 cm at 3.6 % less (82.1 against 85.2). What it leaves: windows whose worst frame is an end-joint
-    trajectory smoothed across a cut between takes (the dropped levels interpolate over a pose jump; one more level
-    helps little). The cost: the encoder runs the decoder's IK once per window and again per trial (about 0.6 ms
-    of CPU per frame against 0.05 open loop). Clips up to 7,680 frames are coded whole and keep their bytes.
+    L-inf is coded again with the refinements of :data:`_REFINEMENTS` in turn, cheapest first: end-joint
+    trajectory corrections, 4 more geodesics, both, one end-joint level more, ... (the first under the limit is
+    kept, else the lowest L-inf: never worse than the first coding). Why: a capture's L-inf is its worst
+    window's, and the per-window L-inf has a tail, so more windows draw more of it. On the synthetic capture
+    (1,025-frame windows, 100k frames: median 17.3 cm, 90th percentile 25.2, worst 32.6 of 98) the tail is toes,
+    below the feet the IK constrains, in windows whose poses 12 geodesics hold badly (4 more bring them to
+    15 cm); on CMU subject 118's takes joined it is end-joint trajectories smoothed across a cut between takes
+    (the dropped levels interpolate over the pose jump: 19 cm at a hand), and IK solutions that turn an elbow.
+  - **End-joint corrections** (the paper's closing remark, §4: "quantization may be used to compress the
+    trajectories reconstruction errors while controlling additional overhead"): a refined window may end with
+    the end-joint samples its trajectories miss by over half the limit, quantized and Huffman-coded
+    (:func:`_write_corrections`); the decoder adds them before the IK. A capture with any is written in long
+    layout 2 (every window ends with its section); one without stays layout 1, byte for byte as before.
+  - Measured with ``python -m mocapbench.benchmarks.pga_long`` (``--refine 0`` is the open loop): 100,000
+    synthetic frames 32.6 -> 25.7 cm (1k frames: 17.5) at 1 % less ratio (69.9 against 70.6); 10,000 frames of
+    the joined CMU takes 13.1 -> 11.8 cm (1k: 8.2) at 84.3 against 84.4. Short clips are coded whole and keep their
+    bytes. The cost: the encoder runs the decoder's IK once per window and once per trial (about 0.6 ms of CPU
+    per frame against 0.05 open loop).
 """
 
 from __future__ import annotations
@@ -354,13 +360,14 @@ class PgaIkCodec(Codec):
 
         Closed loop (``refine_ratio`` > 0, long captures only): every window is decoded as the decoder will and
         its L-inf measured; a window over ``refine_ratio`` x the median window L-inf of the capture is coded
-        again with the settings of :data:`_REFINEMENTS` in turn (more geodesics, one end-joint trajectory level
-        more), keeping the first that brings it under that limit, else the one with the lowest L-inf (the
-        original included, so no window gets worse). Each window's settings are in its own stream, so the
-        decoder and the format do not change. Why: the captures' L-inf is the worst of their windows', and the
-        per-window L-inf has a tail (synthetic, 100k frames: median 17 cm, worst 33 cm) made of windows whose
-        poses 12 geodesics hold badly or whose end-joint trajectories cross a cut; more windows draw more of the
-        tail. The cost: the encoder decodes every window once (the IK: about 10x the open-loop encode time).
+        again with the refinements of :data:`_REFINEMENTS` in turn (end-joint corrections, more geodesics, one
+        end-joint trajectory level more), keeping the first that brings it under that limit, else the one with the
+        lowest L-inf (the original included, so no window gets worse). A window's k and levels are in its own
+        stream; corrections make the capture long layout 2 (:func:`_write_corrections`). Why: the capture's
+        L-inf is the worst of its windows', and the per-window L-inf has a tail (synthetic, 100k frames: median
+        17 cm, worst 33 cm) made of windows whose poses 12 geodesics hold badly or whose end-joint trajectories
+        cross a cut; more windows draw more of the tail. The cost: the encoder decodes every window once (the IK:
+        about 10x the open-loop encode time).
         """
         if motion.num_frames <= WINDOW_FRAMES:
             return self._encode_window(motion)
