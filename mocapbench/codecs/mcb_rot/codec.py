@@ -201,10 +201,10 @@ class McbRotCodec(Codec):
         stored = unpack_skeleton_compact(ByteReader(skeleton_blob), stepped=True)
         discrepancy = offset_discrepancy_cm(motion.skeleton, stored)
         bound = config.eps_cm * (1.0 - 2 * _SAFETY_MARGIN) - 2.0 * discrepancy
-        if bound <= 0.5 * config.eps_cm:
+        if bound <= 0.5 * config.eps_cm:  # defensive: skeleton_step_exponent keeps 2 x discrepancy below eps / 3
             raise ValueError(
-                f"mcb-rot: eps {config.eps_cm} cm is too small for this skeleton's float32 offsets "
-                f"(they move joints by up to {discrepancy:.3g} cm)."
+                f"mcb-rot: eps {config.eps_cm} cm is too small for this skeleton's stored offsets "
+                f"(their grid moves joints by up to {discrepancy:.3g} cm)."
             )
         target = motion.positions()
         cuts = find_cuts(target, ratio=config.cut_ratio, min_jump_cm=config.cut_min_cm) if config.cut_ratio > 0 else np.zeros(0, np.int64)
