@@ -33,12 +33,6 @@ __all__ = ["base_bytes", "corrections_bytes", "estimate_bytes"]
 _NEAREST = 0.5  # rounding of the tables every side stream is coded with
 
 
-def _raw_bits(values: np.ndarray) -> float:
-    """Bits sent raw for int64 ``values``: escape low bits and one sign bit per nonzero value."""
-    _, _, widths = tokenize(values)
-    return float(widths.sum() + np.count_nonzero(values))
-
-
 def _single_class_bits(values: np.ndarray) -> float:
     """Ideal bits of ``values`` under the one side class that codes them best, raw bits included."""
     if values.size == 0:
