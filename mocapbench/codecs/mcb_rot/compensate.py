@@ -90,66 +90,214 @@ def quantize(info: StreamInfo, spectra) -> tuple[np.ndarray, dict[int, np.ndarra
     return dc, coefficients
 
 
+class _Transform:
+    """The segments' DCT along the frame axis (-2) of component-major arrays (..., F, n), grouped by length: a
+    contiguous run of equal-length segments is a reshape, a length-1 segment is its own transform (the identity)."""
+
+    def __init__(self, layout) -> None:
+        self.groups = []
+        for length, segments in layout.groups.items():
+            index = layout.starts[segments, None] + np.arange(length)  # (S_g, n)
+            first = int(index[0, 0])
+            contiguous = bool(np.array_equal(index.ravel(), np.arange(first, first + index.size)))
+            where = slice(first, first + index.size) if contiguous else index.ravel()
+            self.groups.append((length, len(segments), where))
+
+    def apply(self, x: np.ndarray, inverse: bool) -> np.ndarray:
+        """DCT-II (or its inverse) of every segment of ``x`` (a, F, n) along axis 1, orthonormal: (a, F, n)."""
+        out = np.empty_like(x)
+        a, _, n = x.shape
+        transform = scipy.fft.idct if inverse else scipy.fft.dct
+        for length, count, where in self.groups:
+            if length == 1:
+                out[:, where] = x[:, where]
+                continue
+            part = x[:, where].reshape(a, count, length, n)
+            out[:, where] = transform(part, axis=2, norm="ortho", overwrite_x=True).reshape(a, count * length, n)
+        return out
+
+
+class _Level:
+    """One tree depth's fixed state: its joints, their parents, coded slots (slot 0 the root translation, 1 + j
+    joint j), the original global rotations (4, F, n), the columns on principal axes, the re-referenced segments."""
+
+    def __init__(self, joints, parents, has_children, globals_, axes, overrides, layout, root: bool) -> None:
+        self.joints = joints
+        self.parents = parents[joints]
+        self.slots = np.concatenate([[0], joints + 1]) if root else joints + 1
+        self.globals = np.ascontiguousarray(globals_[:, :, joints])
+        turned = np.flatnonzero(np.any(axes[joints] != np.eye(3), axis=(1, 2)))
+        self.turned = turned
+        self.axes = axes[joints[turned]]  # (t, 3, 3)
+        self.inner = np.flatnonzero(has_children[joints])  # columns whose decoded rotation a child needs
+        self.all_inner = len(self.inner) == len(joints)
+        column = {int(j): i for i, j in enumerate(joints)}
+        self.overrides = []
+        for (segment, joint), reference in overrides.items():
+            if joint in column:
+                frames = slice(int(layout.starts[segment]), int(layout.starts[segment] + layout.lengths[segment]))
+                self.overrides.append((frames, column[joint], reference))
+
+
+def _log_map(q: np.ndarray) -> np.ndarray:
+    """:func:`.quaternions.log_map` of component-major quaternions (4, ...): (3, ...), the same bits."""
+    x, y, z, w = q
+    norm = np.sqrt(x * x + y * y + z * z)
+    angle = 2.0 * np.arctan2(norm, w)
+    small = norm < 1e-9
+    if small.any():
+        scale = np.where(small, 2.0 / np.where(small, w, 1.0), angle / np.where(small, 1.0, norm))
+    else:
+        scale = np.divide(angle, norm, out=angle)
+    return q[:3] * scale
+
+
+def _exp_map(r: np.ndarray) -> np.ndarray:
+    """:func:`.quaternions.exp_map` of component-major rotation vectors (3, ...): (4, ...), the same bits."""
+    x, y, z = r
+    angle = np.sqrt(x * x + y * y + z * z)
+    half = 0.5 * angle
+    small = angle < 1e-6
+    out = np.empty((4,) + r.shape[1:])
+    if small.any():
+        scale = np.where(small, 0.5 - angle * angle / 48.0, np.sin(half) / np.where(small, 1.0, angle))
+    else:
+        scale = np.sin(half)
+        scale /= angle
+    np.multiply(r, scale, out=out[:3])
+    np.cos(half, out=out[3])
+    return out
+
+
+def _product(a: np.ndarray, b: np.ndarray, conjugate_a: bool = False) -> np.ndarray:
+    """:func:`.quaternions.multiply` (of ``conjugate(a)`` and ``b`` with ``conjugate_a``) on component-major
+    quaternions (4, ...): (4, ...), the same bits (``x + (-y)`` is ``x - y`` in IEEE arithmetic)."""
+    ax, ay, az, aw = a
+    bx, by, bz, bw = b
+    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
+    if conjugate_a:
+        out[0] = aw * bx - ax * bw - ay * bz + az * by
+        out[1] = aw * by + ax * bz - ay * bw - az * bx
+        out[2] = aw * bz - ax * by + ay * bx - az * bw
+        out[3] = aw * bw + ax * bx + ay * by + az * bz
+    else:
+        out[0] = aw * bx + ax * bw + ay * bz - az * by
+        out[1] = aw * by - ax * bz + ay * bw + az * bx
+        out[2] = aw * bz + ax * by - ay * bx + az * bw
+        out[3] = aw * bw - ax * bx - ay * by - az * bz
+    return out
+
+
+def _turn(r: np.ndarray, axes: np.ndarray, off: bool) -> np.ndarray:
+    """Components on the axes (t, 3, 3) of rotation vectors (3, F, t) (:func:`_onto`), or back (:func:`_off`)."""
+    if off:
+        return np.stack([r[0] * axes[:, i, 0] + r[1] * axes[:, i, 1] + r[2] * axes[:, i, 2] for i in range(3)])
+    return np.stack([r[0] * axes[:, 0, i] + r[1] * axes[:, 1, i] + r[2] * axes[:, 2, i] for i in range(3)])
+
+
 class Compensator:
-    """One motion's fixed state for :meth:`quantize` (the original global rotations, the segment signs)."""
+    """One motion's fixed state for :meth:`quantize` (the original global rotations per tree depth, the segments'
+    transform, the level-0 spectra, which no attempt changes).
+
+    Component-major (4, F, n) arrays throughout (a quaternion product is 28 numpy calls on contiguous rows, with
+    no stacking); the quaternion arithmetic mirrors :mod:`.quaternions` operation for operation, so the streams are
+    the ones the joint-major code wrote.
+    """
 
     def __init__(self, info: StreamInfo, quats: np.ndarray, roots: np.ndarray) -> None:
         """``quats`` (F, J, 4) sign-continuous original local rotations, ``roots`` (F, 3) cm."""
-        self.roots = roots
-        self.parents = info.skeleton.parents
-        self.globals = global_quaternions(quats, self.parents)
-        self.levels = tree_levels(self.parents)
         layout = info.layout
+        parents = info.skeleton.parents
+        num_joints = len(parents)
+        globals_ = np.ascontiguousarray(np.moveaxis(global_quaternions(quats, parents), -1, 0))  # (4, F, J)
+        has_children = np.zeros(num_joints, dtype=bool)
+        has_children[parents[1:]] = True
         self.segment_of = np.repeat(np.arange(layout.num_segments), layout.lengths)
         self.middle = layout.starts + layout.lengths // 2
+        self.starts = layout.starts
+        self.layout = layout
+        self.transform = _Transform(layout)
+        axes = info.axes
+        self.levels = [_Level(joints, parents, has_children, globals_, axes, info.overrides, layout, level == 0)
+                       for level, joints in enumerate(tree_levels(parents))]
+        # Level 0 (the root translation and rotation) codes the same signal in every attempt: its spectra once.
+        root = self.levels[0]
+        rotvecs = self._rotvecs(root, root.globals.copy())  # (3, F, n)
+        self.root_spectra = self.transform.apply(np.concatenate([roots.T[:, :, None], rotvecs], axis=2), False)
 
-    def _rotvecs(self, info: StreamInfo, targets: np.ndarray, joints: np.ndarray) -> np.ndarray:
-        """Rotation vectors (F, n, 3) of target local rotations (F, n, 4) of ``joints``, as the stream codes them:
-        signs per segment (middle frame w >= 0), re-referenced segments relative to their reference."""
-        layout = info.layout
-        flips = np.where(targets[self.middle, :, 3] < 0, -1.0, 1.0)  # (S, n)
-        targets = targets * flips[self.segment_of][..., None]
-        rotvecs = quat.log_map(targets)
-        column = {int(j): i for i, j in enumerate(joints)}
-        for (segment, joint), reference in info.overrides.items():
-            if joint in column:
-                frames = slice(layout.starts[segment], layout.starts[segment] + layout.lengths[segment])
-                relative = quat.multiply(quat.conjugate(reference), targets[frames, column[joint]])
-                relative = relative * np.where(relative[len(relative) // 2, 3] < 0, -1.0, 1.0)
-                rotvecs[frames, column[joint]] = quat.log_map(relative)
+    def _rotvecs(self, level: _Level, targets: np.ndarray) -> np.ndarray:
+        """Rotation vectors (3, F, n) on the joints' axes of target local rotations (4, F, n) (overwritten), as the
+        stream codes them: signs per segment (middle frame w >= 0), re-referenced segments relative to their
+        reference."""
+        flips = np.where(targets[3, self.middle] < 0, -1.0, 1.0)  # (S, n)
+        targets *= flips if len(flips) == 1 else flips[self.segment_of]
+        rotvecs = _log_map(targets)
+        for frames, column, reference in level.overrides:
+            relative = quat.multiply(quat.conjugate(reference), targets[:, frames, column].T)
+            relative = relative * np.where(relative[len(relative) // 2, 3] < 0, -1.0, 1.0)
+            rotvecs[:, frames, column] = quat.log_map(relative).T
+        if len(level.turned):
+            rotvecs[:, :, level.turned] = _turn(rotvecs[:, :, level.turned], level.axes, off=False)
         return rotvecs
 
-    def _rotations(self, info: StreamInfo, rotvecs: np.ndarray, joints: np.ndarray) -> np.ndarray:
-        """Local rotations (F, n, 4) the decoder rebuilds from rotation vectors (F, n, 3) of ``joints``."""
-        layout = info.layout
-        quats = quat.exp_map(rotvecs)
-        column = {int(j): i for i, j in enumerate(joints)}
-        for (segment, joint), reference in info.overrides.items():
-            if joint in column:
-                frames = slice(layout.starts[segment], layout.starts[segment] + layout.lengths[segment])
-                quats[frames, column[joint]] = quat.multiply(reference, quats[frames, column[joint]])
+    def _rotations(self, level: _Level, rebuilt: np.ndarray, columns) -> np.ndarray:
+        """Local rotations (4, F, n) the decoder rebuilds from rotation vectors (3, F, n) on the axes of the joints
+        of ``level`` at ``columns`` (overwritten)."""
+        turned = level.turned if columns is None else np.flatnonzero(np.isin(columns, level.turned))
+        if len(turned):
+            axes = level.axes if columns is None else level.axes[np.searchsorted(level.turned, columns[turned])]
+            rebuilt[:, :, turned] = _turn(rebuilt[:, :, turned], axes, off=True)
+        quats = _exp_map(rebuilt)
+        for frames, column, reference in level.overrides:
+            if columns is not None:
+                if column not in columns:
+                    continue
+                column = int(np.flatnonzero(columns == column)[0])
+            quats[:, frames, column] = quat.multiply(reference, quats[:, frames, column].T).T
         return quats
 
     def quantize(self, info: StreamInfo) -> tuple[np.ndarray, dict[int, np.ndarray]]:
         """The base layer, joints level by level down the tree, each coding its compensated target."""
-        dc, coefficients = _empty(info)
-        steps = _steps(info)
-        axes = info.axes
-        decoded = np.empty_like(self.globals)  # decoded global rotations, filled level by level
-        for level, joints in enumerate(self.levels):
-            if level == 0:
-                targets = self.globals[:, joints]
+        settings = info.settings
+        layout = self.layout
+        num_frames = layout.num_frames
+        # Steps as steps_of computes them: (multiplier x channel step) x row factor, the DC row's its own.
+        factor = np.empty(num_frames)
+        for length, segments in layout.groups.items():
+            row = 1.0 + settings.slope * np.arange(length) / length
+            row[0] = np.sqrt(length / settings.segment_frames)
+            factor[(layout.starts[segments, None] + np.arange(length)).ravel()] = np.tile(row, len(segments))
+        slot_steps = settings.multiplier * np.concatenate([[info.budgets.root_cm], info.budgets.base_rad])
+        rounding = settings.rounding
+        quantized = np.zeros((num_frames, info.channels), dtype=np.int64)
+        by_slot = quantized.reshape(num_frames, -1, 3)
+        decoded = np.empty((4, num_frames, info.skeleton.num_joints))
+        starts = self.starts
+        for number, level in enumerate(self.levels):
+            if number == 0:
+                spectra = self.root_spectra
             else:
-                targets = quat.multiply(quat.conjugate(decoded[:, self.parents[joints]]), self.globals[:, joints])
-            components = _onto(self._rotvecs(info, targets, joints), axes[joints])  # (F, n, 3)
-            channels = (3 + 3 * joints[:, None] + np.arange(3)).ravel()
-            signal = components.reshape(len(components), -1)
-            if level == 0:
-                channels = np.concatenate([np.arange(3), channels])
-                signal = np.concatenate([self.roots, signal], axis=1)
-            rebuilt = _quantize_into(info, signal, channels, dc, coefficients, steps)
-            if level == 0:
-                rebuilt = rebuilt[:, 3:]
-            local = self._rotations(info, _off(rebuilt.reshape(-1, len(joints), 3), axes[joints]), joints)
-            decoded[:, joints] = local if level == 0 else quat.multiply(decoded[:, self.parents[joints]], local)
+                targets = _product(decoded[:, :, level.parents], level.globals, conjugate_a=True)
+                spectra = self.transform.apply(self._rotvecs(level, targets), False)
+            step = factor[:, None] * slot_steps[level.slots]  # (F, n)
+            scaled = spectra / step
+            values = np.sign(scaled)
+            values *= np.floor(np.abs(scaled) + rounding)
+            values[:, starts] = np.floor(scaled[:, starts] + 0.5)
+            by_slot[:, level.slots] = values.transpose(1, 2, 0)
+            if number == 0:
+                values, step = values[:, :, 1:], step[:, 1:]  # the root translation is not rebuilt
+            if not len(level.inner):
+                continue  # no joint below this depth
+            columns = None
+            if not level.all_inner:
+                columns = level.inner
+                values, step = values[:, :, columns], step[:, columns]
+            values *= step
+            local = self._rotations(level, self.transform.apply(values, True), columns)
+            joints = level.joints if columns is None else level.joints[columns]
+            decoded[:, :, joints] = local if number == 0 else _product(decoded[:, :, level.parents if columns is None else level.parents[columns]], local)
+        dc = quantized[starts]
+        coefficients = {s: quantized[start + 1 : start + n] for s, (start, n) in
+                        enumerate(zip(starts.tolist(), layout.lengths.tolist()))}
         return dc, coefficients
