@@ -104,3 +104,20 @@ def test_every_keeps_every_kth_frame_at_the_lower_rate_and_refuses_a_bad_step():
     for step in (0, -1, 2.0, True):
         with pytest.raises(ValueError, match="Frame step must be a positive integer"):
             motion.every(step)
+
+
+def test_a_decoders_motion_skips_the_checks_but_keeps_its_arrays_read_only():
+    """Motion.from_decoder (decoders only) takes the arrays as they are, read-only, and equals a validated motion
+    of the same unit quaternions; it refuses arrays of the wrong shape or dtype and a bad fps (a decoder bug)."""
+    reference = sinusoidal_motion(num_frames=30, seed=5)
+    rotations, roots = reference.rotations.copy(), reference.root_positions.copy()
+    motion = Motion.from_decoder(reference.skeleton, reference.fps, roots, rotations)
+    assert motion.rotations is rotations and motion.root_positions is roots
+    assert not rotations.flags.writeable and not roots.flags.writeable
+    np.testing.assert_array_equal(motion.positions(), reference.positions())
+    assert (motion.name, motion.source_unit_cm, motion.up_axis, motion.num_frames) == ("", 1.0, "y", 30)
+    for bad in (dict(rotations=rotations[:, :-1]), dict(rotations=rotations.astype(np.float32)),
+                dict(roots=roots[:-1]), dict(fps=0.0), dict(fps=np.inf), dict(rotations=rotations[:0], roots=roots[:0])):
+        args = dict(rotations=rotations, roots=roots, fps=30.0) | bad
+        with pytest.raises(ValueError, match="from_decoder"):
+            Motion.from_decoder(reference.skeleton, args["fps"], args["roots"], args["rotations"])

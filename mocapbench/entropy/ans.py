@@ -291,7 +291,7 @@ def read_tokens(reader: ByteReader, groups: list[tuple[int, int]], tables: Class
     num_words = reader.read_varint(f"{what}: ANS word count")
     if num_words > reader.remaining // 4:
         raise BitstreamError(f"{what}: expected {num_words} ANS words, only {reader.remaining} bytes left.")
-    words = reader.read_array(num_words, "<u4", f"{what}: ANS words").astype(np.uint32, copy=False)
+    words = np.frombuffer(reader.read_bytes(4 * num_words, f"{what}: ANS words"), dtype="<u4").astype(np.uint32)
     try:
         coder = constriction.stream.stack.AnsCoder(words)
         parts, small = [], []
@@ -359,20 +359,17 @@ def _signed_values(tokens: np.ndarray, runs: list[TokenRun]) -> np.ndarray:
     if nonzero.size == 0:
         return tokens
     magnitudes = tokens[nonzero]
-    counts = np.array([run.nonzero for run in runs], dtype=np.int64)
-    first = np.cumsum(counts) - counts  # first nonzero of each stream
-    # Each stream's sign bits start on a byte: bit of nonzero i = 8 x (its stream's sign byte) + its rank there.
-    sign_bytes = np.array([len(run.signs) for run in runs], dtype=np.int64)
-    signs = np.unpackbits(np.frombuffer(b"".join([run.signs for run in runs]), dtype=np.uint8))
-    sign_at = np.arange(nonzero.size) + np.repeat(8 * (np.cumsum(sign_bytes) - sign_bytes) - first, counts)
-    negative = signs[sign_at].view(bool)
-    widths = _TOKEN_WIDTHS[magnitudes]
-    escaped = np.flatnonzero(widths)
+    # Each stream's sign bits start on a byte and follow its nonzero values in order.
+    negative = np.concatenate([np.unpackbits(np.frombuffer(run.signs, dtype=np.uint8), count=run.nonzero)
+                               for run in runs]) if len(runs) > 1 else np.unpackbits(
+        np.frombuffer(runs[0].signs, dtype=np.uint8), count=runs[0].nonzero)
+    escaped = np.flatnonzero(magnitudes >= _DIRECT)
     if escaped.size:
-        width = widths[escaped]
+        width = _TOKEN_WIDTHS[magnitudes[escaped]]
+        counts = np.cumsum([run.nonzero for run in runs])
         bits = np.array([run.raw_bits for run in runs], dtype=np.int64)
         raw_bytes = np.array([len(run.raw) for run in runs], dtype=np.int64)
-        stream = np.repeat(np.arange(len(runs)), counts)[escaped]
+        stream = np.searchsorted(counts, escaped, side="right")  # the stream of each escaped value
         # Bit position of each escaped value's raw bits: its stream's first raw bit + the widths before it there.
         position = np.cumsum(width) - width + (8 * (np.cumsum(raw_bytes) - raw_bytes) - (np.cumsum(bits) - bits))[stream]
         data = np.frombuffer(b"".join([run.raw for run in runs] + [bytes(8)]), dtype=np.uint8)
@@ -382,6 +379,6 @@ def _signed_values(tokens: np.ndarray, runs: list[TokenRun]) -> np.ndarray:
             window |= data[byte + i].astype(np.uint64) << np.uint64(56 - 8 * i)
         raw = ((window << (position & 7).astype(np.uint64)) >> (64 - width).astype(np.uint64)).astype(np.int64)
         magnitudes[escaped] = (np.int64(1) << width) + raw
-    np.negative(magnitudes, out=magnitudes, where=negative)
+    magnitudes *= 1 - 2 * negative.view(np.int8)  # -1 where the sign bit is set
     tokens[nonzero] = magnitudes
     return tokens

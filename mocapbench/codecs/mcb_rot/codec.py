@@ -101,7 +101,7 @@ from mocapbench.codecs.skeleton_blob import pack_skeleton_compact, unpack_skelet
 from mocapbench.entropy.bitio import ByteReader
 from mocapbench.entropy.errors import BitstreamError
 from mocapbench.metrics.shell import motion_shell_errors
-from mocapbench.motion import Motion, OwnedQuaternions
+from mocapbench.motion import Motion
 
 __all__ = ["McbRotCodec"]
 
@@ -261,7 +261,7 @@ class McbRotCodec(Codec):
         """Positions (F, J, 3) cm and the motion of a one-window payload."""
         info = read_info(header, payload)
         positions, roots, quats = decode_range(info, payload, 0, header.num_frames)
-        return positions, Motion(info.skeleton, header.fps, roots, OwnedQuaternions(quats))
+        return positions, Motion.from_decoder(info.skeleton, header.fps, roots, quats)
 
     def _stream_info(self, header: Header, payload: memoryview) -> StreamInfo:
         """The parsed payload header, kept for the last stream seen: an engine sampling one clip at many times
@@ -296,7 +296,7 @@ class McbRotCodec(Codec):
                 else:
                     info = self._stream_info(header, payload)
                     positions, roots, quats = decode_range(info, payload, start, stop)
-                    motion = Motion(info.skeleton, header.fps, roots, OwnedQuaternions(quats))
+                    motion = Motion.from_decoder(info.skeleton, header.fps, roots, quats)
         except BitstreamError:
             raise
         except (ValueError, IndexError, KeyError, OverflowError, EOFError, TypeError) as error:
@@ -325,7 +325,7 @@ class McbRotCodec(Codec):
             low, high = max(start, first), min(stop, end)
             out = slice(low - start, high - start)
             decode_range(info, part, low - first, high - first, (positions[out], roots[out], quats[out]))
-        return positions, Motion(skeleton, header.fps, roots, OwnedQuaternions(quats))
+        return positions, Motion.from_decoder(skeleton, header.fps, roots, quats)
 
     def describe_payload(self, header: Header, payload: memoryview):
         if windowed.is_windowed(payload):

@@ -8,6 +8,7 @@ A :class:`Scratch` keeps one buffer per name and hands out views of it; each thr
 
 from __future__ import annotations
 
+import math
 import threading
 
 import numpy as np
@@ -26,8 +27,8 @@ class Scratch:
 
     def take(self, name: str, shape: tuple[int, ...], dtype=np.float64) -> np.ndarray:
         """An uninitialized array of ``shape`` and ``dtype``, a view of the buffer ``name`` (grown when too small)."""
-        dtype = np.dtype(dtype)
-        nbytes = int(np.prod(shape, dtype=np.int64)) * dtype.itemsize
+        dtype = _DTYPES.get(dtype) or np.dtype(dtype)
+        nbytes = math.prod(shape) * dtype.itemsize
         buffer = self._buffers.get(name)
         if buffer is None or buffer.nbytes < nbytes:
             buffer = self._buffers[name] = np.empty(max(nbytes, 64), dtype=np.uint8)
@@ -39,6 +40,7 @@ class Scratch:
             del self._buffers[name]
 
 
+_DTYPES = {np.float64: np.dtype(np.float64), bool: np.dtype(bool), np.int64: np.dtype(np.int64)}
 _LOCAL = threading.local()
 
 

@@ -215,6 +215,13 @@ class StreamInfo:
         return self._cache["axes"]
 
     @property
+    def turned_axes(self) -> np.ndarray:
+        """(T, 3, 3) the principal axes of the :attr:`turned` joints (:attr:`axes` of those rows, computed alone)."""
+        if "turned axes" not in self._cache:
+            self._cache["turned axes"] = axes_from_codes(self.axis_codes[self.turned])
+        return self._cache["turned axes"]
+
+    @property
     def turned(self) -> np.ndarray:
         """Indices of the joints whose channels are on principal axes (the others' axes are the identity)."""
         if "turned" not in self._cache:
@@ -353,7 +360,7 @@ def assemble(info: StreamInfo, segments, signal: np.ndarray, scratch: Scratch | 
     rotvec = signal[3:].reshape(num_joints, 3, length)  # [joint, component on its axes, frame]
     turned = info.turned
     if turned.size:
-        axes = info.axes[turned]  # (T, 3, 3)
+        axes = info.turned_axes  # (T, 3, 3)
         parts = rotvec[turned]  # (T, 3, n) copy
         for row in range(3):
             rotvec[turned, row] = (axes[:, row, 0, None] * parts[:, 0] + axes[:, row, 1, None] * parts[:, 1]
