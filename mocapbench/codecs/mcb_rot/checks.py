@@ -98,6 +98,15 @@ class PointTargets:
         if self.shell_cm > 0:
             self.vertices = self.shell_cm * quat.as_matrix(global_quaternions(rotations, skeleton.parents))
 
+    def tiled(self, count: int) -> "PointTargets":
+        """The same targets repeated ``count`` times along the frames (frame ``f`` of copy ``k`` is ``k F + f``): what
+        the closed loop checks when it refines several attempts of one motion side by side."""
+        tiled = object.__new__(PointTargets)
+        tiled.skeleton, tiled.shell_cm = self.skeleton, self.shell_cm
+        tiled.positions = np.tile(self.positions, (count, 1, 1))
+        tiled.vertices = None if self.vertices is None else np.tile(self.vertices, (count, 1, 1, 1))
+        return tiled
+
     def errors(self, frames: np.ndarray, quats: np.ndarray, roots: np.ndarray) -> np.ndarray:
         """(n, J) error of every joint at ``frames`` (cm) for decoded ``quats`` (n, J, 4), ``roots`` (n, 3): the joint's
         position error, or with a shell the larger of it and its vertices' errors."""

@@ -119,6 +119,11 @@ _SEARCH_START = 7
 # of the 56 cases above this share and the start or coarser in all 40 below it (the share grows about 2.5x per
 # half octave of the multiplier). It only orders the walk: any order ends on the same minimum of a unimodal size.
 _FINER_FIRST_SHARE = 0.12
+# Short clips (up to _PREFETCH_FRAMES frames: a clip at 24 fps) evaluate the attempts the walk most often needs side
+# by side first (grid indices of the config's slope, of a flat slope), where numpy's per-call costs outweigh the
+# arithmetic.
+_PREFETCH_FRAMES = 200
+_PREFETCH = ((6, 7, 8), (7, 8, 9))
 
 
 @register_codec
@@ -229,7 +234,9 @@ class McbRotCodec(Codec):
         if config.step_rel > 0:
             chosen = encoder.attempt(config.step_rel)
         else:
-            chosen = _search(encoder.attempt, config.slope_search and config.frequency_slope > 0)
+            prefetch = _PREFETCH if motion.num_frames <= _PREFETCH_FRAMES else ((), ())
+            chosen = _search(encoder.attempt, config.slope_search and config.frequency_slope > 0, encoder.attempts_of,
+                             prefetch)
         payload = encoder.write(chosen)
         # The guarantee: decode what we are about to return and check it.
         header = Header(self.name, motion.num_frames, motion.num_joints, motion.fps)
@@ -346,36 +353,46 @@ class McbRotCodec(Codec):
                 "joints on principal axes": int((info.axis_codes != 0).any(axis=1).sum())}
 
 
-def _search(attempt, flat_too: bool = False) -> "_Attempt":
+def _search(attempt, flat_too: bool = False, batch=None, prefetch: tuple = ((), ())) -> "_Attempt":
     """The attempt of smallest estimated size over :data:`_SEARCH_GRID`, by walking downhill from
     :data:`_SEARCH_START`; with ``flat_too``, also a flat step over frequency (slope 0) from the next multiplier up,
     walking up while it wins. ``attempt(multiplier, slope=None, budget=inf)`` returns an :class:`_Attempt`; every
-    attempt after the first gets the best size so far as its budget (it gives up, size inf, once it exceeds it)."""
-    tried = {}
+    attempt after the first gets the best size so far as its budget (it gives up, size inf, once it exceeds it).
 
-    def size(index: int, budget: float) -> float:
-        if index not in tried:
-            tried[index] = attempt(_SEARCH_GRID[index], budget=budget)
-        return tried[index].size
+    ``prefetch`` (grid indices of the config's slope, of the flat slope) are evaluated first, side by side, by
+    ``batch(requests)`` (a list of ``(multiplier, slope)``: their attempts, run to their end); the walk then reads
+    them instead of trying them. A prefetched attempt has its exact size where the walk would have given it up
+    (larger than the budget: the walk's decisions are the same), so the walk ends where it would without them."""
+    tried: dict = {}  # (grid index, flat) -> attempt
+    if batch is not None and (prefetch[0] or prefetch[1]):
+        keys = [(i, False) for i in prefetch[0]] + [(i, True) for i in prefetch[1] if flat_too]
+        for key, result in zip(keys, batch([(_SEARCH_GRID[i], 0.0 if flat else None) for i, flat in keys])):
+            tried[key] = result
+
+    def get(index: int, flat: bool, budget: float = np.inf) -> "_Attempt":
+        if (index, flat) not in tried:
+            tried[index, flat] = attempt(_SEARCH_GRID[index], 0.0 if flat else None, budget=budget)
+        return tried[index, flat]
 
     best = _SEARCH_START
-    start = tried[best] = attempt(_SEARCH_GRID[best])
+    start = get(best, False)
     # Walk first the way the start's correction share points (same minimum as any order, one attempt fewer where
     # it points right): corrections dearer than _FINER_FIRST_SHARE of the stream call for finer steps.
     finer_first = start.size - start.base > _FINER_FIRST_SHARE * start.size
     for direction in ((-1, 1) if finer_first else (1, -1)):
-        while 0 <= best + direction < len(_SEARCH_GRID) and size(best + direction, tried[best].size) < tried[best].size:
+        while (0 <= best + direction < len(_SEARCH_GRID)
+               and get(best + direction, False, tried[best, False].size).size < tried[best, False].size):
             best += direction
-    chosen = tried[best]
+    chosen = tried[best, False]
     if flat_too:  # a flat step is finer at high frequencies: its best multiplier is the next one up, or higher
         index = min(best + 1, len(_SEARCH_GRID) - 1)
-        flat = attempt(_SEARCH_GRID[index], 0.0, budget=chosen.size)
+        flat = get(index, True, chosen.size)
         while flat.size < chosen.size:
             chosen = flat
             if index + 1 == len(_SEARCH_GRID):
                 break
             index += 1
-            flat = attempt(_SEARCH_GRID[index], 0.0, budget=chosen.size)
+            flat = get(index, True, chosen.size)
     return chosen
 
 
@@ -437,6 +454,7 @@ class _Encoder:
             self.compensator = Compensator(info, quat.sign_continuous(motion.rotations), motion.root_positions)
         self.attempts = 0
         self.given_up = 0
+        self._tiles: dict = {}
 
     def attempt(self, multiplier: float, slope: float | None = None, budget: float = np.inf) -> _Attempt:
         """The stream at step multiplier ``multiplier`` and frequency slope ``slope`` (None: the config's).
@@ -445,32 +463,78 @@ class _Encoder:
         that is known (before the closed loop when its base layer alone exceeds it, else after a round of
         corrections): it is returned with size inf and nothing else.
         """
+        return self.attempts_of([(multiplier, slope)], budget)[0]
+
+    def attempts_of(self, requests: list, budget: float = np.inf) -> list[_Attempt]:
+        """:meth:`attempt` of every ``(multiplier, slope)`` of ``requests``, side by side: one compensated
+        quantization for all (:meth:`.Compensator.quantize_many`) and one closed loop over their frames laid end to
+        end, so that each numpy call does the work of all of them. ``budget`` applies to each (a closed loop of
+        several attempts runs to its end)."""
         config, layout = self.config, self.layout
-        self.attempts += 1
-        settings = dataclasses.replace(self.info.settings, multiplier=_f32(multiplier))
-        if slope is not None:
-            settings = dataclasses.replace(settings, slope=_f32(slope))
-        info = self.info.replace(settings=settings)
+        infos = []
+        for multiplier, slope in requests:
+            self.attempts += 1
+            settings = dataclasses.replace(self.info.settings, multiplier=_f32(multiplier))
+            if slope is not None:
+                settings = dataclasses.replace(settings, slope=_f32(slope))
+            infos.append(self.info.replace(settings=settings))
         if self.compensator is not None:
-            dc, coefficients = self.compensator.quantize(info)
+            quantized = self.compensator.quantize_many(infos)
         else:
-            dc, coefficients = quantize(info, self.spectra)
-        info = info.replace(dc=dc)
-        base = base_bytes(info, coefficients)
-        if base > budget:
-            self.given_up += 1
-            return _Attempt(np.inf, base, multiplier, info, {}, ())
-        # Decode the base layer as the decoder will, then refine in closed loop.
+            quantized = [quantize(info, self.spectra) for info in infos]
+        results: list = [None] * len(requests)
+        live, roots, quats, bases = [], [], [], []
         segments = np.arange(layout.num_segments)
-        roots, quats = assemble(info, segments, base_signal(info, segments, coefficients))
-        corrections = _refine(info, self.motion, roots, quats, self.points, config.eps_cm * (1.0 - _SAFETY_MARGIN),
-                              config.greedy_corrections,
-                              lambda flat, values: base + corrections_bytes(info, flat, values) > budget)
-        if corrections is None:
-            self.given_up += 1
-            return _Attempt(np.inf, base, multiplier, info, {}, ())
-        return _Attempt(base + corrections_bytes(info, *corrections), base, multiplier, info, coefficients,
-                        corrections)
+        for k, (info, (dc, coefficients)) in enumerate(zip(infos, quantized)):
+            info = infos[k] = info.replace(dc=dc)
+            base = base_bytes(info, coefficients)
+            if base > budget:
+                self.given_up += 1
+                results[k] = _Attempt(np.inf, base, requests[k][0], info, {}, ())
+                continue
+            # Decode the base layer as the decoder will, then refine in closed loop.
+            root, quat_ = assemble(info, segments, base_signal(info, segments, coefficients))
+            live.append((k, coefficients))
+            roots.append(root)
+            quats.append(quat_)
+            bases.append(base)
+        if not live:
+            return results
+        check = config.eps_cm * (1.0 - _SAFETY_MARGIN)
+        num_frames = self.motion.num_frames
+        if len(live) == 1:
+            k = live[0][0]
+            info, base = infos[k], bases[0]
+            corrections = _refine(info, self.motion.rotations, self.motion.root_positions, roots[0], quats[0],
+                                  self.points, check, config.greedy_corrections,
+                                  lambda flat, values: base + corrections_bytes(info, flat, values) > budget)
+            parts = [corrections]
+        else:
+            true_quats, true_roots, points = self._tiled(len(live))
+            flat, values = _refine(infos[live[0][0]], true_quats, true_roots, np.concatenate(roots),
+                                   np.concatenate(quats), points, check, config.greedy_corrections)
+            slots = len(self.info.correction_steps)
+            bounds = np.searchsorted(flat, np.arange(len(live) + 1) * (num_frames * slots))
+            parts = [(flat[bounds[i] : bounds[i + 1]] - i * num_frames * slots, values[bounds[i] : bounds[i + 1]])
+                     for i in range(len(live))]
+        for (k, coefficients), base, corrections in zip(live, bases, parts):
+            info = infos[k]
+            if corrections is None:
+                self.given_up += 1
+                results[k] = _Attempt(np.inf, base, requests[k][0], info, {}, ())
+                continue
+            results[k] = _Attempt(base + corrections_bytes(info, *corrections), base, requests[k][0], info,
+                                  coefficients, corrections)
+        return results
+
+    def _tiled(self, count: int) -> tuple:
+        """The original rotations (count F, J, 4), roots (count F, 3) and checked points, ``count`` times along the
+        frames (cached): the targets of a closed loop over ``count`` attempts side by side."""
+        if count not in self._tiles:
+            motion = self.motion
+            self._tiles[count] = (np.tile(motion.rotations, (count, 1, 1)), np.tile(motion.root_positions, (count, 1)),
+                                  self.points.tiled(count))
+        return self._tiles[count]
 
     def write(self, chosen: _Attempt) -> bytes:
         """The payload of an attempt (entropy classes fitted and every chunk ANS coded)."""
@@ -511,8 +575,8 @@ def _most_helpful(fix, missing, placed, error, glob, relative, root_error, budge
     return out
 
 
-def _refine(info: StreamInfo, motion: Motion, roots, quats, points: PointTargets, check_cm: float, greedy: bool,
-            give_up=None):
+def _refine(info: StreamInfo, true_quats: np.ndarray, true_roots: np.ndarray, roots, quats, points: PointTargets,
+            check_cm: float, greedy: bool, give_up=None):
     """Closed-loop corrections (in place on ``roots``, ``quats``): returns (flat indices, values (N, 3)) sorted, or
     None when ``give_up(flat, values)`` (asked after every round with the corrections so far) returns True.
 
@@ -526,11 +590,11 @@ def _refine(info: StreamInfo, motion: Motion, roots, quats, points: PointTargets
     budgets = info.budgets
     steps = info.correction_steps
     slots = len(steps)
-    true_quats, true_roots = motion.rotations, motion.root_positions
+    num_frames = len(roots)
     movers = budgets.movers.astype(np.float64)
-    corrected = np.zeros((motion.num_frames, slots), dtype=bool)
-    values = np.zeros((motion.num_frames, slots, 3), dtype=np.int64)
-    everything = np.arange(motion.num_frames)
+    corrected = np.zeros((num_frames, slots), dtype=bool)
+    values = np.zeros((num_frames, slots, 3), dtype=np.int64)
+    everything = np.arange(num_frames)
     errors, placed, glob = points.evaluate(everything, quats, roots)  # (F, J), (F, J, 3), (F, J, 4)
     still = np.any(errors > check_cm, axis=1)
     frames, errors, placed, glob = everything[still], errors[still], placed[still], glob[still]

@@ -104,16 +104,16 @@ class _Transform:
             self.groups.append((length, len(segments), where))
 
     def apply(self, x: np.ndarray, inverse: bool) -> np.ndarray:
-        """DCT-II (or its inverse) of every segment of ``x`` (a, F, n) along axis 1, orthonormal: (a, F, n)."""
+        """DCT-II (or its inverse) of every segment of ``x`` (a, F, ...) along axis 1, orthonormal: (a, F, ...)."""
         out = np.empty_like(x)
-        a, _, n = x.shape
+        a, rest = x.shape[0], x.shape[2:]
         transform = scipy.fft.idct if inverse else scipy.fft.dct
         for length, count, where in self.groups:
             if length == 1:
                 out[:, where] = x[:, where]
                 continue
-            part = x[:, where].reshape(a, count, length, n)
-            out[:, where] = transform(part, axis=2, norm="ortho", overwrite_x=True).reshape(a, count * length, n)
+            part = x[:, where].reshape((a, count, length) + rest)
+            out[:, where] = transform(part, axis=2, norm="ortho", overwrite_x=True).reshape((a, count * length) + rest)
         return out
 
 
@@ -222,82 +222,97 @@ class Compensator:
                        for level, joints in enumerate(tree_levels(parents))]
         # Level 0 (the root translation and rotation) codes the same signal in every attempt: its spectra once.
         root = self.levels[0]
-        rotvecs = self._rotvecs(root, root.globals.copy())  # (3, F, n)
-        self.root_spectra = self.transform.apply(np.concatenate([roots.T[:, :, None], rotvecs], axis=2), False)
+        rotvecs = self._rotvecs(root, root.globals[:, :, None].copy())  # (3, F, 1, n)
+        self.root_spectra = self.transform.apply(np.concatenate([roots.T[:, :, None, None], rotvecs], axis=3), False)
 
     def _rotvecs(self, level: _Level, targets: np.ndarray) -> np.ndarray:
-        """Rotation vectors (3, F, n) on the joints' axes of target local rotations (4, F, n) (overwritten), as the
+        """Rotation vectors (3, F, K, n) on the joints' axes of target local rotations (4, F, K, n) (overwritten), as the
         stream codes them: signs per segment (middle frame w >= 0), re-referenced segments relative to their
         reference."""
-        flips = np.where(targets[3, self.middle] < 0, -1.0, 1.0)  # (S, n)
+        flips = np.where(targets[3, self.middle] < 0, -1.0, 1.0)  # (S, K, n)
         targets *= flips if len(flips) == 1 else flips[self.segment_of]
         rotvecs = _log_map(targets)
         for frames, column, reference in level.overrides:
-            relative = quat.multiply(quat.conjugate(reference), targets[:, frames, column].T)
-            relative = relative * np.where(relative[len(relative) // 2, 3] < 0, -1.0, 1.0)
-            rotvecs[:, frames, column] = quat.log_map(relative).T
+            relative = quat.multiply(quat.conjugate(reference), np.moveaxis(targets[:, frames, :, column], 0, -1))
+            relative = relative * np.where(relative[len(relative) // 2, ..., 3:] < 0, -1.0, 1.0)
+            rotvecs[:, frames, :, column] = np.moveaxis(quat.log_map(relative), -1, 0)
         if len(level.turned):
-            rotvecs[:, :, level.turned] = _turn(rotvecs[:, :, level.turned], level.axes, off=False)
+            rotvecs[..., level.turned] = _turn(rotvecs[..., level.turned], level.axes, off=False)
         return rotvecs
 
     def _rotations(self, level: _Level, rebuilt: np.ndarray, columns) -> np.ndarray:
-        """Local rotations (4, F, n) the decoder rebuilds from rotation vectors (3, F, n) on the axes of the joints
+        """Local rotations (4, F, K, n) the decoder rebuilds from rotation vectors (3, F, K, n) on the axes of the joints
         of ``level`` at ``columns`` (overwritten)."""
         turned = level.turned if columns is None else np.flatnonzero(np.isin(columns, level.turned))
         if len(turned):
             axes = level.axes if columns is None else level.axes[np.searchsorted(level.turned, columns[turned])]
-            rebuilt[:, :, turned] = _turn(rebuilt[:, :, turned], axes, off=True)
+            rebuilt[..., turned] = _turn(rebuilt[..., turned], axes, off=True)
         quats = _exp_map(rebuilt)
         for frames, column, reference in level.overrides:
             if columns is not None:
                 if column not in columns:
                     continue
                 column = int(np.flatnonzero(columns == column)[0])
-            quats[:, frames, column] = quat.multiply(reference, quats[:, frames, column].T).T
+            quats[:, frames, :, column] = np.moveaxis(
+                quat.multiply(reference, np.moveaxis(quats[:, frames, :, column], 0, -1)), -1, 0)
         return quats
 
     def quantize(self, info: StreamInfo) -> tuple[np.ndarray, dict[int, np.ndarray]]:
         """The base layer, joints level by level down the tree, each coding its compensated target."""
-        settings = info.settings
+        return self.quantize_many([info])[0]
+
+    def quantize_many(self, infos: list[StreamInfo]) -> list[tuple[np.ndarray, dict[int, np.ndarray]]]:
+        """:meth:`quantize` of several attempts (their settings differ in multiplier and slope only), side by side
+        along an attempts axis K: each numpy call does the work of K attempts (a short clip's quantization costs
+        its numpy calls more than their arithmetic)."""
         layout = self.layout
         num_frames = layout.num_frames
+        count = len(infos)
+        budgets = infos[0].budgets
         # Steps as steps_of computes them: (multiplier x channel step) x row factor, the DC row's its own.
-        factor = np.empty(num_frames)
-        for length, segments in layout.groups.items():
-            row = 1.0 + settings.slope * np.arange(length) / length
-            row[0] = np.sqrt(length / settings.segment_frames)
-            factor[(layout.starts[segments, None] + np.arange(length)).ravel()] = np.tile(row, len(segments))
-        slot_steps = settings.multiplier * np.concatenate([[info.budgets.root_cm], info.budgets.base_rad])
-        rounding = settings.rounding
-        quantized = np.zeros((num_frames, info.channels), dtype=np.int64)
-        by_slot = quantized.reshape(num_frames, -1, 3)
-        decoded = np.empty((4, num_frames, info.skeleton.num_joints))
+        factor = np.empty((num_frames, count))
+        slot_steps = np.empty((count, len(budgets.base_rad) + 1))
+        for k, info in enumerate(infos):
+            settings = info.settings
+            for length, segments in layout.groups.items():
+                row = 1.0 + settings.slope * np.arange(length) / length
+                row[0] = np.sqrt(length / settings.segment_frames)
+                factor[(layout.starts[segments, None] + np.arange(length)).ravel(), k] = np.tile(row, len(segments))
+            slot_steps[k] = settings.multiplier * np.concatenate([[budgets.root_cm], budgets.base_rad])
+        rounding = infos[0].settings.rounding
+        quantized = np.zeros((num_frames, count, infos[0].channels), dtype=np.int64)
+        by_slot = quantized.reshape(num_frames, count, -1, 3)
+        decoded = np.empty((4, num_frames, count, infos[0].skeleton.num_joints))
         starts = self.starts
         for number, level in enumerate(self.levels):
             if number == 0:
                 spectra = self.root_spectra
             else:
-                targets = _product(decoded[:, :, level.parents], level.globals, conjugate_a=True)
+                targets = _product(decoded[..., level.parents], level.globals[:, :, None], conjugate_a=True)
                 spectra = self.transform.apply(self._rotvecs(level, targets), False)
-            step = factor[:, None] * slot_steps[level.slots]  # (F, n)
+            step = factor[:, :, None] * slot_steps[:, level.slots]  # (F, K, n)
             scaled = spectra / step
             values = np.sign(scaled)
             values *= np.floor(np.abs(scaled) + rounding)
             values[:, starts] = np.floor(scaled[:, starts] + 0.5)
-            by_slot[:, level.slots] = values.transpose(1, 2, 0)
+            by_slot[:, :, level.slots] = values.transpose(1, 2, 3, 0)
             if number == 0:
-                values, step = values[:, :, 1:], step[:, 1:]  # the root translation is not rebuilt
+                values, step = values[..., 1:], step[..., 1:]  # the root translation is not rebuilt
             if not len(level.inner):
                 continue  # no joint below this depth
             columns = None
             if not level.all_inner:
                 columns = level.inner
-                values, step = values[:, :, columns], step[:, columns]
+                values, step = values[..., columns], step[..., columns]
             values *= step
             local = self._rotations(level, self.transform.apply(values, True), columns)
-            joints = level.joints if columns is None else level.joints[columns]
-            decoded[:, :, joints] = local if number == 0 else _product(decoded[:, :, level.parents if columns is None else level.parents[columns]], local)
-        dc = quantized[starts]
-        coefficients = {s: quantized[start + 1 : start + n] for s, (start, n) in
-                        enumerate(zip(starts.tolist(), layout.lengths.tolist()))}
-        return dc, coefficients
+            joints, parents = (level.joints, level.parents) if columns is None else (level.joints[columns],
+                                                                                   level.parents[columns])
+            decoded[..., joints] = local if number == 0 else _product(decoded[..., parents], local)
+        results = []
+        for k in range(count):
+            dc = quantized[starts, k]
+            coefficients = {s: quantized[start + 1 : start + n, k] for s, (start, n) in
+                            enumerate(zip(starts.tolist(), layout.lengths.tolist()))}
+            results.append((dc, coefficients))
+        return results
