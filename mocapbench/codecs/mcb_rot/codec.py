@@ -511,11 +511,13 @@ class _Encoder:
             parts = [corrections]
         else:
             true_quats, true_roots, points = self._tiled(len(live))
+            prune = _Pruner([infos[k] for k, _ in live], bases, num_frames, budget, anchor=live[0][0] == 0)
             flat, values = _refine(infos[live[0][0]], true_quats, true_roots, np.concatenate(roots),
-                                   np.concatenate(quats), points, check, config.greedy_corrections)
+                                   np.concatenate(quats), points, check, config.greedy_corrections, prune=prune)
             slots = len(self.info.correction_steps)
             bounds = np.searchsorted(flat, np.arange(len(live) + 1) * (num_frames * slots))
-            parts = [(flat[bounds[i] : bounds[i + 1]] - i * num_frames * slots, values[bounds[i] : bounds[i + 1]])
+            parts = [None if i in prune.dropped else
+                     (flat[bounds[i] : bounds[i + 1]] - i * num_frames * slots, values[bounds[i] : bounds[i + 1]])
                      for i in range(len(live))]
         for (k, coefficients), base, corrections in zip(live, bases, parts):
             info = infos[k]
@@ -541,6 +543,38 @@ class _Encoder:
         return write_payload(chosen.info, self.skeleton_blob, chosen.coefficients, chosen.corrections)
 
 
+class _Pruner:
+    """The give-up rule of a closed loop over several attempts side by side (frames of attempt ``i`` at
+    ``i F .. (i + 1) F``): after every round, an attempt whose estimate so far (base plus the corrections so far)
+    exceeds ``budget``, or, once the anchor (attempt 0, the rate search's start: every later attempt of the
+    walk has a budget no larger than its size) has finished, exceeds the anchor's size, is given up: dropped from
+    the loop (the walk would have given it up too, at this round or before). ``dropped`` lists them."""
+
+    def __init__(self, infos: list, bases: list, num_frames: int, budget: float, anchor: bool) -> None:
+        self.infos, self.bases, self.num_frames, self.budget = infos, bases, num_frames, budget
+        self.anchor = anchor
+        self.dropped: set = set()
+
+    def _estimate(self, attempt: int, corrected: np.ndarray, values: np.ndarray) -> float:
+        rows = slice(attempt * self.num_frames, (attempt + 1) * self.num_frames)
+        flat = np.flatnonzero(corrected[rows].ravel())
+        return self.bases[attempt] + corrections_bytes(self.infos[attempt], flat, values[rows].reshape(-1, 3)[flat])
+
+    def __call__(self, corrected: np.ndarray, values: np.ndarray, frames: np.ndarray) -> np.ndarray:
+        """Which of the ``frames`` still missing stay in the loop (bool mask)."""
+        attempt_of = frames // self.num_frames
+        running = np.unique(attempt_of).tolist()
+        limit = self.budget
+        if self.anchor and running[0] != 0:  # the anchor has finished: its size is final
+            limit = min(limit, self._estimate(0, corrected, values))
+        if limit == np.inf:
+            return np.ones(len(frames), dtype=bool)
+        for attempt in running:
+            if self._estimate(attempt, corrected, values) > limit:
+                self.dropped.add(attempt)
+        return ~np.isin(attempt_of, list(self.dropped))
+
+
 def _most_helpful(fix, missing, placed, error, glob, relative, root_error, budgets) -> np.ndarray:
     """``fix`` (n, J + 1) reduced to one slot per row: the candidate whose full correction most reduces a missing
     joint's error (to first order: joint a's correction turns its subtree about ``p_a`` by its rotation error, seen
@@ -550,20 +584,24 @@ def _most_helpful(fix, missing, placed, error, glob, relative, root_error, budge
     decoded global rotations, ``relative`` (n, J, 4) the local rotation errors ``conj(decoded) original``,
     ``root_error`` (n, 3).
     """
-    rel = relative * np.where(relative[..., 3:] < 0, -1.0, 1.0)
-    omega = quat.rotate(glob, quat.log_map(rel))  # (n, J, 3) world-frame turns
     rows, joints = np.nonzero(missing)  # the (frame, missing joint) pairs, rows ascending
-    arm = placed[rows, joints][:, None, :] - placed[rows]  # (m, J, 3): p_k - p_a
-    shift = quat.cross(omega[rows], arm)
     miss = error[rows, joints]  # (m, 3)
     size = quat.norm3(miss)
-    gain = size[:, None] - quat.norm3(miss[:, None, :] - shift)  # (m, J)
-    gain = np.where(budgets.movers[joints], gain, -np.inf)
-    # Best over each frame's missing joints: rows are sorted, so one reduceat per run of equal rows.
     first = np.flatnonzero(np.diff(rows, prepend=-1))
     frames_missing = rows[first]
     joint_score = np.full(missing.shape, -np.inf)
-    joint_score[frames_missing] = np.maximum.reduceat(gain, first, axis=0)
+    # Scored only in the columns some row may correct (the others' scores are never read).
+    columns = np.flatnonzero(fix[:, 1:].any(axis=0))
+    if columns.size:
+        relative = relative[:, columns]
+        rel = relative * np.where(relative[..., 3:] < 0, -1.0, 1.0)
+        omega = quat.rotate(glob[:, columns], quat.log_map(rel))  # (n, c, 3) world-frame turns
+        arm = placed[rows, joints][:, None, :] - placed[rows][:, columns]  # (m, c, 3): p_k - p_a
+        shift = quat.cross(omega[rows], arm)
+        gain = size[:, None] - quat.norm3(miss[:, None, :] - shift)  # (m, c)
+        gain = np.where(budgets.movers[joints][:, columns], gain, -np.inf)
+        # Best over each frame's missing joints: rows are sorted, so one reduceat per run of equal rows.
+        joint_score[frames_missing[:, None], columns] = np.maximum.reduceat(gain, first, axis=0)
     root_gain = size - quat.norm3(miss - root_error[rows])
     root_score = np.full(len(missing), -np.inf)
     root_score[frames_missing] = np.maximum.reduceat(root_gain, first)
@@ -576,7 +614,7 @@ def _most_helpful(fix, missing, placed, error, glob, relative, root_error, budge
 
 
 def _refine(info: StreamInfo, true_quats: np.ndarray, true_roots: np.ndarray, roots, quats, points: PointTargets,
-            check_cm: float, greedy: bool, give_up=None):
+            check_cm: float, greedy: bool, give_up=None, prune=None):
     """Closed-loop corrections (in place on ``roots``, ``quats``): returns (flat indices, values (N, 3)) sorted, or
     None when ``give_up(flat, values)`` (asked after every round with the corrections so far) returns True.
 
@@ -599,6 +637,9 @@ def _refine(info: StreamInfo, true_quats: np.ndarray, true_roots: np.ndarray, ro
     still = np.any(errors > check_cm, axis=1)
     frames, errors, placed, glob = everything[still], errors[still], placed[still], glob[still]
     for _ in range(slots + 1):
+        if frames.size and prune is not None:
+            keep = prune(corrected, values, frames)
+            frames, errors, placed, glob = frames[keep], errors[keep], placed[keep], glob[keep]
         if frames.size == 0:
             break
         missing = errors > check_cm
