@@ -115,6 +115,10 @@ class PointTargets:
     def evaluate(self, frames: np.ndarray, quats: np.ndarray, roots: np.ndarray) -> tuple[np.ndarray, ...]:
         """:meth:`errors`, the decoded joint positions (n, J, 3) cm and global rotations (n, J, 4)."""
         decoded, glob = forward_kinematics(quats, roots, self.skeleton)
+        return self.errors_of(frames, decoded, glob), decoded, glob
+
+    def errors_of(self, frames: np.ndarray, decoded: np.ndarray, glob: np.ndarray) -> np.ndarray:
+        """:meth:`errors` from the decoded joint positions (n, J, 3) cm and global rotations (n, J, 4)."""
         moved = self.positions[frames] - decoded  # (n, J, 3)
         x, y, z = moved[..., 0], moved[..., 1], moved[..., 2]
         squared = x * x + y * y + z * z
@@ -122,4 +126,4 @@ class PointTargets:
             axes = self.shell_cm * quat.as_matrix(glob)
             displacement = self.vertices[frames] - axes + moved[..., :, None]  # (n, J, 3 coords, 3 vertices)
             squared = np.maximum(squared, np.sum(displacement**2, axis=-2).max(axis=-1))
-        return np.sqrt(squared), decoded, glob
+        return np.sqrt(squared)
