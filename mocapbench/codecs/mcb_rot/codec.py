@@ -26,7 +26,12 @@ Design::
          written. An attempt gives up as soon as its estimate exceeds the best so far (its base layer alone, or
          its corrections after a round of the closed loop), and the walk goes first towards finer steps when the
          start's corrections are over 12 % of its size (:data:`_FINER_FIRST_SHARE`): 4-6 attempts per stream, of
-         which 2-3 stop early (cmu_test). Segment means (DC) and the significance counts are coded as differences
+         which 2-3 stop early (cmu_test). A short clip (up to 200 frames: a capture at 24 fps) is dominated by
+         numpy's per-call costs, not by arithmetic, so it first evaluates the six attempts the walk most often
+         needs side by side (:data:`_PREFETCH`; :meth:`_Encoder.attempts_of`: one compensated quantization and one
+         closed loop over the attempts' frames laid end to end, those over the start's size given up once the start
+         has finished, as the walk would); the walk then reads them (the same streams; 6-7 attempts per clip at
+         24 fps, in 1-2 passes). Segment means (DC) and the significance counts are coded as differences
          along the segments in one small track that random access reads whole.
       └─ compensated quantization (:mod:`.compensate`, encoder only): joints are quantized level by level down the
          tree, each coding the local rotation that puts its *global* rotation on the original's given its parent as
@@ -38,7 +43,9 @@ Design::
          no joint misses. A frame whose every joint is within budget is within ε in any pose (:mod:`.budgets`),
          so the loop always ends. Greedy: each round corrects one joint per missing frame, the one whose correction
          most reduces a missing joint's error (to first order); a miss is usually small and one correction ends it
-         (+7 % at 24 fps, +11-17 % at 120 fps on cmu_test).
+         (+7 % at 24 fps, +11-17 % at 120 fps on cmu_test). The loop runs forward kinematics once; after that each
+         correction turns its joint's subtree (positions and global rotations updated in place, float rounding
+         apart), and the loop works on the frames still missing only.
       └─ shell (``shell_cm`` = d > 0): the bound also holds on ACL's virtual vertices at distance d along every
          joint's axes (:mod:`mocapbench.metrics.shell`). Each vertex is a virtual child bone of length d in the
          budgets, so every joint (leaves too) gets a budget from its lever plus d instead of a fixed angle; the

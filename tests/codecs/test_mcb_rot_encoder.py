@@ -1,0 +1,95 @@
+"""mcb-rot encoder: attempts side by side are the attempts one by one, and the rate search's prefetch changes no
+stream."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from mocapbench import metrics
+from mocapbench.codecs import create
+from mocapbench.codecs.mcb_rot import codec as rot_codec
+from mocapbench.codecs.mcb_rot.quaternions import exp_map
+from mocapbench.motion import Motion
+from mocapbench.synthetic import rig_motion, sinusoidal_motion
+
+
+def _encoder_of(motion: Motion, monkeypatch, **config):
+    """The ``_Encoder`` the codec builds for ``motion`` (caught at the rate search) and the stream it wrote."""
+    caught = {}
+    search = rot_codec._search
+
+    def catching(attempt, *args, **kwargs):
+        caught["encoder"] = attempt.__self__
+        return search(attempt, *args, **kwargs)
+
+    monkeypatch.setattr(rot_codec, "_search", catching)
+    data = create("mcb-rot", **config).encode(motion)
+    monkeypatch.setattr(rot_codec, "_search", search)
+    return caught["encoder"], data
+
+
+def _spinning(num_frames: int) -> Motion:
+    """A root spinning through several turns and a joint swinging through +-180 deg: re-referenced segments."""
+    base = sinusoidal_motion(num_frames=num_frames, seed=4)
+    t = np.arange(num_frames) / 120.0
+    quats = np.array(base.rotations)
+    quats[:, 0] = exp_map(np.stack([0 * t, 3 * np.pi * t, 0 * t], axis=1))
+    quats[:, 18] = exp_map(np.stack([np.pi * np.sin(2 * t) + 0.01, 0 * t, 0 * t], axis=1))
+    return Motion(base.skeleton, base.fps, base.root_positions, quats)
+
+
+MOTIONS = {
+    "sinusoidal": lambda: sinusoidal_motion(num_frames=90, seed=2),
+    "spinning": lambda: _spinning(150),
+    "quadruped with a shell": lambda: rig_motion(num_joints=30, topology="quadruped", num_frames=70, seed=3),
+}
+
+
+@pytest.mark.parametrize("name", sorted(MOTIONS))
+def test_attempts_side_by_side_are_the_attempts_one_by_one(name, monkeypatch):
+    config = {"eps_cm": 0.1, "shell_cm": 3.0 if "shell" in name else 0.0}
+    encoder, _ = _encoder_of(MOTIONS[name](), monkeypatch, **config)
+    if name == "spinning":
+        assert encoder.info.overrides, "the motion should re-reference segments"
+    requests = [(rot_codec._SEARCH_GRID[7], None), (rot_codec._SEARCH_GRID[5], None), (rot_codec._SEARCH_GRID[9], 0.0),
+                (rot_codec._SEARCH_GRID[8], 0.0)]
+    batched = encoder.attempts_of(requests)
+    for (multiplier, slope), together in zip(requests, batched):
+        alone = encoder.attempt(multiplier, slope)
+        # The start (first) finishes; the others are given up only where they exceed its size.
+        if together.size == np.inf:
+            assert alone.size > batched[0].size
+            continue
+        assert together.size == alone.size and together.base == alone.base
+        np.testing.assert_array_equal(together.info.dc, alone.info.dc)
+        for segment, coefficients in alone.coefficients.items():
+            np.testing.assert_array_equal(together.coefficients[segment], coefficients)
+        for mine, theirs in zip(together.corrections, alone.corrections):
+            np.testing.assert_array_equal(mine, theirs)
+    assert batched[0].size < np.inf
+
+
+def test_side_by_side_attempts_over_a_budget_are_given_up(monkeypatch):
+    encoder, _ = _encoder_of(MOTIONS["sinusoidal"](), monkeypatch, eps_cm=0.1)
+    requests = [(rot_codec._SEARCH_GRID[k], None) for k in (6, 7, 8)]
+    sizes = [attempt.size for attempt in encoder.attempts_of(requests)]
+    budget = sorted(sizes)[1]  # the middle size: the largest attempt is over it
+    capped = [attempt.size for attempt in encoder.attempts_of(requests, budget=budget)]
+    for size, size_capped in zip(sizes, capped):
+        assert size_capped == (size if size <= budget else np.inf)
+
+
+@pytest.mark.parametrize("name", sorted(MOTIONS))
+def test_the_prefetch_changes_no_stream(name, monkeypatch):
+    """Short clips prefetch attempts side by side; the walk ends where it would without them."""
+    motion = MOTIONS[name]()
+    config = {"eps_cm": 0.05, "shell_cm": 3.0 if "shell" in name else 0.0}
+    assert motion.num_frames <= rot_codec._PREFETCH_FRAMES
+    encoder, prefetched = _encoder_of(motion, monkeypatch, **config)
+    assert encoder.attempts > 4
+    monkeypatch.setattr(rot_codec, "_PREFETCH_FRAMES", 0)
+    plain = create("mcb-rot", **config).encode(motion)
+    assert prefetched == plain
+    decoded = create("mcb-rot").decode(prefetched)
+    assert metrics.max_joint_error(motion.positions(), decoded.positions) <= config["eps_cm"]
