@@ -312,8 +312,8 @@ def read_tokens(reader: ByteReader, groups: list[tuple[int, int]], tables: Class
         raise BitstreamError(f"{what}: the ANS stream holds more data than its {sum(c for _, c in groups)} values.")
     tokens = np.concatenate(parts) if len(parts) > 1 else parts[0] if parts else np.zeros(0, dtype=np.int32)
     nonzero = int(np.count_nonzero(tokens))
-    # A histogram of the tokens, not an N-long array of widths: the same sum.
-    raw_bits = int(_histogram(tokens, TOKEN_COUNT) @ _TOKEN_WIDTHS) if nonzero else 0
+    # The widths of the escaped tokens only (an N-long bool mask, not an N-long array of widths): the same sum.
+    raw_bits = int(_TOKEN_WIDTHS[tokens[tokens >= _DIRECT]].sum()) if nonzero else 0
     signs = reader.read_bytes((nonzero + 7) // 8, f"{what}: signs")
     raw = reader.read_bytes((raw_bits + 7) // 8, f"{what}: raw bits")
     return TokenRun(tokens, nonzero, raw_bits, signs, raw)

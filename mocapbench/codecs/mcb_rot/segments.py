@@ -8,6 +8,8 @@ transform straddles the jump and the two sides cost what they would cost coded a
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 import scipy  # scipy.fft loads on first use (see mocapbench.lazy_imports)
 
@@ -38,8 +40,6 @@ class SegmentLayout:
         self.num_frames = num_frames
         self.starts = np.asarray(starts, dtype=np.int64)
         self.lengths = np.diff(np.append(self.starts, num_frames))
-        # Segments of one length are transformed in one call.
-        self.groups = {int(n): np.flatnonzero(self.lengths == n) for n in np.unique(self.lengths)}
         chunk_starts, held = [0], 0
         for segment, length in enumerate(self.lengths[:-1]):
             held += int(length)
@@ -47,6 +47,11 @@ class SegmentLayout:
                 chunk_starts.append(segment + 1)
                 held = 0
         self.chunk_starts = np.array(chunk_starts + [len(self.starts)], dtype=np.int64)
+
+    @functools.cached_property
+    def groups(self) -> dict[int, np.ndarray]:
+        """Segment length -> the segments of that length (transformed in one call)."""
+        return {int(n): np.flatnonzero(self.lengths == n) for n in np.unique(self.lengths)}
 
     @property
     def num_segments(self) -> int:
