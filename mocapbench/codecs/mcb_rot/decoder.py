@@ -118,19 +118,6 @@ def _count_groups(info: StreamInfo, num_segments: int) -> tuple[np.ndarray, list
     return info._cache[key]
 
 
-def _coefficient_classes(info: StreamInfo, lengths: np.ndarray, mask: np.ndarray) -> np.ndarray:
-    """Classes of the coded AC coefficients of segments of ``lengths``, in stream order (segment, channel, k)."""
-    unique = np.unique(lengths).tolist()
-    if len(unique) == 1:
-        length = unique[0]
-        return np.broadcast_to(info.class_matrix(length).T, mask.shape)[mask] if length > 1 else np.zeros(0, np.uint8)
-    full = np.zeros(mask.shape, dtype=np.uint8)
-    for length in unique:
-        if length > 1:
-            full[lengths == length, :, : length - 1] = info.class_matrix(length).T
-    return full[mask]
-
-
 def read_chunks(
     info: StreamInfo, payload: memoryview, chunks: np.ndarray, scratch: Scratch | None = None
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -177,24 +164,24 @@ def read_chunks(
         counts = info.counts[segments[0] : segments[-1] + 1]
     else:
         counts = _chunk_counts(info, chunks, count_runs, per_chunk, local_first, lengths)
-    # Pass 2: the coefficients and corrections, one ANS stream per chunk, classes found for the whole block.
+    # Pass 2: the coefficients and corrections, one ANS stream per chunk, classes found for the whole block: the
+    # values are numbered stream by stream (each: coefficients, correction gaps, correction values), so that a
+    # stable sort by (chunk, class) gives each stream's coding order.
     padded = max(int(lengths.max()) - 1, 0)
     shape = (len(segments), channels, padded)
     mask = np.empty(shape, dtype=bool) if scratch is None else scratch.take("mask", shape, bool)
     np.less(np.arange(padded), counts[:, :, None], out=mask)  # (S, C, P): the coded coefficients
-    coefficient_classes = _coefficient_classes(info, lengths, mask)
-    coded = np.add.reduceat(counts.sum(axis=1), local_first)  # coefficients of each chunk
-    corrections = np.array(corrections, dtype=np.int64)
-    sizes = coded + 4 * corrections  # stream of a chunk: coefficients, correction gaps, correction values (x 3)
-    stream_start = np.cumsum(sizes) - sizes
-    classes = np.full(int(sizes.sum()), _SIDE + info.value_class, dtype=np.uint16)
-    at_coefficients = _runs(stream_start, coded)
-    at_gaps = _runs(stream_start + coded, corrections)
-    at_values = _runs(stream_start + coded + corrections, 3 * corrections)
-    classes[at_coefficients] = coefficient_classes
-    classes[at_gaps] = _SIDE + info.gap_class
-    keys = classes + np.repeat(np.arange(len(chunks), dtype=np.int64) * _KEY_STRIDE, sizes)
-    keys = keys.astype(np.uint16 if len(chunks) * _KEY_STRIDE <= 1 << 16 else np.int64)
+    key_type = np.uint16 if len(chunks) * _KEY_STRIDE <= 1 << 16 else np.int64  # (uint16 sorts by radix)
+    segment_key = np.repeat(np.arange(len(chunks), dtype=np.int64), per_chunk) * _KEY_STRIDE
+    coefficient_keys = _coefficient_keys(info, lengths, segment_key, mask, key_type)
+    coded = np.add.reduceat(counts.sum(axis=1), local_first).tolist()  # coefficients of each chunk
+    parts, at = [], 0
+    for i, (held, count) in enumerate(zip(coded, corrections)):
+        key = i * _KEY_STRIDE + _SIDE
+        parts += [coefficient_keys[at : at + held], np.full(count, key + info.gap_class, key_type),
+                  np.full(3 * count, key + info.value_class, key_type)]
+        at += held
+    keys = np.concatenate(parts) if len(parts) > 3 or corrections[0] else coefficient_keys
     order = np.argsort(keys, kind="stable")  # by chunk, then by class (as each stream was coded)
     histogram = np.bincount(keys, minlength=len(chunks) * _KEY_STRIDE).reshape(len(chunks), _KEY_STRIDE)
     group_chunk, group_class = np.nonzero(histogram)
@@ -207,8 +194,17 @@ def read_chunks(
     decoded = values_of_tokens(runs, order, None if scratch is None else scratch.take("values", order.shape, np.int64))
     ac = np.empty(shape) if scratch is None else scratch.take("ac", shape)
     ac.fill(0.0)
-    ac[mask] = decoded[at_coefficients]
-    gaps = decoded[at_gaps]
+    sizes = np.array(coded) + 4 * np.array(corrections, dtype=np.int64)
+    starts = (np.cumsum(sizes) - sizes).tolist()
+    if len(chunks) == 1:
+        ac[mask] = decoded[: coded[0]]
+        gaps, values = decoded[coded[0] : coded[0] + corrections[0]], decoded[coded[0] + corrections[0] :]
+    else:
+        ac[mask] = np.concatenate([decoded[at : at + held] for at, held in zip(starts, coded)])
+        gaps = np.concatenate([decoded[at + held : at + held + n] for at, held, n in zip(starts, coded, corrections)])
+        values = np.concatenate([decoded[at + held + n : at + held + 4 * n]
+                                 for at, held, n in zip(starts, coded, corrections)])
+    corrections = np.array(corrections, dtype=np.int64)
     if gaps.size and gaps.min() < 0:
         raise BitstreamError(f"mcb-rot: chunks {chunks[0]}-{chunks[-1]}: a correction gap is negative.")
     steps = np.cumsum(gaps + 1)
@@ -218,7 +214,26 @@ def read_chunks(
         raise BitstreamError(f"mcb-rot: chunks {chunks[0]}-{chunks[-1]}: corrections run past their chunk's end.")
     chunk_offset = (np.cumsum(chunk_frames) - chunk_frames) * slots
     flat = local + np.repeat(chunk_offset, corrections)
-    return ac, flat, decoded[at_values].reshape(-1, 3)
+    return ac, flat, values.reshape(-1, 3)
+
+
+def _coefficient_keys(info: StreamInfo, lengths: np.ndarray, segment_key: np.ndarray, mask: np.ndarray,
+                      key_type) -> np.ndarray:
+    """``class + segment_key[s]`` (``key_type``) of the coded AC coefficients of segments of ``lengths``, in stream
+    order (segment, channel, k): ``mask`` (S, C, P) marks them."""
+    keys = np.zeros(mask.shape, dtype=key_type)
+    for i, (length, key) in enumerate(zip(lengths.tolist(), segment_key.tolist())):
+        if length > 1:
+            np.add(_class_rows(info, length), key, out=keys[i, :, : length - 1])
+    return keys[mask]
+
+
+def _class_rows(info: StreamInfo, length: int) -> np.ndarray:
+    """(C, n - 1) uint16 classes of the AC coefficients of a segment of ``length`` frames, channel-major (cached)."""
+    key = ("class rows", length)
+    if key not in info._cache:
+        info._cache[key] = np.ascontiguousarray(info.class_matrix(length).T, dtype=np.uint16)
+    return info._cache[key]
 
 
 def _chunk_counts(info: StreamInfo, chunks: np.ndarray, count_runs: list, per_chunk: np.ndarray,
@@ -242,9 +257,3 @@ def _chunk_counts(info: StreamInfo, chunks: np.ndarray, count_runs: list, per_ch
         chunk = chunks[np.searchsorted(local_first, int(np.argmax(bad.any(axis=1))), side="right") - 1]
         raise BitstreamError(f"mcb-rot: chunk {chunk}: significance counts outside their segments.")
     return counts
-
-
-def _runs(starts: np.ndarray, counts: np.ndarray) -> np.ndarray:
-    """Concatenated ranges ``starts[i] : starts[i] + counts[i]``."""
-    total = int(counts.sum())
-    return np.arange(total, dtype=np.int64) + np.repeat(starts - (np.cumsum(counts) - counts), counts)
