@@ -372,7 +372,10 @@ def _search(attempt, flat_too: bool = False, batch=None, prefetch: tuple = ((), 
     (larger than the budget: the walk's decisions are the same), so the walk ends where it would without them."""
     tried: dict = {}  # (grid index, flat) -> attempt
     if batch is not None and (prefetch[0] or prefetch[1]):
-        keys = [(i, False) for i in prefetch[0]] + [(i, True) for i in prefetch[1] if flat_too]
+        # The start first: the batch gives up the others against its size (every later attempt of the walk has a
+        # budget no larger than it).
+        keys = [(_SEARCH_START, False)] + [(i, False) for i in prefetch[0] if i != _SEARCH_START]
+        keys += [(i, True) for i in prefetch[1] if flat_too]
         for key, result in zip(keys, batch([(_SEARCH_GRID[i], 0.0 if flat else None) for i, flat in keys])):
             tried[key] = result
 
@@ -560,6 +563,7 @@ class _Pruner:
     def __init__(self, infos: list, bases: list, num_frames: int, budget: float, anchor: bool) -> None:
         self.infos, self.bases, self.num_frames, self.budget = infos, bases, num_frames, budget
         self.anchor = anchor
+        self.anchor_size = None
         self.dropped: set = set()
 
     def _estimate(self, attempt: int, corrected: np.ndarray, values: np.ndarray) -> float:
@@ -573,7 +577,9 @@ class _Pruner:
         running = np.unique(attempt_of).tolist()
         limit = self.budget
         if self.anchor and running[0] != 0:  # the anchor has finished: its size is final
-            limit = min(limit, self._estimate(0, corrected, values))
+            if self.anchor_size is None:
+                self.anchor_size = self._estimate(0, corrected, values)
+            limit = min(limit, self.anchor_size)
         if limit == np.inf:
             return np.ones(len(frames), dtype=bool)
         for attempt in running:
