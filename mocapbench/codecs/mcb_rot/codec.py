@@ -130,6 +130,8 @@ _FINER_FIRST_SHARE = 0.12
 # by side first (grid indices of the config's slope, of a flat slope), where numpy's per-call costs outweigh the
 # arithmetic.
 _PREFETCH_FRAMES = 200
+# StreamInfo cache entries that depend on the axis codes only (shared by every attempt of a stream).
+_AXES_CACHE = ("axes", "turned", "turned axes")
 _PREFETCH = ((6, 7, 8), (7, 8, 9))
 
 
@@ -465,6 +467,8 @@ class _Encoder:
         self.attempts = 0
         self.given_up = 0
         self._tiles: dict = {}
+        for name in _AXES_CACHE:  # into info's cache, for every attempt's copy (:meth:`_with_axes`)
+            getattr(info, name.replace(" ", "_"), None)
 
     def attempt(self, multiplier: float, slope: float | None = None, budget: float = np.inf) -> _Attempt:
         """The stream at step multiplier ``multiplier`` and frequency slope ``slope`` (None: the config's).
@@ -487,7 +491,7 @@ class _Encoder:
             settings = dataclasses.replace(self.info.settings, multiplier=_f32(multiplier))
             if slope is not None:
                 settings = dataclasses.replace(settings, slope=_f32(slope))
-            infos.append(self.info.replace(settings=settings))
+            infos.append(self._with_axes(self.info.replace(settings=settings)))
         if self.compensator is not None:
             quantized = self.compensator.quantize_many(infos)
         else:
@@ -496,7 +500,7 @@ class _Encoder:
         live, roots, quats, bases = [], [], [], []
         segments = np.arange(layout.num_segments)
         for k, (info, (dc, coefficients)) in enumerate(zip(infos, quantized)):
-            info = infos[k] = info.replace(dc=dc)
+            info = infos[k] = self._with_axes(info.replace(dc=dc))
             base = base_bytes(info, coefficients)
             if base > budget:
                 self.given_up += 1
@@ -538,6 +542,14 @@ class _Encoder:
             results[k] = _Attempt(base + corrections_bytes(info, *corrections), base, requests[k][0], info,
                                   coefficients, corrections)
         return results
+
+    def _with_axes(self, info: StreamInfo) -> StreamInfo:
+        """``info`` (a copy of the stream's with other settings) with the stream's principal axes already in its
+        cache (they depend on the axis codes only; every attempt would rebuild them)."""
+        for key in _AXES_CACHE:
+            if key in self.info._cache:
+                info._cache.setdefault(key, self.info._cache[key])
+        return info
 
     def _tiled(self, count: int) -> tuple:
         """The original rotations (count F, J, 4), roots (count F, 3) and checked points, ``count`` times along the
