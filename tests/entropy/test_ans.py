@@ -147,3 +147,25 @@ def test_streams_read_apart_and_finished_together_equal_one_decode_each(seed, st
     reader.expect_end()
     decoded = values_of_tokens(runs, np.concatenate(orders) if orders else np.zeros(0, np.int64))
     np.testing.assert_array_equal(decoded, np.concatenate([v for v, _ in parts]).astype(np.int64))
+
+
+@pytest.mark.parametrize("small_groups", [1, 3, 5, 6, 12])
+def test_runs_of_small_class_groups_decode_alike_merged_or_one_call_each(small_groups):
+    """A run of small class groups is decoded one call per class below ans._MERGE_GROUPS groups, in one call with
+    per-value models from there: both give the values back, between large groups and at the end of the stream."""
+    from mocapbench.codecs.mcb_rot.stream import tables as mcb_rot_tables
+    from mocapbench.entropy import ans
+
+    assert ans._MERGE_GROUPS in range(2, 12)
+    tables = mcb_rot_tables(float(np.float32(0.45)))
+    rng = np.random.default_rng(small_groups)
+    small = [(klass, 1 + klass % (ans._MERGE_BELOW - 1)) for klass in range(10, 10 + small_groups)]
+    layout = [(5, 40)] + small + [(40, 30)] + [(klass + 40, count) for klass, count in small]
+    classes = np.repeat([k for k, _ in layout], [c for _, c in layout])
+    rng.shuffle(classes)
+    values = (rng.standard_normal(len(classes)) * 2.0 ** (classes / 4.0 - 3.0)).astype(np.int64)
+    writer = ByteWriter()
+    encode_classed(writer, values, classes, tables)
+    reader = ByteReader(writer.getvalue())
+    np.testing.assert_array_equal(decode_classed(reader, classes, tables, "test"), values)
+    reader.expect_end()
