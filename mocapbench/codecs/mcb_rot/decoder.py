@@ -24,7 +24,7 @@ from __future__ import annotations
 import numpy as np
 
 from mocapbench.codecs.mcb_rot import kinematics
-from mocapbench.codecs.mcb_rot.classes import NUM_CLASSES
+from mocapbench.codecs.mcb_rot.classes import NUM_CLASSES, band_of
 from mocapbench.codecs.mcb_rot.scratch import Scratch, thread_scratch
 from mocapbench.codecs.mcb_rot.stream import (
     StreamInfo,
@@ -239,8 +239,10 @@ def _coefficient_keys(info: StreamInfo, lengths: np.ndarray, segment_key: np.nda
 def _class_rows(info: StreamInfo, length: int) -> np.ndarray:
     """(C, n - 1) uint16 classes of the AC coefficients of a segment of ``length`` frames, channel-major (cached)."""
     key = ("class rows", length)
-    if key not in info._cache:
-        info._cache[key] = np.ascontiguousarray(info.class_matrix(length).T, dtype=np.uint16)
+    if key not in info._cache:  # info.class_matrix(length).T, computed in this layout
+        bands = band_of(np.arange(1, length), length, info.settings.segment_frames)
+        rows = info.scale[:, None] + info.tilt[bands][None, :]
+        info._cache[key] = np.clip(rows, 0, NUM_CLASSES - 1, out=rows).astype(np.uint16)
     return info._cache[key]
 
 

@@ -24,15 +24,18 @@ __all__ = ["compose", "positions"]
 
 _PLANS: dict[tuple[bytes, bytes], tuple] = {}  # plans of recent skeletons
 _R1, _R2 = [1, 2, 0], [2, 0, 1]  # (y, z, x) and (z, x, y): a x b = a[_R1] b[_R2] - a[_R2] b[_R1]
+#: Components gathered for a product, in this order (10 rows): x y z w, then x y z by _R1, then by _R2.
+_ROWS = np.array([0, 1, 2, 3] + _R1 + _R2)
 
 
 def _plan(parents: np.ndarray, offsets: np.ndarray) -> tuple:
     """The levels, bones and chain matrix of a skeleton (cached by tree and offsets).
 
-    Returns ``(levels, bone_parents, v, v2a, v2b, depths)``: ``levels`` lists, per tree depth 1, 2, ..., the
-    joints with children at that depth and their parents; ``bone_parents`` (J - 1,) the parent of joints 1..J-1;
-    ``v`` (3, J - 1, 1) their offsets, cm, with ``2 v`` rotated for the cross products; ``depths`` lists, per tree
-    depth, all its joints and their parents.
+    Returns ``(levels, bone_rows, v, v2a, v2b, depths)``: ``levels`` lists, per tree depth 1, 2, ..., the joints
+    with children at that depth, their parents, and the rows of the flattened (4 J, F) arrays to gather for a
+    product (:data:`_ROWS`: the parents' rows of the global rotations, the joints' rows of the local ones);
+    ``bone_rows`` those rows of the parents of joints 1..J-1; ``v`` (3, J - 1, 1) their offsets, cm, with ``2 v``
+    rotated for the cross products; ``depths`` lists, per tree depth, all its joints and their parents.
     """
     key = (np.asarray(parents, dtype=np.int64).tobytes(), np.asarray(offsets).tobytes())
     if key not in _PLANS:
@@ -47,14 +50,16 @@ def _plan(parents: np.ndarray, offsets: np.ndarray) -> tuple:
         levels, depths = [], []
         for d in range(1, int(depth.max(initial=0)) + 1):
             inner = np.flatnonzero((depth == d) & has_children)
-            if inner.size:
-                levels.append((inner, parents[inner]))
+            if inner.size:  # rows of the flattened (4 J, F) arrays: components x y z w, then _R1, then _R2
+                rows = _ROWS[:, None] * num_joints
+                levels.append((inner, parents[inner], (rows + parents[inner]).ravel(), (rows + inner).ravel()))
             joints = np.flatnonzero(depth == d)
             depths.append((joints, parents[joints]))
-        bone_parents = np.asarray(parents[1:], dtype=np.int64)
+        rows = _ROWS[:, None] * num_joints
+        bone_rows = (rows + np.asarray(parents[1:], dtype=np.int64)).ravel()  # (10 (J - 1),) rows of (4 J, F)
         v = np.asarray(offsets[1:], dtype=np.float64).T[:, :, None]  # (3, J - 1, 1)
         v2 = 2.0 * v
-        _PLANS[key] = (levels, bone_parents, v, v2[_R2], v2[_R1], depths)
+        _PLANS[key] = (levels, bone_rows, v, v2[_R2], v2[_R1], depths)
     return _PLANS[key]
 
 
@@ -83,27 +88,39 @@ def positions(
     num_frames, num_joints, _ = quats.shape
     local = np.ascontiguousarray(quats.transpose(2, 1, 0))  # (4, J, F)
     reuse = scratch is not None and out is not None
-    levels, bone_parents, v, v2a, v2b, depths = _plan(skeleton.parents, skeleton.offsets)
+    levels, bone_rows, v, v2a, v2b, depths = _plan(skeleton.parents, skeleton.offsets)
     glob = scratch.take("glob", local.shape) if reuse else np.empty_like(local)
     glob[:, 0] = local[:, 0]
-    for inner, parents in levels:  # global rotations of the joints with children, a depth at a time
-        # (np.take gathers into C-contiguous arrays, which the products then read faster than fancy-index copies)
-        glob[:3, inner], glob[3, inner] = compose(np.take(glob, parents, axis=1), np.take(local, inner, axis=1))
+    flat_glob, flat_local = glob.reshape(-1, num_frames), local.reshape(-1, num_frames)
+    for inner, parents, parent_rows, inner_rows in levels:  # global rotations of the joints with children, by depth
+        # Each factor gathered once into a C-contiguous (10, n, F) array: its components and the two rotations of
+        # its vector part that the cross product reads (compose's fancy-index copies, as views).
+        width = len(inner)
+        p = np.take(flat_glob, parent_rows, axis=0).reshape(10, width, num_frames)
+        b = np.take(flat_local, inner_rows, axis=0).reshape(10, width, num_frames)
+        xyz = p[4:7] * b[7:10]  # as compose: p[_R1] b[_R2] - p[_R2] b[_R1] + pw bv + bw pv
+        xyz -= p[7:10] * b[4:7]
+        xyz += p[3] * b[:3]
+        xyz += b[3] * p[:3]
+        glob[:3, inner] = xyz
+        glob[3, inner] = p[3] * b[3] - np.add.reduce(p[:3] * b[:3], axis=0)
     result = scratch.take("fk", (3, num_joints, num_frames)) if reuse else np.empty((3, num_joints, num_frames))
     if num_joints > 1:  # (leaves only the root, whose position is ``roots``)
         # Bone-sized temporaries (a few hundred KB on a 465-frame clip) would be mapped and page-faulted afresh on
         # every call: with ``scratch`` they are its reused buffers.
         shape = (3, num_joints - 1, num_frames)
         work = (lambda name: scratch.take(name, shape)) if reuse else (lambda name: np.empty(shape))
-        p = np.take(glob, bone_parents, axis=1, mode="clip", out=scratch.take("bone parents", (4,) + shape[1:]) if reuse else None)
-        pv, pw = p[:3], p[3]
-        p1 = np.take(pv, _R1, axis=0, mode="clip", out=work("p1"))
-        p2 = np.take(pv, _R2, axis=0, mode="clip", out=work("p2"))
-        t, turned, other = work("t"), work("turned"), work("other")
+        rows = (10, num_joints - 1, num_frames)  # components x y z w, then x y z by _R1, then by _R2
+        p = np.take(glob.reshape(-1, num_frames), bone_rows, axis=0, mode="clip",
+                    out=scratch.take("bone parents", (10 * (num_joints - 1), num_frames)) if reuse else None).reshape(rows)
+        p1, p2, pw = p[4:7], p[7:10], p[3]
+        rolled = scratch.take("t", (5,) + shape[1:]) if reuse else np.empty((5,) + shape[1:])
+        t, turned, other = rolled[:3], work("turned"), work("other")
         np.multiply(p1, v2a, out=t)
         t -= np.multiply(p2, v2b, out=other)  # t = 2 q x v
-        np.multiply(p1, np.take(t, _R2, axis=0, mode="clip", out=other), out=turned)
-        turned -= np.multiply(p2, np.take(t, _R1, axis=0, mode="clip", out=other), out=other)  # q x t
+        rolled[3:] = t[:2]  # t rolled by _R1 is rolled[1:4], by _R2 rolled[2:5]
+        np.multiply(p1, rolled[2:5], out=turned)
+        turned -= np.multiply(p2, rolled[1:4], out=other)  # q x t
         t *= pw
         turned += t
         turned += v  # v + w t + q x t: each bone's offset turned into the world frame
