@@ -4,8 +4,9 @@
 rewrite; ``make_golden.py`` there says how): ``mcb-linf`` with the shipped model over two DCT windows and a
 partial one, with a cut between two takes, and untrained (bone vectors, band tables) on a 15-joint rig; ``svd``,
 ``quant-rot-zstd`` and ``pga-ik``. The ``mcb-rot-*`` streams were made at e15a012 in payload format 3 (a cut with
-the shell bound, a 15-joint rig, a spinning joint with principal axes and re-referenced segments): later formats
-must keep decoding them, in whole and in part. The sums and 256 sampled values of the positions (and quaternions)
+the shell bound, a 15-joint rig, a spinning joint with principal axes and re-referenced segments), the
+``mcb-rot4-*`` ones in format 4 and the ``mcb-rot5-*`` ones in format 5 (a cut with the shell bound over chunks of
+several segments, the spinning joint): later formats must keep decoding them, in whole and in part. The sums and 256 sampled values of the positions (and quaternions)
 must agree.
 
 Tolerance: 1e-9 cm (1e-12 for quaternions). The block-wise decoders run the same arithmetic on every element
@@ -38,7 +39,8 @@ def _check(summary: dict, array: np.ndarray, atol: float) -> None:
 
 def test_every_golden_case_is_there():
     assert CASES == ["mcb-linf-bands", "mcb-linf-cut", "mcb-linf-trained", "mcb-rot-cut-shell", "mcb-rot-rig",
-                     "mcb-rot-spin", "pga-ik", "quant-rot-zstd", "svd"]
+                     "mcb-rot-spin", "mcb-rot4-cut-shell", "mcb-rot4-spin", "mcb-rot5-cut-shell", "mcb-rot5-spin",
+                     "pga-ik", "quant-rot-zstd", "svd"]
 
 
 @pytest.mark.parametrize("case", CASES)
@@ -77,16 +79,17 @@ def test_the_comparison_sees_a_misplaced_coefficient():
 
 @pytest.mark.parametrize("case", [c for c in CASES if c.startswith("mcb-rot")])
 def test_an_old_mcb_rot_stream_decodes_in_part_as_in_whole(case):
-    """The format-3 streams stay format 3 (so the cases above test the old layout), and random access over them
-    returns the frames of the whole decode."""
+    """Each stream stays in the format its name says (3 for ``mcb-rot-*``, so the cases above test the old
+    layouts), and random access over it returns the frames of the whole decode (a frame, and a longer range)."""
     from mocapbench.codecs import container
 
     data = (GOLDEN / f"{case}.mcb").read_bytes()
     header, payload = container.unpack(data, "mcb-rot")
-    assert payload[0] == 3
+    assert payload[0] == {"rot": 3, "rot4": 4, "rot5": 5}[case.split("-")[1]]
     codec = create("mcb-rot")
     whole = codec.decode(data)
-    start, stop = header.num_frames // 3, header.num_frames // 3 + 150
-    part = codec.decode_frames(data, start, stop)
-    np.testing.assert_allclose(part.positions, whole.positions[start:stop], rtol=0, atol=1e-9)
-    np.testing.assert_allclose(part.motion.rotations, whole.motion.rotations[start:stop], rtol=0, atol=1e-12)
+    third = header.num_frames // 3
+    for start, stop in ((third, third + 150), (third + 70, third + 71)):
+        part = codec.decode_frames(data, start, stop)
+        np.testing.assert_allclose(part.positions, whole.positions[start:stop], rtol=0, atol=1e-9)
+        np.testing.assert_allclose(part.motion.rotations, whole.motion.rotations[start:stop], rtol=0, atol=1e-12)

@@ -1,4 +1,4 @@
-"""mcb-rot payload format 4: the lean header's pieces round-trip exactly, and bad bytes are one BitstreamError."""
+"""mcb-rot payload formats 4 and 5: the lean header's pieces round-trip exactly, and bad bytes are one BitstreamError."""
 
 from __future__ import annotations
 
@@ -18,7 +18,7 @@ from mocapbench.entropy.bitio import ByteReader, ByteWriter
 from mocapbench.motion import Skeleton
 from mocapbench.synthetic import sinusoidal_motion
 
-DEFAULTS = Settings.create(0.05, 0.0499, 2.0**3.5, 1.0, 0.45, 0.05, np.deg2rad(1.0), 0.0, 128, 128, 0.0)
+DEFAULTS = Settings.create(0.05, 0.0499, 2.0**3.5, 1.0, 0.45, 0.05, np.deg2rad(1.0), 0.0, 128, 256, 0.0)
 
 
 def _round_trip(settings: Settings) -> tuple[Settings, int]:
@@ -26,8 +26,8 @@ def _round_trip(settings: Settings) -> tuple[Settings, int]:
     settings.write(writer)
     data = writer.getvalue()
     reader = ByteReader(data)
-    assert reader.read_u8() == stream.FORMAT == 4
-    back = Settings.read(reader, 4)
+    assert reader.read_u8() == stream.FORMAT == 5
+    back = Settings.read(reader, 5)
     reader.expect_end("settings")
     return back, len(data)
 
@@ -48,6 +48,22 @@ def test_settings_that_differ_from_the_defaults_read_back_exactly(change):
     back, size = _round_trip(settings)
     assert back == settings
     assert size <= 11 + 4 * len(change) + 3
+
+
+def test_a_format_4_header_reads_its_own_defaults():
+    """Format 4 left out chunks of 128 frames (its default), format 5 leaves out 256: the same flags read back as
+    each format's default, and a format 4 header written before format 5 (by hand here: flags 0) reads 128."""
+    writer = ByteWriter()
+    writer.write_f32(0.05)
+    writer.write_f32(0.0499)
+    writer.write_varint(0)  # every setting at its default
+    writer.write_u8(71)  # multiplier code: 2^3.5
+    for version, chunk in ((4, 128), (5, 256)):
+        back = Settings.read(ByteReader(writer.getvalue()), version)
+        assert (back.chunk_frames, back.segment_frames, back.multiplier) == (chunk, 128, stream._f32(2.0**3.5))
+    four = dataclasses.replace(DEFAULTS, chunk_frames=128)
+    back, size = _round_trip(four)  # written as format 5: chunks of 128 are not its default
+    assert back == four and size == 13
 
 
 def test_the_bound_is_rounded_down_to_float32():
@@ -145,11 +161,11 @@ def test_the_skeleton_grid_costs_at_most_a_third_of_eps(eps):
     assert skeleton_step_exponent(2 * eps, skeleton) >= exponent  # a coarser bound, a grid no finer
 
 
-def test_a_format_4_stream_reads_its_counts_from_the_header(synthetic_motion):
+def test_a_format_5_stream_reads_its_counts_from_the_header(synthetic_motion):
     codec = create("mcb-rot", eps_cm=0.5, segment_frames=32, chunk_frames=64)
     data = codec.encode(synthetic_motion)
     header, payload = container.unpack(data, "mcb-rot")
-    assert payload[0] == 4
+    assert payload[0] == 5  # (format 4's layout, but for the default chunk length)
     info = stream.read_info(header, payload)
     assert info.counts.shape == (info.layout.num_segments, info.channels)
     assert np.all(info.counts <= (info.layout.lengths - 1)[:, None])

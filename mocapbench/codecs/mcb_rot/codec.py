@@ -151,7 +151,7 @@ class McbRotCodec(Codec):
         eps_cm: float = param(1.0, low=1e-3, high=100.0, unit="cm", doc="guaranteed L-inf bound on every joint")
         segment_frames: int = param(128, low=1, high=4096, unit="frames", doc="DCT segment length (the latency)")
         chunk_frames: int = param(
-            128, low=1, high=1 << 20, unit="frames", doc="random-access unit: segments are coded in chunks this long"
+            256, low=1, high=1 << 20, unit="frames", doc="random-access unit: segments are coded in chunks this long"
         )
         step_rel: float = param(
             0.0, low=0.0, high=1e4, unit="x budget", doc="base step over the error budget (0: rate search per stream)"

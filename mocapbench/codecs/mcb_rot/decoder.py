@@ -69,9 +69,12 @@ def decode_range(
         out = np.empty((count, num_joints, 3)), np.empty((count, 3)), np.empty((count, num_joints, 4))
     positions, roots, quats = out
     scratch = thread_scratch()
+    first_segment = int(np.searchsorted(layout.starts, start, side="right")) - 1  # the segment holding ``start``
     for chunks in _blocks(info, layout.chunks_of_frames(start, stop)):
-        first = int(layout.starts[layout.chunk_starts[chunks[0]]])
-        block_roots, block_quats = decode_block(info, payload, chunks, scratch)
+        # The block's chunks are entropy decoded whole; only its segments holding frames of start:stop are
+        # synthesized (a chunk of several segments, when one frame is asked for).
+        first = int(layout.starts[max(int(layout.chunk_starts[chunks[0]]), first_segment)])
+        block_roots, block_quats = decode_block(info, payload, chunks, scratch, (start, stop))
         low, high = max(first, start), min(first + len(block_roots), stop)
         inside, out = slice(low - first, high - first), slice(low - start, high - start)
         roots[out] = block_roots[inside]
@@ -106,13 +109,30 @@ def _blocks(info: StreamInfo, chunks: np.ndarray) -> list[np.ndarray]:
 
 
 def decode_block(
-    info: StreamInfo, payload: memoryview, chunks: np.ndarray, scratch: Scratch | None = None
+    info: StreamInfo, payload: memoryview, chunks: np.ndarray, scratch: Scratch | None = None,
+    frames: tuple[int, int] | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Roots (n, 3) cm and rotations (n, J, 4) (a view of a component-major array) of the consecutive ``chunks``,
-    corrections applied. With ``scratch`` the rotations are a scratch view (valid until its next use)."""
+    corrections applied. With ``scratch`` the rotations are a scratch view (valid until its next use).
+
+    With ``frames`` (start, stop: frames of the stream), only the chunks' segments holding some of those frames
+    are synthesized and returned (from the first frame of the first of them): the entropy decoding is the chunks'
+    whole, the rest is per segment, so a frame costs its segment's synthesis, not its chunk's.
+    """
     layout = info.layout
     segments = np.arange(layout.chunk_starts[chunks[0]], layout.chunk_starts[chunks[-1] + 1])
     ac, flat, values = read_chunks(info, payload, chunks, scratch)
+    if frames is not None:
+        ends = layout.starts[segments] + layout.lengths[segments]
+        low = int(np.searchsorted(ends, frames[0], side="right"))  # the first segment ending after start
+        high = int(np.searchsorted(layout.starts[segments], frames[1], side="left"))  # past the last starting before stop
+        if low > 0 or high < len(segments):
+            shift = int(layout.starts[segments[low]] - layout.starts[segments[0]])
+            held = int(ends[high - 1] - layout.starts[segments[low]])
+            slots = len(info.correction_steps)
+            local = flat - shift * slots
+            keep = (local >= 0) & (local < held * slots)
+            ac, flat, values, segments = ac[low:high], local[keep], values[keep], segments[low:high]
     roots, quats = assemble(info, segments, segment_signal(info, segments, ac, scratch), scratch)
     apply_corrections(info, roots, quats, flat, values)
     return roots, quats
