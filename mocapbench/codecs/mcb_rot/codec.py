@@ -618,12 +618,34 @@ def _most_helpful(fix, missing, placed, error, glob, relative, root_error, budge
     # Scored only in the columns some row may correct (the others' scores are never read).
     columns = np.flatnonzero(fix[:, 1:].any(axis=0))
     if columns.size:
-        relative = relative[:, columns]
-        rel = relative * np.where(relative[..., 3:] < 0, -1.0, 1.0)
-        omega = quat.rotate(glob[:, columns], quat.log_map(rel))  # (n, c, 3) world-frame turns
-        arm = placed[rows, joints][:, None, :] - placed[rows][:, columns]  # (m, c, 3): p_k - p_a
-        shift = quat.cross(omega[rows], arm)
-        gain = size[:, None] - quat.norm3(miss[:, None, :] - shift)  # (m, c)
+        # The world-frame turns omega_a = rotate(glob_a, log_map(the short way of relative_a)), component-major (3,
+        # n, c) (quat.log_map's and quat.rotate's operations, without stacking), then gathered by row.
+        qx, qy, qz, qw = np.moveaxis(relative.take(columns, axis=1), -1, 0)
+        sign = np.where(qw < 0, -1.0, 1.0)
+        qx, qy, qz, qw = qx * sign, qy * sign, qz * sign, qw * sign
+        norm = np.sqrt(qx * qx + qy * qy + qz * qz)
+        angle = 2.0 * np.arctan2(norm, qw)
+        small = norm < 1e-9
+        scale = np.where(small, 2.0 / np.where(small, qw, 1.0), angle / np.where(small, 1.0, norm))
+        vx, vy, vz = qx * scale, qy * scale, qz * scale
+        ux, uy, uz, uw = np.moveaxis(glob.take(columns, axis=1), -1, 0)
+        tx, ty, tz = 2.0 * (uy * vz - uz * vy), 2.0 * (uz * vx - ux * vz), 2.0 * (ux * vy - uy * vx)
+        omega = np.empty((3,) + ux.shape)
+        omega[0] = vx + uw * tx + (uy * tz - uz * ty)
+        omega[1] = vy + uw * ty + (uz * tx - ux * tz)
+        omega[2] = vz + uw * tz + (ux * ty - uy * tx)
+        # |miss - omega_a x (p_k - p_a)| component by component on (m, c) arrays (quat.cross and quat.norm3's
+        # operations, without stacking (m, c, 3) arrays).
+        turn = omega.take(rows, axis=1)  # (3, m, c)
+        at = np.ascontiguousarray(np.moveaxis(placed.take(columns, axis=1), -1, 0)).take(rows, axis=1)  # p_a
+        point = placed[rows, joints].T[:, :, None]  # (3, m, 1): p_k
+        ax, ay, az = point[0] - at[0], point[1] - at[1], point[2] - at[2]
+        ox, oy, oz = turn
+        ex, ey, ez = miss.T[:, :, None]
+        dx = ex - (oy * az - oz * ay)
+        dy = ey - (oz * ax - ox * az)
+        dz = ez - (ox * ay - oy * ax)
+        gain = size[:, None] - np.sqrt(dx * dx + dy * dy + dz * dz)  # (m, c)
         gain = np.where(budgets.movers[joints][:, columns], gain, -np.inf)
         # Best over each frame's missing joints: rows are sorted, so one reduceat per run of equal rows.
         joint_score[frames_missing[:, None], columns] = np.maximum.reduceat(gain, first, axis=0)
