@@ -827,13 +827,13 @@ def _refine_greedy(info: StreamInfo, true_quats: np.ndarray, true_roots: np.ndar
             above = parents[joint]
             new_global = quat.multiply(glob[joint_rows, np.maximum(above, 0)], turned)
             new_global[above < 0] = turned[above < 0]
-            change = quat.multiply(new_global, quat.conjugate(glob[joint_rows, joint]))[:, None, :]  # (r, 1, 4)
-            inside = subtree[joint][..., None]  # (r, J, 1)
-            centre = placed[joint_rows, joint][:, None, :]
-            glob[joint_rows] = np.where(inside, quat.multiply(change, glob[joint_rows]), glob[joint_rows])
+            change = quat.multiply(new_global, quat.conjugate(glob[joint_rows, joint]))  # (r, 4)
+            pair, below = np.nonzero(subtree[joint])  # (corrected row, joint in its subtree) pairs
+            row = joint_rows[pair]
+            centre = placed[joint_rows, joint][pair]
+            glob[row, below] = quat.multiply(change[pair], glob[row, below])
             glob[joint_rows, joint] = new_global
-            placed[joint_rows] = np.where(inside, centre + quat.rotate(change, placed[joint_rows] - centre),
-                                          placed[joint_rows])
+            placed[row, below] = centre + quat.rotate(change[pair], placed[row, below] - centre)
         errors = points.errors_of(frames, placed, glob)
         keep = np.any(errors > check_cm, axis=1)
         if not keep.all():
