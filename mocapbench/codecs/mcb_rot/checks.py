@@ -50,9 +50,29 @@ def global_quaternions(quats: np.ndarray, parents: np.ndarray) -> np.ndarray:
 _ROLL1, _ROLL2 = [1, 2, 0], [2, 0, 1]  # a x b = a[_ROLL1] b[_ROLL2] - a[_ROLL2] b[_ROLL1] on component-major arrays
 
 
-def forward_kinematics(quats: np.ndarray, roots: np.ndarray, skeleton: Skeleton) -> tuple[np.ndarray, np.ndarray]:
+def _plan(parents: np.ndarray) -> tuple[list, list]:
+    """Per tree depth 1, 2, ...: (joints, their parents) of every joint and of the joints with children (cached)."""
+    key = np.asarray(parents, dtype=np.int64).tobytes()
+    if key not in _PLANS:
+        has_children = np.zeros(len(parents), dtype=bool)
+        has_children[parents[1:]] = True
+        every, inner = [], []
+        for joints in tree_levels(parents)[1:]:
+            every.append((joints, parents[joints]))
+            if has_children[joints].any():
+                inner.append((joints[has_children[joints]], parents[joints[has_children[joints]]]))
+        _PLANS[key] = (every, inner)
+    return _PLANS[key]
+
+
+_PLANS: dict = {}
+
+
+def forward_kinematics(quats: np.ndarray, roots: np.ndarray, skeleton: Skeleton,
+                       leaves: bool = True) -> tuple[np.ndarray, np.ndarray]:
     """Joint positions (n, J, 3) cm and global rotations (n, J, 4) of local rotations ``quats`` (n, J, 4) and root
-    positions ``roots`` (n, 3) cm, one tree depth at a time.
+    positions ``roots`` (n, 3) cm, one tree depth at a time; without ``leaves`` the global rotations of the joints
+    without children are left at zero (they move no joint: only the shell reads them).
 
     The closed loop's forward kinematics: it needs the global rotations of every joint too (to score corrections
     and for the shell), which the decoder's :func:`.kinematics.positions` does not keep. Component-major (4, J, n)
@@ -61,16 +81,16 @@ def forward_kinematics(quats: np.ndarray, roots: np.ndarray, skeleton: Skeleton)
     margin; the encoder's final check decodes with the decoder's. The results are transposed views.
     """
     parents, offsets = skeleton.parents, skeleton.offsets
-    local = np.moveaxis(quats, -1, 0).swapaxes(1, 2)  # (4, J, n) view
-    levels = tree_levels(parents)[1:]
-    glob = np.empty(local.shape)
+    every, inner = _plan(parents)
+    local = np.ascontiguousarray(np.moveaxis(quats, -1, 0).swapaxes(1, 2))  # (4, J, n)
+    glob = np.empty(local.shape) if leaves else np.zeros(local.shape)
     glob[:, 0] = local[:, 0]
-    for joints in levels:  # global rotations, a depth at a time
-        glob[:3, joints], glob[3, joints] = compose(glob[:, parents[joints]], local[:, joints])
+    for joints, above in every if leaves else inner:  # global rotations, a depth at a time
+        glob[:3, joints], glob[3, joints] = compose(np.take(glob, above, axis=1), np.take(local, joints, axis=1))
     positions = np.empty((3,) + local.shape[1:])
     positions[:, 0] = roots.T
     if len(parents) > 1:  # every bone's offset turned into the world frame by its parent, in one step
-        p = glob[:, parents[1:]]
+        p = np.take(glob, parents[1:], axis=1)
         pv, pw = p[:3], p[3]
         p1, p2 = pv[_ROLL1], pv[_ROLL2]
         v = offsets[1:].T[:, :, None]  # (3, J - 1, 1)
@@ -81,8 +101,8 @@ def forward_kinematics(quats: np.ndarray, roots: np.ndarray, skeleton: Skeleton)
         t *= pw
         turned += t
         turned += v
-        for joints in levels:
-            positions[:, joints] = positions[:, parents[joints]] + turned[:, joints - 1]
+        for joints, above in every:
+            positions[:, joints] = np.take(positions, above, axis=1) + np.take(turned, joints - 1, axis=1)
     return positions.transpose(2, 1, 0), glob.transpose(2, 1, 0)
 
 
@@ -114,7 +134,7 @@ class PointTargets:
 
     def evaluate(self, frames: np.ndarray, quats: np.ndarray, roots: np.ndarray) -> tuple[np.ndarray, ...]:
         """:meth:`errors`, the decoded joint positions (n, J, 3) cm and global rotations (n, J, 4)."""
-        decoded, glob = forward_kinematics(quats, roots, self.skeleton)
+        decoded, glob = forward_kinematics(quats, roots, self.skeleton, leaves=self.vertices is not None)
         return self.errors_of(frames, decoded, glob), decoded, glob
 
     def errors_of(self, frames: np.ndarray, decoded: np.ndarray, glob: np.ndarray) -> np.ndarray:
