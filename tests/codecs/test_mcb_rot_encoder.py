@@ -93,3 +93,20 @@ def test_the_prefetch_changes_no_stream(name, monkeypatch):
     assert prefetched == plain
     decoded = create("mcb-rot").decode(prefetched)
     assert metrics.max_joint_error(motion.positions(), decoded.positions) <= config["eps_cm"]
+
+
+@pytest.mark.parametrize("name", sorted(MOTIONS))
+def test_base_estimates_side_by_side_are_the_estimates_one_by_one(name, monkeypatch):
+    import dataclasses
+
+    from mocapbench.codecs.mcb_rot.rate import base_bytes, base_bytes_many
+
+    encoder, _ = _encoder_of(MOTIONS[name](), monkeypatch, eps_cm=0.1)
+    infos = [encoder.info.replace(settings=dataclasses.replace(encoder.info.settings, multiplier=m, slope=s))
+             for m, s in ((4.0, 1.0), (11.3125, 0.0), (32.0, 1.0))]
+    quantized = encoder.compensator.quantize_many(infos)
+    infos = [info.replace(dc=dc) for info, (dc, _) in zip(infos, quantized)]
+    together = base_bytes_many(infos, encoder.compensator.last_quantized)
+    alone = [base_bytes(info, coefficients) for info, (_, coefficients) in zip(infos, quantized)]
+    assert together == alone
+    assert alone[0] > alone[1] > alone[2] > 0  # finer steps cost more: the attempts differ

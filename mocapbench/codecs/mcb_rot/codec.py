@@ -87,7 +87,7 @@ from mocapbench.codecs.mcb_rot.axes import axes_from_codes, principal_axes, to_a
 from mocapbench.codecs.mcb_rot.budgets import joint_budgets, offset_discrepancy_cm
 from mocapbench.codecs.mcb_rot.checks import PointTargets
 from mocapbench.codecs.mcb_rot.compensate import Compensator, quantize
-from mocapbench.codecs.mcb_rot.rate import base_bytes, corrections_bytes
+from mocapbench.codecs.mcb_rot.rate import base_bytes, base_bytes_many, corrections_bytes
 from mocapbench.codecs.mcb_rot.classes import NUM_BANDS
 from mocapbench.codecs.mcb_rot.segments import SegmentLayout, forward, segment_starts
 from mocapbench.codecs.segments import CUT_MIN_JUMP_CM, CUT_RATIO, find_cuts
@@ -496,12 +496,17 @@ class _Encoder:
             quantized = self.compensator.quantize_many(infos)
         else:
             quantized = [quantize(info, self.spectra) for info in infos]
+        for k, (dc, _) in enumerate(quantized):
+            infos[k] = self._with_axes(infos[k].replace(dc=dc))
+        if self.compensator is not None:
+            estimates = base_bytes_many(infos, self.compensator.last_quantized)
+        else:
+            estimates = [base_bytes(info, coefficients) for info, (_, coefficients) in zip(infos, quantized)]
         results: list = [None] * len(requests)
         live, roots, quats, bases = [], [], [], []
         segments = np.arange(layout.num_segments)
         for k, (info, (dc, coefficients)) in enumerate(zip(infos, quantized)):
-            info = infos[k] = self._with_axes(info.replace(dc=dc))
-            base = base_bytes(info, coefficients)
+            base = estimates[k]
             if base > budget:
                 self.given_up += 1
                 results[k] = _Attempt(np.inf, base, requests[k][0], info, {}, ())

@@ -281,7 +281,9 @@ class Compensator:
     def quantize_many(self, infos: list[StreamInfo]) -> list[tuple[np.ndarray, dict[int, np.ndarray]]]:
         """:meth:`quantize` of several attempts (their settings differ in multiplier and slope only), side by side
         along an attempts axis K: each numpy call does the work of K attempts (a short clip's quantization costs
-        its numpy calls more than their arithmetic)."""
+        its numpy calls more than their arithmetic). Their coefficients are views of one (F, K, C) array, kept as
+        ``last_quantized`` (row ``start`` of a segment: its mean, the next rows its AC coefficients), which
+        :func:`.rate.base_bytes_many` reads."""
         layout = self.layout
         num_frames = layout.num_frames
         count = len(infos)
@@ -332,4 +334,5 @@ class Compensator:
             coefficients = {s: quantized[start + 1 : start + n, k] for s, (start, n) in
                             enumerate(zip(starts.tolist(), layout.lengths.tolist()))}
             results.append((dc, coefficients))
+        self.last_quantized = quantized
         return results

@@ -28,7 +28,7 @@ from mocapbench.codecs.mcb_rot import classes as model
 from mocapbench.codecs.mcb_rot.stream import StreamInfo
 from mocapbench.entropy.ans import TOKEN_COUNT, tokenize
 
-__all__ = ["base_bytes", "corrections_bytes", "estimate_bytes"]
+__all__ = ["base_bytes", "base_bytes_many", "corrections_bytes", "estimate_bytes"]
 
 _NEAREST = 0.5  # rounding of the tables every side stream is coded with
 
@@ -86,6 +86,47 @@ def base_bytes(info: StreamInfo, coefficients: dict[int, np.ndarray]) -> float:
     bits += _single_class_bits(np.diff(info.dc, axis=0, prepend=0).ravel())
     count_diffs = np.diff(np.stack([counts[s] for s in range(layout.num_segments)]), axis=0, prepend=0)
     return (bits + _single_class_bits(count_diffs.ravel())) / 8.0
+
+
+def base_bytes_many(infos: list[StreamInfo], quantized: np.ndarray) -> list[float]:
+    """:func:`base_bytes` of several attempts of one stream (the same bits), from their quantized base layers laid
+    side by side: ``quantized`` (F, K, C) int, row ``start`` of each segment its mean, the next rows its AC
+    coefficients (:meth:`.compensate.Compensator.quantize_many`), and ``infos`` (K) with their ``dc`` set. One
+    histogram for all of them (each attempt's cells apart), then each attempt's cost as :func:`_ac_bits` computes
+    it."""
+    first = infos[0]
+    layout, settings = first.layout, first.settings
+    count, channels = len(infos), first.channels
+    log2p = model.tables(settings.rounding).log2_probabilities  # (K, T)
+    histogram = np.zeros((count, channels * model.NUM_BANDS, TOKEN_COUNT))
+    raw = np.zeros(count)
+    counts = np.zeros((layout.num_segments, count, channels), dtype=np.int64)
+    cell_of = (np.arange(count)[:, None] * channels + np.arange(channels)[None, :]) * model.NUM_BANDS  # (K, C)
+    for length, segments in layout.groups.items():
+        if length < 2:
+            continue
+        stacked = quantized[layout.starts[segments, None] + 1 + np.arange(length - 1)]  # (S_g, n - 1, K, C)
+        nonzero = stacked != 0
+        last = np.where(nonzero.any(axis=1), length - 1 - np.argmax(nonzero[:, ::-1], axis=1), 0)  # (S_g, K, C)
+        counts[segments] = last
+        coded = np.arange(length - 1)[None, :, None, None] < last[:, None]  # (S_g, n - 1, K, C)
+        values = stacked[coded]
+        bands = model.band_of(np.arange(1, length), length, settings.segment_frames)  # (n - 1,)
+        cells = np.broadcast_to(cell_of[None, None] + bands[None, :, None, None], stacked.shape)[coded]
+        tokens, _, widths = tokenize(values)
+        histogram += np.bincount(cells * TOKEN_COUNT + tokens, minlength=histogram.size).reshape(histogram.shape)
+        attempt = np.broadcast_to(np.arange(count)[None, None, :, None], stacked.shape)[coded]
+        raw += np.bincount(attempt, weights=widths + (values != 0), minlength=count)
+    sizes = []
+    for k, info in enumerate(infos):
+        used = histogram[k][histogram[k].any(axis=1)]
+        tokens_used = int(np.flatnonzero(used.any(axis=0)).max(initial=-1)) + 1
+        cost = used[:, :tokens_used] @ -log2p[:, :tokens_used].T  # (used cells, K)
+        bits = (float(cost.min(axis=1).sum()) if len(cost) else 0.0) + float(raw[k])
+        bits += _single_class_bits(np.diff(info.dc, axis=0, prepend=0).ravel())
+        count_diffs = np.diff(counts[:, k], axis=0, prepend=0)
+        sizes.append((bits + _single_class_bits(count_diffs.ravel())) / 8.0)
+    return sizes
 
 
 def corrections_bytes(info: StreamInfo, flat: np.ndarray, values: np.ndarray) -> float:
