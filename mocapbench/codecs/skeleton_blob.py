@@ -59,7 +59,7 @@ def unpack_skeleton(reader: ByteReader) -> Skeleton:
             names=tuple(names),
             parents=parents,
             offsets=offsets.astype(np.float64),
-            channel_orders=tuple(_ORDERS[i] for i in order_index),
+            channel_orders=tuple([_ORDERS[i] for i in order_index.tolist()]),
             end_site_parents=end_parents,
             end_site_offsets=end_offsets.astype(np.float64),
         )
@@ -180,7 +180,7 @@ def unpack_skeleton_compact(reader: ByteReader, stepped: bool = False) -> Skelet
             names=tuple(names),
             parents=parents,
             offsets=offsets[:num_joints],
-            channel_orders=tuple(_ORDERS[i] for i in order_index),
+            channel_orders=tuple([_ORDERS[i] for i in order_index.tolist()]),
             end_site_parents=end_parents,
             end_site_offsets=offsets[num_joints:],
         )

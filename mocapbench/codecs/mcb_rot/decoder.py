@@ -260,9 +260,11 @@ def _class_rows(info: StreamInfo, length: int) -> np.ndarray:
     """(C, n - 1) uint16 classes of the AC coefficients of a segment of ``length`` frames, channel-major (cached)."""
     key = ("class rows", length)
     if key not in info._cache:  # info.class_matrix(length).T, computed in this layout
+        if "class table" not in info._cache:  # (C, NUM_BANDS): the class of every channel in every band
+            table = info.scale[:, None] + info.tilt[None, :]
+            info._cache["class table"] = np.clip(table, 0, NUM_CLASSES - 1, out=table).astype(np.uint16)
         bands = band_of(np.arange(1, length), length, info.settings.segment_frames)
-        rows = info.scale[:, None] + info.tilt[bands][None, :]
-        info._cache[key] = np.clip(rows, 0, NUM_CLASSES - 1, out=rows).astype(np.uint16)
+        info._cache[key] = np.take(info._cache["class table"], bands, axis=1)
     return info._cache[key]
 
 

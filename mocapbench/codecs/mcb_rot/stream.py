@@ -267,7 +267,8 @@ class StreamInfo:
 
 def _tilted(scale: np.ndarray, tilt: int, repeats: int) -> np.ndarray:
     """Classes ``clip(scale + tilt)`` of the side tables, repeated ``repeats`` times (segment-major)."""
-    return (np.tile(np.clip(scale + tilt, 0, model.NUM_CLASSES - 1), repeats) + _SIDE).astype(np.uint8)
+    row = (np.clip(scale + tilt, 0, model.NUM_CLASSES - 1) + _SIDE).astype(np.uint8)
+    return np.broadcast_to(row, (repeats, len(row))).ravel()
 
 
 _TABLES: dict[float, ClassTables] = {}
