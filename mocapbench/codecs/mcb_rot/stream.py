@@ -248,8 +248,12 @@ class StreamInfo:
     @property
     def correction_steps(self) -> np.ndarray:
         """(J + 1,) step of the corrections: root translation cm, then each joint's rotation, rad (cube of side s
-        fits in the ball of radius s sqrt(3) / 2 = the budget)."""
-        return np.concatenate([[self.budgets.root_cm], self.budgets.rotation_rad]) * (2.0 / _SQRT3)
+        fits in the ball of radius s sqrt(3) / 2 = the budget; cached)."""
+        if "correction steps" not in self._cache:
+            steps = np.concatenate([[self.budgets.root_cm], self.budgets.rotation_rad]) * (2.0 / _SQRT3)
+            steps.setflags(write=False)
+            self._cache["correction steps"] = steps
+        return self._cache["correction steps"]
 
     def class_matrix(self, length: int) -> np.ndarray:
         """(n - 1, C) classes of the AC coefficients of a segment of ``length`` frames (cached)."""
