@@ -43,57 +43,28 @@ def _single_class_bits(values: np.ndarray) -> float:
     return tokens_bits + float(widths.sum() + np.count_nonzero(values))
 
 
-def _ac_bits(info: StreamInfo, coefficients: dict[int, np.ndarray]) -> tuple[float, dict[int, np.ndarray]]:
-    """Ideal bits of the coded AC coefficients, each (channel, band) cell under its best class, and the
-    significance counts (segment -> (C,)) the stream writes."""
-    layout, settings = info.layout, info.settings
-    channels = info.channels
-    log2p = model.tables(settings.rounding).log2_probabilities  # (K, T)
-    histogram = np.zeros((channels * model.NUM_BANDS, TOKEN_COUNT))
-    counts: dict[int, np.ndarray] = {}
-    raw = 0.0
-    for length, segments in layout.groups.items():
-        if length < 2:
-            for segment in segments.tolist():
-                counts[segment] = np.zeros(channels, dtype=np.int64)
-            continue
-        stacked = np.stack([coefficients[segment] for segment in segments.tolist()])  # (S_g, n - 1, C)
-        nonzero = stacked != 0
-        last = np.where(nonzero.any(axis=1), length - 1 - np.argmax(nonzero[:, ::-1], axis=1), 0)  # (S_g, C)
-        for i, segment in enumerate(segments.tolist()):
-            counts[segment] = last[i]
-        coded = np.arange(length - 1)[None, :, None] < last[:, None, :]  # (S_g, n - 1, C)
-        values = stacked[coded]
-        bands = model.band_of(np.arange(1, length), length, settings.segment_frames)  # (n - 1,)
-        cells = np.broadcast_to(np.arange(channels)[None, None, :] * model.NUM_BANDS + bands[None, :, None],
-                                stacked.shape)[coded]
-        tokens, _, widths = tokenize(values)
-        histogram += np.bincount(cells * TOKEN_COUNT + tokens,
-                                 minlength=histogram.size).reshape(histogram.shape)
-        raw += float(widths.sum() + np.count_nonzero(values))
-    # Only the cells and tokens that occur (a short clip fills a few of the 12 C cells, small tokens only).
-    used = histogram[histogram.any(axis=1)]
-    tokens_used = int(np.flatnonzero(used.any(axis=0)).max(initial=-1)) + 1
-    cost = used[:, :tokens_used] @ -log2p[:, :tokens_used].T  # (used cells, K)
-    return (float(cost.min(axis=1).sum()) if len(cost) else 0.0) + raw, counts
-
-
 def base_bytes(info: StreamInfo, coefficients: dict[int, np.ndarray]) -> float:
     """Estimated bytes of the base layer of a stream whose ``info.dc`` is set, with AC coefficients
-    ``coefficients`` (segment -> (n - 1, C) int): AC coefficients, segment means and significance counts."""
+    ``coefficients`` (segment -> (n - 1, C) int): AC coefficients, segment means and significance counts
+    (:func:`base_bytes_many` of the one attempt)."""
     layout = info.layout
-    bits, counts = _ac_bits(info, coefficients)
-    bits += _single_class_bits(np.diff(info.dc, axis=0, prepend=0).ravel())
-    count_diffs = np.diff(np.stack([counts[s] for s in range(layout.num_segments)]), axis=0, prepend=0)
-    return (bits + _single_class_bits(count_diffs.ravel())) / 8.0
+    quantized = np.zeros((layout.num_frames, 1, info.channels), dtype=np.int64)
+    for segment, (start, length) in enumerate(zip(layout.starts.tolist(), layout.lengths.tolist())):
+        quantized[start, 0] = info.dc[segment]
+        quantized[start + 1 : start + length, 0] = coefficients[segment]
+    return base_bytes_many([info], quantized)[0]
 
 
 def base_bytes_many(infos: list[StreamInfo], quantized: np.ndarray) -> list[float]:
     """:func:`base_bytes` of several attempts of one stream (the same bits), from their quantized base layers laid
     side by side: ``quantized`` (F, K, C) int, row ``start`` of each segment its mean, the next rows its AC
-    coefficients (:meth:`.compensate.Compensator.quantize_many`), and ``infos`` (K) with their ``dc`` set. One
-    histogram for all of them (each attempt's cells apart), then each attempt's cost as :func:`_ac_bits` computes
-    it."""
+    coefficients (:meth:`.compensate.Compensator.quantize_many`), and ``infos`` (K) with their ``dc`` set.
+
+    AC coefficients: those up to each channel's last nonzero one (the significance counts the stream writes), each
+    (channel, band) cell under its best class, plus their raw bits; one histogram for all the attempts (each
+    attempt's cells apart), only the cells and tokens that occur (a short clip fills a few of the 12 C cells, small
+    tokens only). Segment means and significance counts: differences along the segments under their best single
+    class."""
     first = infos[0]
     layout, settings = first.layout, first.settings
     count, channels = len(infos), first.channels
