@@ -25,46 +25,6 @@ from mocapbench.codecs.mcb_rot.stream import StreamInfo, steps_of
 __all__ = ["quantize", "Compensator"]
 
 
-def _quantize_into(info: StreamInfo, signal: np.ndarray, channels: np.ndarray, dc, coefficients,
-                   steps: dict[int, np.ndarray]) -> np.ndarray:
-    """Quantize the signal (F, len(channels)) of ``channels`` segment by segment into ``dc``/``coefficients``;
-    returns the signal rebuilt from the quantized spectra (F, len(channels)), as the decoder will see it.
-
-    The segments of one length go through one DCT, one quantization and one inverse DCT (a batched call each).
-    ``steps``: length -> (n, C) :func:`steps_of` of the attempt.
-    """
-    layout = info.layout
-    rounding = info.settings.rounding
-    rebuilt = np.empty_like(signal)
-    for length, segments in layout.groups.items():
-        index = layout.starts[segments, None] + np.arange(length)  # (S_g, n)
-        spectra = scipy.fft.dct(signal[index], axis=1, norm="ortho")  # (S_g, n, c)
-        step = steps[length][:, channels]  # (n, c)
-        mean = np.floor(spectra[:, 0] / step[0] + 0.5)
-        scaled = spectra[:, 1:] / step[1:]
-        ac = np.sign(scaled) * np.floor(np.abs(scaled) + rounding)
-        dc[segments[:, None], channels] = mean.astype(np.int64)
-        quantized = ac.astype(np.int64)
-        for i, segment in enumerate(segments.tolist()):
-            coefficients[segment][:, channels] = quantized[i]
-        spectra[:, 0] = mean * step[0]
-        np.multiply(ac, step[1:], out=spectra[:, 1:])
-        rebuilt[index] = scipy.fft.idct(spectra, axis=1, norm="ortho", overwrite_x=True)
-    return rebuilt
-
-
-def _onto(rotvecs: np.ndarray, axes: np.ndarray) -> np.ndarray:
-    """:func:`.axes.to_axes` (components (F, n, 3) of rotation vectors (F, n, 3) on axes (n, 3, 3)), the same bits in
-    three multiply-adds instead of a (F, n, 3, 3) product summed over a middle axis (3x faster)."""
-    return rotvecs[..., 0, None] * axes[:, 0] + rotvecs[..., 1, None] * axes[:, 1] + rotvecs[..., 2, None] * axes[:, 2]
-
-
-def _off(components: np.ndarray, axes: np.ndarray) -> np.ndarray:
-    """:func:`.axes.from_axes`, the same bits, as :func:`_onto`."""
-    return (components[..., 0, None] * axes[:, :, 0] + components[..., 1, None] * axes[:, :, 1]
-            + components[..., 2, None] * axes[:, :, 2])
-
-
 def _steps(info: StreamInfo) -> dict[int, np.ndarray]:
     """length -> (n, C) quantization steps of the segments of that length."""
     return {length: steps_of(info, length) for length in info.layout.groups}
@@ -206,7 +166,8 @@ def _product(a: np.ndarray, b: np.ndarray, conjugate_a: bool = False) -> np.ndar
 
 
 def _turn(r: np.ndarray, axes: np.ndarray, off: bool) -> np.ndarray:
-    """Components on the axes (t, 3, 3) of rotation vectors (3, F, t) (:func:`_onto`), or back (:func:`_off`)."""
+    """Components on the axes (t, 3, 3) of rotation vectors (3, ..., t) (:func:`.axes.to_axes`, as three
+    multiply-adds per component instead of a product summed over a middle axis), or back (:func:`.axes.from_axes`)."""
     if off:
         return np.stack([r[0] * axes[:, i, 0] + r[1] * axes[:, i, 1] + r[2] * axes[:, i, 2] for i in range(3)])
     return np.stack([r[0] * axes[:, 0, i] + r[1] * axes[:, 1, i] + r[2] * axes[:, 2, i] for i in range(3)])
@@ -243,9 +204,9 @@ class Compensator:
         self.root_spectra = self.transform.apply(np.concatenate([roots.T[:, :, None, None], rotvecs], axis=3), False)
 
     def _rotvecs(self, level: _Level, targets: np.ndarray) -> np.ndarray:
-        """Rotation vectors (3, F, K, n) on the joints' axes of target local rotations (4, F, K, n) (overwritten), as the
-        stream codes them: signs per segment (middle frame w >= 0), re-referenced segments relative to their
-        reference."""
+        """Rotation vectors (3, F, K, n) on the joints' axes of target local rotations (4, F, K, n) (overwritten),
+        as the stream codes them: signs per segment (middle frame w >= 0), re-referenced segments relative to
+        their reference."""
         flips = np.where(targets[3, self.middle] < 0, -1.0, 1.0)  # (S, K, n)
         targets *= flips if len(flips) == 1 else flips[self.segment_of]
         rotvecs = _log_map(targets)
@@ -258,8 +219,8 @@ class Compensator:
         return rotvecs
 
     def _rotations(self, level: _Level, rebuilt: np.ndarray, columns) -> np.ndarray:
-        """Local rotations (4, F, K, n) the decoder rebuilds from rotation vectors (3, F, K, n) on the axes of the joints
-        of ``level`` at ``columns`` (overwritten)."""
+        """Local rotations (4, F, K, n) the decoder rebuilds from rotation vectors (3, F, K, n) on the axes of the
+        joints of ``level`` at ``columns`` (all when None; overwritten)."""
         turned = level.turned if columns is None else np.flatnonzero(np.isin(columns, level.turned))
         if len(turned):
             axes = level.axes if columns is None else level.axes[np.searchsorted(level.turned, columns[turned])]
