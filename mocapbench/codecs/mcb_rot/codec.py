@@ -60,15 +60,18 @@ Design::
 The decoder (:mod:`.decoder`) is vectorized numpy over blocks of chunks written into preallocated outputs: ANS
 decoding (constriction, one call per class and chunk), a batched inverse DCT, the exponential map, one multiply per
 correction and forward kinematics. Everything but the ANS calls is numpy call overhead on a few thousand values,
-so its speed is the number of calls: per 465-frame clip at eps 0.05 cm the decode went from 5.9 to about 4 ms of
-CPU (cmu_test, 12 clips, 120 fps: 79,000 -> about 115,000 frames/s batched, interleaved runs against the previous
-decoder on a loaded 2-core machine put it 1.3-1.5x faster at every eps) by: chunks of 256 frames (payload format 5:
-half the ANS streams per clip, 4-8 %), SIMD tan instead of sin and cos in the exponential map, forward kinematics
-gathering each product's factors once (contiguous, with the rolled components), entropy sort keys built per chunk
-from cached class rows, signs and raw bits read without N-long index arithmetic, the output rotations as a 2-D
-transpose, and the motion built without re-validating the decoder's own arrays (``Motion.from_decoder``). One frame
-at a random t (``decode_frames(data, t, t + 1)``) entropy decodes its chunk and synthesizes only its segment: 1-1.5
-ms median, at most about 3.5 ms on a quiet machine (the first frame of a clip also parses its header).
+so its speed is the number of calls. Made faster (session 4) by: chunks of 256 frames (payload format 5: half the
+ANS streams per clip), SIMD tan instead of sin and cos in the exponential map, forward kinematics gathering each
+product's factors once (contiguous, with the rolled components), entropy sort keys built per chunk from cached
+class rows, signs and raw bits read without N-long index arithmetic, the output rotations as a 2-D transpose, and
+the motion built without re-validating the decoder's own arrays (``Motion.from_decoder``). Measured on cmu_test (12
+clips, 5,587 frames at 120 fps; one thread, CPU time; ``measure`` and the one-frame picks of
+:mod:`mocapbench.benchmarks.mcb_rot`) while another benchmark ran on this 2-core machine (load average 2-3.5), the
+previous decoder interleaved with it: median of 7 runs 83,000 / 93,000 / 82,000 / 109,000 frames/s at eps 0.05 /
+0.1 / 0.5 / 1 cm (ranges 66-105 / 71-106 / 79-121 / 79-129 thousand) against 59,000 / 60,000 / 78,000 / 84,000 for
+the previous decoder (5 runs; 79,000-104,000 on a quiet machine). One frame at a random t (``decode_frames(data, t,
+t + 1)``) entropy decodes its chunk and synthesizes only its segment: 0.9-2.3 ms median, at most 2.7-5.0 ms under
+that load (the previous decoder 3.7-6.1 ms); the first frame of a clip also parses its header.
 
 Long captures (:mod:`.windowed`): a capture of more than 7,680 frames is coded as independent, about equal windows
 of at most that many frames, each a self-contained payload with its own rate search, closed loop and check of the
