@@ -31,12 +31,14 @@ Design::
          needs side by side (:data:`_PREFETCH`; :meth:`_Encoder.attempts_of`: one compensated quantization and one
          closed loop over the attempts' frames laid end to end, those over the start's size given up once the start
          has finished, as the walk would); the walk then reads them (the same streams; 6.3-6.8 attempts per clip
-         at 24 fps instead of 4.2-5.5 one by one, in 1-2 passes). Encoding speed, cmu_test, one thread, CPU time,
-         best of runs at load ~2 (medians 20-30 % lower): 2,380-2,720 frames/s at 24 fps and 4,770-5,660 at 120 fps
-         at eps 0.05-1 cm, against 1,360-1,740 and 2,900-4,320 with attempts one by one, forward kinematics every
-         round of the closed loop and joint-major quantization (the 24 fps streams are the same bytes). Segment
-         means (DC) and the significance counts are coded as differences along the segments in one small track that
-         random access reads whole.
+         at 24 fps instead of 4.2-5.5 one by one, in 1-2 passes). Encoding speed (``python -m
+         mocapbench.benchmarks.mcb_rot --no-rd --speed``: cmu_test, one thread, CPU, two runs at load 0.9, eps 0.05 /
+         0.1 / 0.5 / 1 cm): 24 fps 2,230-2,290 / 1,990-2,430 / 2,380-2,440 / 2,140-2,630 frames/s, 120 fps
+         4,800-4,980 / 4,390-4,760 / 5,680-6,150 / 4,890-6,260, against 1,160-1,450 / 1,160-1,270 / 1,210-1,580 /
+         1,520-1,990 and 3,190-3,270 / 3,450-3,660 / 3,470-4,450 / 4,120-5,000 in alternate runs of the encoder with
+         attempts one by one, forward kinematics every round of the closed loop and joint-major quantization (the
+         same streams). Segment means (DC) and the significance counts are coded as differences along the segments
+         in one small track that random access reads whole.
       └─ compensated quantization (:mod:`.compensate`, encoder only): joints are quantized level by level down the
          tree, each coding the local rotation that puts its *global* rotation on the original's given its parent as
          the decoder rebuilds it, so the errors of the hips and spine do not add up down to the hands and feet
