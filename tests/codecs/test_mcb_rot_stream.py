@@ -172,3 +172,22 @@ def test_a_format_5_stream_reads_its_counts_from_the_header(synthetic_motion):
     whole = codec.decode(data)
     part = codec.decode_frames(data, 70, 170)
     np.testing.assert_array_equal(part.positions, whole.positions[70:170])
+
+
+@pytest.mark.parametrize("skip, count", [(0, 1), (5, 1), (31, 2), (20, 30), (0, 64)])
+def test_assemble_on_some_frames_of_segments_equals_those_frames_of_the_whole(synthetic_motion, skip, count):
+    """Random access maps only the frames asked for to quaternions (re-references included): bit for bit what the
+    whole segments give at those frames."""
+    codec = create("mcb-rot", eps_cm=0.5, segment_frames=32, chunk_frames=64)
+    header, payload = container.unpack(codec.encode(synthetic_motion), "mcb-rot")
+    info = stream.read_info(header, payload)
+    turn = np.array([0.6, 0.0, 0.8, 0.0])  # a unit quaternion (x, y, z, w)
+    info = info.replace(overrides={(1, 2): turn, (2, 0): turn[[1, 2, 3, 0]]})
+    segments = np.array([1, 2])
+    coefficients = {s: np.random.default_rng(s).integers(-3, 4, size=(int(info.layout.lengths[s]) - 1, info.channels))
+                    for s in segments.tolist()}
+    roots, quats = stream.assemble(info, segments, stream.base_signal(info, segments, coefficients))
+    part = stream.base_signal(info, segments, coefficients)[:, skip : skip + count]
+    part_roots, part_quats = stream.assemble(info, segments, part, skip=skip)
+    np.testing.assert_array_equal(part_roots, roots[skip : skip + count])
+    np.testing.assert_array_equal(part_quats, quats[skip : skip + count])

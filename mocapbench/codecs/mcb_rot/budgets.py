@@ -67,21 +67,34 @@ class Budgets:
 
 
 def _chains(skeleton: Skeleton) -> tuple[np.ndarray, np.ndarray]:
-    """Chain lengths ``C[a, k]`` (cm, 0 unless ``a`` is a proper ancestor of ``k``) and the ancestor matrix ``[k, a]``."""
+    """Chain lengths ``C[a, k]`` (cm, 0 unless ``a`` is a proper ancestor of ``k``) and the ancestor matrix ``[k, a]``.
+
+    ``C[a, k]`` is the sum of the bone lengths of the joints below ``a`` on the path to ``k``, added from the top
+    down (``((b_1 + b_2) + b_3) ...``, as the encoder's closed loop relies on these exact floats): one ``cumsum``
+    along the paths of every joint for each starting depth, with the bones at or above that depth zeroed (adding
+    zeros first changes no bit). The only Python loop builds the paths (J small list operations).
+    """
     num_joints = skeleton.num_joints
     bones = np.sqrt(np.sum(skeleton.offsets**2, axis=1))
-    chain = np.zeros((num_joints, num_joints))
-    ancestors = np.zeros((num_joints, num_joints), dtype=bool)
-    parents = skeleton.parents
-    depth = np.zeros(num_joints, dtype=np.int64)
+    parents = skeleton.parents.tolist()
+    paths = [[0]]  # paths[k]: the joints from the root down to k
     for k in range(1, num_joints):
-        depth[k] = depth[parents[k]] + 1
-    for level in range(1, int(depth.max(initial=0)) + 1):  # a tree level at a time (what one joint at a time did)
-        joints = np.flatnonzero(depth == level)
-        above = parents[joints]
-        ancestors[joints] = ancestors[above]
-        ancestors[joints, above] = True
-        chain[:, joints] = np.where(ancestors[joints].T, chain[:, above] + bones[joints], 0.0)
+        paths.append(paths[parents[k]] + [k])
+    depth = np.array([len(path) - 1 for path in paths], dtype=np.int64)
+    levels = int(depth.max(initial=0)) + 1
+    joint_at = np.zeros((num_joints, levels), dtype=np.int64)  # joint_at[k, d]: k's ancestor at depth d (k at its own)
+    along = np.array([joint for path in paths for joint in path], dtype=np.int64)
+    rows = np.repeat(np.arange(num_joints), depth + 1)
+    first = np.cumsum(depth + 1) - (depth + 1)
+    joint_at[rows, np.arange(len(along)) - first[rows]] = along
+    steps = np.where(np.arange(levels) <= depth[:, None], bones[joint_at], 0.0)  # (J, D): bone of each path step
+    # (D, J, D): from depth s, the sums of the bones of depths s + 1 .. d along each joint's path.
+    sums = np.cumsum(np.where(np.arange(levels)[None, None, :] > np.arange(levels)[:, None, None], steps, 0.0), axis=2)
+    ancestors = np.zeros((num_joints, num_joints), dtype=bool)
+    proper = along != rows
+    ancestors[rows[proper], along[proper]] = True
+    every = np.arange(num_joints)
+    chain = np.where(ancestors.T, sums[depth[:, None], every[None, :], depth[None, :]], 0.0)
     return chain, ancestors
 
 

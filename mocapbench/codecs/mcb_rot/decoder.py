@@ -82,7 +82,7 @@ def decode_range(
     for chunks in _blocks(info, layout.chunks_of_frames(start, stop)):
         # The block's chunks are entropy decoded whole; only its segments holding frames of start:stop are
         # synthesized (a chunk of several segments, when one frame is asked for).
-        first = int(layout.starts[max(int(layout.chunk_starts[chunks[0]]), first_segment)])
+        first = max(int(layout.starts[max(int(layout.chunk_starts[chunks[0]]), first_segment)]), start)
         block_roots, block_quats = decode_block(info, payload, chunks, scratch, (start, stop))
         low, high = max(first, start), min(first + len(block_roots), stop)
         inside, out = slice(low - first, high - first), slice(low - start, high - start)
@@ -125,24 +125,30 @@ def decode_block(
     corrections applied. With ``scratch`` the rotations are a scratch view (valid until its next use).
 
     With ``frames`` (start, stop: frames of the stream), only the chunks' segments holding some of those frames
-    are synthesized and returned (from the first frame of the first of them): the entropy decoding is the chunks'
-    whole, the rest is per segment, so a frame costs its segment's synthesis, not its chunk's.
+    are synthesized (the entropy decoding is the chunks' whole, the inverse DCT per segment), and only the frames
+    asked for (those of ``start:stop`` in the chunks) go through the exponential map, the re-references and the
+    corrections, and are returned: one frame costs its segment's inverse DCT, not its segment's quaternions.
     """
     layout = info.layout
     segments = np.arange(layout.chunk_starts[chunks[0]], layout.chunk_starts[chunks[-1] + 1])
     ac, flat, values = read_chunks(info, payload, chunks, scratch)
-    if frames is not None:
+    skip = 0
+    if frames is None:
+        signal = segment_signal(info, segments, ac, scratch)
+    else:
         ends = layout.starts[segments] + layout.lengths[segments]
         low = int(np.searchsorted(ends, frames[0], side="right"))  # the first segment ending after start
         high = int(np.searchsorted(layout.starts[segments], frames[1], side="left"))  # past the last starting before stop
-        if low > 0 or high < len(segments):
-            shift = int(layout.starts[segments[low]] - layout.starts[segments[0]])
-            held = int(ends[high - 1] - layout.starts[segments[low]])
+        begin = int(layout.starts[segments[low]])
+        skip = max(frames[0] - begin, 0)  # frames of the first segment before start
+        held = min(frames[1], int(ends[high - 1])) - begin - skip  # frames returned
+        if low > 0 or high < len(segments) or skip or held < int(ends[-1] - begin):
             slots = len(info.correction_steps)
-            local = flat - shift * slots
+            local = flat - (begin - int(layout.starts[segments[0]]) + skip) * slots
             keep = (local >= 0) & (local < held * slots)
             ac, flat, values, segments = ac[low:high], local[keep], values[keep], segments[low:high]
-    roots, quats = assemble(info, segments, segment_signal(info, segments, ac, scratch), scratch)
+        signal = segment_signal(info, segments, ac, scratch)[:, skip : skip + held]
+    roots, quats = assemble(info, segments, signal, scratch, skip)
     apply_corrections(info, roots, quats, flat, values)
     return roots, quats
 

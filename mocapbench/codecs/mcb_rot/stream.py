@@ -366,11 +366,14 @@ def base_signal(info: StreamInfo, segments, coefficients: dict[int, np.ndarray])
     return segment_signal(info, segments, ac)
 
 
-def assemble(info: StreamInfo, segments, signal: np.ndarray, scratch: Scratch | None = None) -> tuple[np.ndarray, np.ndarray]:
+def assemble(info: StreamInfo, segments, signal: np.ndarray, scratch: Scratch | None = None,
+             skip: int = 0) -> tuple[np.ndarray, np.ndarray]:
     """Consecutive decoded segments (their (C, n) base signal) as roots (n, 3) cm and base quaternions (n, J, 4).
 
     ``signal`` is consumed: the rotation rows of the joints on principal axes are overwritten. With ``scratch`` the
-    quaternions are a scratch view (valid until its next use).
+    quaternions are a scratch view (valid until its next use). ``signal`` may hold only frames ``skip .. skip + n``
+    of the segments (random access: a frame costs its own exponential maps, not its segment's); every step is
+    elementwise over the frames, so those frames come out as they do from the whole segments.
 
     The quaternions are a view of a component-major (4, J, n) array (what forward kinematics reads fastest); the
     rotation vectors of the joints on principal axes are turned back off them (the others' axes are the identity),
@@ -413,12 +416,13 @@ def assemble(info: StreamInfo, segments, signal: np.ndarray, scratch: Scratch | 
     np.multiply(z, scale, out=quats[2])
     quats = quats.transpose(2, 1, 0)  # (n, J, 4) view
     if info.overrides:
-        first = int(info.layout.starts[segments[0]])
+        first = int(info.layout.starts[segments[0]]) + skip
         for (segment, joint), reference in info.overrides.items():
             if segments[0] <= segment <= segments[-1]:
                 start = int(info.layout.starts[segment]) - first
-                frames = slice(start, start + int(info.layout.lengths[segment]))
-                quats[frames, joint] = quat.multiply(reference, quats[frames, joint])
+                frames = slice(max(start, 0), max(start + int(info.layout.lengths[segment]), 0))
+                if frames.start < frames.stop:
+                    quats[frames, joint] = quat.multiply(reference, quats[frames, joint])
     return np.ascontiguousarray(signal[:3].T), quats
 
 
