@@ -393,10 +393,17 @@ def _search(attempt, flat_too: bool = False, batch=None, prefetch: tuple = ((), 
     tried: dict = {}  # (grid index, flat) -> attempt
     if batch is not None and (prefetch[0] or prefetch[1]):
         # The start first: the batch gives up the others against its size (every later attempt of the walk has a
-        # budget no larger than it).
+        # budget no larger than it), and tighter where the walk has gone further on the attempts finished so far.
         keys = [(_SEARCH_START, False)] + [(i, False) for i in prefetch[0] if i != _SEARCH_START]
         keys += [(i, True) for i in prefetch[1] if flat_too]
-        for key, result in zip(keys, batch([(_SEARCH_GRID[i], 0.0 if flat else None) for i, flat in keys])):
+
+        def limit(known: dict) -> float:
+            """The largest budget the walk can still give an attempt it has not read, from the batch's attempts
+            known so far (request index -> attempt, size inf where given up); -inf where it reads none of them."""
+            return _walk_limit({keys[k]: attempt for k, attempt in known.items()}, flat_too)
+
+        for key, result in zip(keys, batch([(_SEARCH_GRID[i], 0.0 if flat else None) for i, flat in keys],
+                                           limit=limit)):
             tried[key] = result
 
     def get(index: int, flat: bool, budget: float = np.inf) -> "_Attempt":
@@ -404,6 +411,12 @@ def _search(attempt, flat_too: bool = False, batch=None, prefetch: tuple = ((), 
             tried[index, flat] = attempt(_SEARCH_GRID[index], 0.0 if flat else None, budget=budget)
         return tried[index, flat]
 
+    return _walk(get, flat_too)
+
+
+def _walk(get, flat_too: bool):
+    """The walk of :func:`_search` over ``get(grid index, flat, budget)`` (an attempt: ``size``, ``base``): the
+    attempt chosen. Every budget it gives is the best size so far, so budgets never grow along the walk."""
     best = _SEARCH_START
     start = get(best, False)
     # Walk first the way the start's correction share points (same minimum as any order, one attempt fewer where
@@ -411,9 +424,9 @@ def _search(attempt, flat_too: bool = False, batch=None, prefetch: tuple = ((), 
     finer_first = start.size - start.base > _FINER_FIRST_SHARE * start.size
     for direction in ((-1, 1) if finer_first else (1, -1)):
         while (0 <= best + direction < len(_SEARCH_GRID)
-               and get(best + direction, False, tried[best, False].size).size < tried[best, False].size):
+               and get(best + direction, False, get(best, False).size).size < get(best, False).size):
             best += direction
-    chosen = tried[best, False]
+    chosen = get(best, False)
     if flat_too:  # a flat step is finer at high frequencies: its best multiplier is the next one up, or higher
         index = min(best + 1, len(_SEARCH_GRID) - 1)
         flat = get(index, True, chosen.size)
@@ -424,6 +437,32 @@ def _search(attempt, flat_too: bool = False, batch=None, prefetch: tuple = ((), 
             index += 1
             flat = get(index, True, chosen.size)
     return chosen
+
+
+class _Blocked(Exception):
+    """Raised by :func:`_walk_limit`'s ``get`` at the first attempt not known yet, with the budget it would get."""
+
+    def __init__(self, budget: float) -> None:
+        super().__init__(budget)
+        self.budget = budget
+
+
+def _walk_limit(known: dict, flat_too: bool) -> float:
+    """The walk of :func:`_search` run on the attempts ``known`` ((grid index, flat) -> attempt) until it asks for
+    one it does not know: that request's budget, which bounds every later one (budgets never grow along the walk);
+    -inf when the walk ends on known attempts (it reads no other). An attempt not known yet whose estimate
+    exceeds this limit can be given up: the walk either never reads it or gives it a budget it exceeds."""
+
+    def get(index: int, flat: bool, budget: float = np.inf):
+        if (index, flat) not in known:
+            raise _Blocked(budget)
+        return known[index, flat]
+
+    try:
+        _walk(get, flat_too)
+    except _Blocked as blocked:
+        return blocked.budget
+    return -np.inf
 
 
 def _signal(quats: np.ndarray, roots: np.ndarray, layout: SegmentLayout) -> tuple[np.ndarray, dict]:
@@ -497,11 +536,13 @@ class _Encoder:
         """
         return self.attempts_of([(multiplier, slope)], budget)[0]
 
-    def attempts_of(self, requests: list, budget: float = np.inf) -> list[_Attempt]:
+    def attempts_of(self, requests: list, budget: float = np.inf, limit=None) -> list[_Attempt]:
         """:meth:`attempt` of every ``(multiplier, slope)`` of ``requests``, side by side: one compensated
         quantization for all (:meth:`.Compensator.quantize_many`) and one closed loop over their frames laid end to
-        end, so that each numpy call does the work of all of them. ``budget`` applies to each (a closed loop of
-        several attempts runs to its end)."""
+        end, so that each numpy call does the work of all of them. ``budget`` applies to each; an attempt is also
+        given up once its estimate exceeds the size of the first request (when that has finished), or with
+        ``limit`` (``limit(known)``: a budget from the attempts finished or given up so far, request index ->
+        attempt with ``size`` and ``base``; :func:`_walk_limit`) once it exceeds that instead."""
         config, layout = self.config, self.layout
         infos = []
         for multiplier, slope in requests:
@@ -548,7 +589,9 @@ class _Encoder:
             parts = [corrections]
         else:
             true_quats, true_roots, points = self._tiled(len(live))
-            prune = _Pruner([infos[k] for k, _ in live], bases, num_frames, budget, anchor=live[0][0] == 0)
+            prune = _Pruner([infos[k] for k, _ in live], bases, num_frames, budget, anchor=live[0][0] == 0,
+                            limit=limit, requests=[k for k, _ in live],
+                            known={k: results[k] for k in range(len(requests)) if results[k] is not None})
             flat, values = _refine(infos[live[0][0]], true_quats, true_roots, np.concatenate(roots),
                                    np.concatenate(quats), points, check, config.greedy_corrections, prune=prune)
             slots = len(self.info.correction_steps)
@@ -588,30 +631,63 @@ class _Encoder:
         return write_payload(chosen.info, self.skeleton_blob, chosen.coefficients, chosen.corrections)
 
 
+@dataclass(frozen=True)
+class _Size:
+    """What the walk of the rate search reads of an attempt: its estimated ``size`` and the ``base`` part of it."""
+
+    size: float
+    base: float
+
+
 class _Pruner:
     """The give-up rule of a closed loop over several attempts side by side (frames of attempt ``i`` at
     ``i F .. (i + 1) F``): after every round, an attempt whose estimate so far (base plus the corrections so far)
     exceeds ``budget``, or, once the anchor (attempt 0, the rate search's start: every later attempt of the
     walk has a budget no larger than its size) has finished, exceeds the anchor's size, is given up: dropped from
-    the loop (the walk would have given it up too, at this round or before). ``dropped`` lists them."""
+    the loop (the walk would have given it up too, at this round or before). ``dropped`` lists them.
 
-    def __init__(self, infos: list, bases: list, num_frames: int, budget: float, anchor: bool) -> None:
+    With ``limit`` (:func:`_walk_limit` over the rate search's keys), the anchor's size gives way to the budget the
+    walk would give next, run on the attempts finished (or given up) so far: tighter where the walk has moved past
+    the start, -inf (every attempt still running is dropped) where it ends without them. ``requests`` maps the
+    loop's attempts to request indices, ``known`` holds the requests given up before the loop."""
+
+    def __init__(self, infos: list, bases: list, num_frames: int, budget: float, anchor: bool, limit=None,
+                 requests: list = (), known: dict | None = None) -> None:
         self.infos, self.bases, self.num_frames, self.budget = infos, bases, num_frames, budget
         self.anchor = anchor
         self.anchor_size = None
         self.dropped: set = set()
+        self.limit, self.requests, self.known = limit, list(requests), dict(known or {})
+        self.finished: dict = {}  # attempt -> its final estimate
 
     def _estimate(self, attempt: int, corrected: np.ndarray, values: np.ndarray) -> float:
         rows = slice(attempt * self.num_frames, (attempt + 1) * self.num_frames)
         flat = np.flatnonzero(corrected[rows].ravel())
         return self.bases[attempt] + corrections_bytes(self.infos[attempt], flat, values[rows].reshape(-1, 3)[flat])
 
+    def _known(self, running: list, corrected: np.ndarray, values: np.ndarray) -> dict:
+        """Request index -> size and base of every attempt no longer running (size inf where given up)."""
+        known = dict(self.known)
+        for attempt, request in enumerate(self.requests):
+            if attempt in self.dropped:
+                known[request] = _Size(np.inf, self.bases[attempt])
+            elif attempt not in running:
+                if attempt not in self.finished:
+                    self.finished[attempt] = self._estimate(attempt, corrected, values)
+                known[request] = _Size(self.finished[attempt], self.bases[attempt])
+        return known
+
     def __call__(self, corrected: np.ndarray, values: np.ndarray, frames: np.ndarray) -> np.ndarray:
         """Which of the ``frames`` still missing stay in the loop (bool mask)."""
         attempt_of = frames // self.num_frames
         running = np.unique(attempt_of).tolist()
         limit = self.budget
-        if self.anchor and running[0] != 0:  # the anchor has finished: its size is final
+        if self.limit is not None:
+            limit = min(limit, self.limit(self._known(running, corrected, values)))
+            if limit == -np.inf:  # the walk reads none of the attempts still running
+                self.dropped.update(running)
+                return np.zeros(len(frames), dtype=bool)
+        elif self.anchor and running[0] != 0:  # the anchor has finished: its size is final
             if self.anchor_size is None:
                 self.anchor_size = self._estimate(0, corrected, values)
             limit = min(limit, self.anchor_size)
@@ -635,14 +711,15 @@ def _most_helpful(fix, missing, placed, error, glob, relative, root_error, budge
     rows, joints = np.nonzero(missing)  # the (frame, missing joint) pairs, rows ascending
     miss = error[rows, joints]  # (m, 3)
     size = quat.norm3(miss)
-    first = np.flatnonzero(np.diff(rows, prepend=-1))
+    first = np.flatnonzero(np.concatenate(([True], rows[1:] != rows[:-1])))
     frames_missing = rows[first]
-    joint_score = np.full(missing.shape, -np.inf)
-    # Scored only in the columns some row may correct (the others' scores are never read).
+    # Scores: -inf where not a candidate, at least -1e300 where one (a candidate always beats a non-candidate).
+    score = np.where(fix, -1e300, -np.inf)
+    # Scored only in the columns some row may correct.
     columns = np.flatnonzero(fix[:, 1:].any(axis=0))
     if columns.size:
         # The world-frame turns omega_a = rotate(glob_a, log_map(the short way of relative_a)), component-major (3,
-        # n, c) (quat.log_map's and quat.rotate's operations, without stacking), then gathered by row.
+        # n, c) (quat.log_map's and quat.rotate's operations, without stacking).
         qx, qy, qz, qw = np.moveaxis(relative.take(columns, axis=1), -1, 0)
         sign = np.where(qw < 0, -1.0, 1.0)
         qx, qy, qz, qw = qx * sign, qy * sign, qz * sign, qw * sign
@@ -657,26 +734,25 @@ def _most_helpful(fix, missing, placed, error, glob, relative, root_error, budge
         omega[0] = vx + uw * tx + (uy * tz - uz * ty)
         omega[1] = vy + uw * ty + (uz * tx - ux * tz)
         omega[2] = vz + uw * tz + (ux * ty - uy * tx)
-        # |miss - omega_a x (p_k - p_a)| component by component on (m, c) arrays (quat.cross and quat.norm3's
-        # operations, without stacking (m, c, 3) arrays).
-        turn = omega.take(rows, axis=1)  # (3, m, c)
-        at = np.ascontiguousarray(np.moveaxis(placed.take(columns, axis=1), -1, 0)).take(rows, axis=1)  # p_a
-        point = placed[rows, joints].T[:, :, None]  # (3, m, 1): p_k
-        ax, ay, az = point[0] - at[0], point[1] - at[1], point[2] - at[2]
-        ox, oy, oz = turn
-        ex, ey, ez = miss.T[:, :, None]
-        dx = ex - (oy * az - oz * ay)
-        dy = ey - (oz * ax - ox * az)
-        dz = ez - (ox * ay - oy * ax)
-        gain = size[:, None] - np.sqrt(dx * dx + dy * dy + dz * dz)  # (m, c)
-        gain = np.where(budgets.movers[joints][:, columns], gain, -np.inf)
-        # Best over each frame's missing joints: rows are sorted, so one reduceat per run of equal rows.
-        joint_score[frames_missing[:, None], columns] = np.maximum.reduceat(gain, first, axis=0)
+        # |miss - omega_a x (p_k - p_a)| (quat.cross and quat.norm3's operations, component by component) for the
+        # (missing joint k, candidate a) pairs only: a an ancestor of k (a mover of it) and a candidate of k's
+        # frame; elsewhere the score stays as it is. Each frame's score of a is the best over its missing joints.
+        pair, column = np.nonzero(budgets.movers[joints][:, columns] & fix[rows][:, columns + 1])
+        if pair.size:
+            row, joint, mover = rows[pair], joints[pair], columns[column]
+            ox, oy, oz = omega[:, row, column]
+            px, py, pz = placed[row, joint].T  # p_k
+            cx, cy, cz = placed[row, mover].T  # p_a
+            ax, ay, az = px - cx, py - cy, pz - cz
+            ex, ey, ez = miss[pair].T
+            dx = ex - (oy * az - oz * ay)
+            dy = ey - (oz * ax - ox * az)
+            dz = ez - (ox * ay - oy * ax)
+            np.maximum.at(score, (row, mover + 1), size[pair] - np.sqrt(dx * dx + dy * dy + dz * dz))
     root_gain = size - quat.norm3(miss - root_error[rows])
     root_score = np.full(len(missing), -np.inf)
     root_score[frames_missing] = np.maximum.reduceat(root_gain, first)
-    score = np.concatenate([root_score[:, None], joint_score], axis=1)
-    score = np.where(fix, np.maximum(score, -1e300), -np.inf)  # a candidate always beats a non-candidate
+    score[:, 0] = np.where(fix[:, 0], np.maximum(root_score, -1e300), -np.inf)
     out = np.zeros_like(fix)
     rows = np.flatnonzero(fix.any(axis=1))
     out[rows, np.argmax(score[rows], axis=1)] = True
