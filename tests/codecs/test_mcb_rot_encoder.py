@@ -110,3 +110,54 @@ def test_base_estimates_side_by_side_are_the_estimates_one_by_one(name, monkeypa
     alone = [base_bytes(info, coefficients) for info, (_, coefficients) in zip(infos, quantized)]
     assert together == alone
     assert alone[0] > alone[1] > alone[2] > 0  # finer steps cost more: the attempts differ
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_most_helpful_picks_the_candidate_a_direct_count_picks(seed):
+    """_most_helpful (scored on the (missing joint, candidate ancestor) pairs only) keeps, per row, the candidate
+    whose first-order correction most reduces a missing joint's error, as a loop over rows and candidates finds."""
+    from types import SimpleNamespace
+
+    from mocapbench.codecs.mcb_rot import quaternions as quat
+
+    rng = np.random.default_rng(seed)
+    num_frames, num_joints = 40, 12
+    parents = np.array([-1, 0, 1, 2, 0, 4, 5, 0, 7, 8, 9, 9])
+    movers = np.zeros((num_joints, num_joints), dtype=bool)
+    for joint in range(1, num_joints):
+        movers[joint] = movers[parents[joint]]
+        movers[joint, parents[joint]] = True
+    placed = rng.normal(0, 30, (num_frames, num_joints, 3))
+    error = rng.normal(0, 0.2, (num_frames, num_joints, 3))
+    glob = quat.exp_map(rng.normal(0, 1, (num_frames, num_joints, 3)))
+    relative = quat.exp_map(rng.normal(0, 0.01, (num_frames, num_joints, 3)))
+    root_error = rng.normal(0, 0.05, (num_frames, 3))
+    missing = rng.random((num_frames, num_joints)) < 0.2
+    missing[:, 0] = False
+    fix = (rng.random((num_frames, num_joints + 1)) < 0.4) & missing.any(axis=1)[:, None]
+    fix[5] = False  # a row with nothing to fix stays empty
+    out = rot_codec._most_helpful(fix, missing, placed, error, glob, relative, root_error,
+                                  SimpleNamespace(movers=movers))
+    for row in range(num_frames):
+        candidates = np.flatnonzero(fix[row])
+        if not candidates.size:
+            assert not out[row].any()
+            continue
+        gains = []
+        for slot in candidates:
+            best = -1e300
+            for joint in np.flatnonzero(missing[row]):
+                if slot == 0:
+                    moved = root_error[row]
+                elif movers[joint, slot - 1]:
+                    rel = relative[row, slot - 1] * (1.0 if relative[row, slot - 1, 3] >= 0 else -1.0)
+                    omega = quat.rotate(glob[row, slot - 1], quat.log_map(rel))
+                    moved = np.cross(omega, placed[row, joint] - placed[row, slot - 1])
+                else:
+                    continue
+                size = np.linalg.norm(error[row, joint])
+                best = max(best, size - np.linalg.norm(error[row, joint] - moved))
+            gains.append(best)
+        assert out[row].sum() == 1
+        picked = int(np.flatnonzero(out[row])[0])
+        assert gains[list(candidates).index(picked)] == pytest.approx(max(gains), abs=1e-12)

@@ -111,3 +111,33 @@ def test_closed_loop_kinematics_match_the_decoders():
     matrices, _ = motion.global_transforms()
     np.testing.assert_allclose(Rotation.from_quat(glob.reshape(-1, 4)).as_matrix(), matrices.reshape(-1, 3, 3),
                                atol=1e-12)
+
+
+@pytest.mark.parametrize("best", [2, _SEARCH_START - 1, _SEARCH_START, _SEARCH_START + 2])
+@pytest.mark.parametrize("share", [0.02, 0.5])
+@pytest.mark.parametrize("flat_wins", [False, True])
+def test_walk_limit_is_the_next_budget_of_the_walk_and_bounds_every_later_one(best, share, flat_wins):
+    """Run on the attempts the walk has read so far, _walk_limit returns the budget of its next request (every later
+    one is no larger), and -inf once the walk has read all it needs."""
+    from mocapbench.codecs.mcb_rot.codec import _walk_limit
+
+    sloped = [1000.0 + 10.0 * (i - best) ** 2 for i in range(len(_SEARCH_GRID))]
+    flat = [size - (30.0 if flat_wins and i in (best + 1, best + 2) else -40.0) for i, size in enumerate(sloped)]
+    budgets = []
+
+    def recording(multiplier, slope=None, budget=np.inf):
+        budgets.append(budget)
+        return fake(multiplier, slope, budget)
+
+    fake = _FakeAttempts(sloped, flat, share)
+    _search(recording, flat_too=True)
+    asked = [(index, slope == 0.0) for index, slope in fake.asked]
+    results = [fake(_SEARCH_GRID[index], 0.0 if flat else None, budget) for (index, flat), budget in zip(asked, budgets)]
+    assert len(asked) >= 3
+    for i in range(len(asked)):
+        known = dict(zip(asked[:i], results[:i]))
+        limit = _walk_limit(known, flat_too=True)
+        assert limit == budgets[i]
+        assert all(later <= limit for later in budgets[i:])
+    assert _walk_limit(dict(zip(asked, results)), flat_too=True) == -np.inf
+    assert _walk_limit({}, flat_too=True) == np.inf  # the start, unbudgeted, comes first
