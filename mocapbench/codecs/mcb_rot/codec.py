@@ -693,8 +693,8 @@ class _Pruner:
             limit = min(limit, self.anchor_size)
         if limit == np.inf:
             return np.ones(len(frames), dtype=bool)
-        for attempt in running:
-            if self._estimate(attempt, corrected, values) > limit:
+        for attempt in running:  # (the base alone, a part of the estimate, often settles it)
+            if self.bases[attempt] > limit or self._estimate(attempt, corrected, values) > limit:
                 self.dropped.add(attempt)
         return ~np.isin(attempt_of, list(self.dropped))
 
