@@ -73,7 +73,12 @@ previous decoder interleaved with it: median of 7 runs 83,000 / 93,000 / 82,000 
 0.1 / 0.5 / 1 cm (ranges 66-105 / 71-106 / 79-121 / 79-129 thousand) against 59,000 / 60,000 / 78,000 / 84,000 for
 the previous decoder (5 runs; 79,000-104,000 on a quiet machine). One frame at a random t (``decode_frames(data, t,
 t + 1)``) entropy decodes its chunk and synthesizes only its segment: 0.9-2.3 ms median, at most 2.7-5.0 ms under
-that load (the previous decoder 3.7-6.1 ms); the first frame of a clip also parses its header.
+that load (the previous decoder 3.7-6.1 ms); the first frame of a clip also parses its header. Since session 4's
+second round only the frames asked for go through the exponential map and the corrections, forward kinematics of a
+few frames sums each path at once and the budgets' chain lengths are one cumsum per depth: per-pick minimum over 7
+passes of the 240 picks per eps (load average 3.2-3.5, interleaved with the decoder before): median 1.12-1.15 /
+1.03-1.04 / 0.76 / 0.69 ms at eps 0.05 / 0.1 / 0.5 / 1 cm (before 1.28-1.29 / 1.17-1.18 / 0.92 / 0.84-0.85), the
+first pick of each clip (header parsed) 1.87-2.32 ms (before 2.06-2.59), max 2.4-2.9 ms (before 2.5-3.0).
 
 Long captures (:mod:`.windowed`): a capture of more than 7,680 frames is coded as independent, about equal windows
 of at most that many frames, each a self-contained payload with its own rate search, closed loop and check of the
