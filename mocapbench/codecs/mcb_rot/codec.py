@@ -37,7 +37,15 @@ Design::
          4,800-4,980 / 4,390-4,760 / 5,680-6,150 / 4,890-6,260, against 1,160-1,450 / 1,160-1,270 / 1,210-1,580 /
          1,520-1,990 and 3,190-3,270 / 3,450-3,660 / 3,470-4,450 / 4,120-5,000 in alternate runs of the encoder with
          attempts one by one, forward kinematics every round of the closed loop and joint-major quantization (the
-         same streams). Segment means (DC) and the significance counts are coded as differences along the segments
+         same streams). Since then (same streams: the sha1 of the 96 cmu_test encodes, 12 clips x 4 eps x 24 and 120
+         fps, unchanged) the greedy pick scores only the (missing joint, candidate ancestor) pairs, and the batched
+         closed loop gives an attempt up once it exceeds the budget the walk would give next (:func:`_walk_limit`,
+         on the attempts finished so far; -inf, every attempt still running, once the walk ends without them). The
+         walk's start usually finishes last, so this ends the loop a round early at best: alternate runs against
+         the previous encoder (``prof_enc.py``-style, one thread, CPU time, 3 runs at 24 fps and 2 at 120 fps, load
+         average 3.2-4.1 on this 2-core machine) gave medians 2,200 / 2,270 / 2,450 / 2,470 against 2,290 / 2,370 /
+         2,490 / 2,400 frames/s at 24 fps and 4,550 / 4,930 / 4,930 / 6,430 against 4,740 / 4,910 / 5,790 / 6,050
+         at 120 fps: no gain measurable under that load (noise +-20 %). Segment means (DC) and the significance counts are coded as differences along the segments
          in one small track that random access reads whole.
       └─ compensated quantization (:mod:`.compensate`, encoder only): joints are quantized level by level down the
          tree, each coding the local rotation that puts its *global* rotation on the original's given its parent as
