@@ -132,7 +132,8 @@ def test_walk_limit_is_the_next_budget_of_the_walk_and_bounds_every_later_one(be
     fake = _FakeAttempts(sloped, flat, share)
     _search(recording, flat_too=True)
     asked = [(index, slope == 0.0) for index, slope in fake.asked]
-    results = [fake(_SEARCH_GRID[index], 0.0 if flat else None, budget) for (index, flat), budget in zip(asked, budgets)]
+    results = [fake(_SEARCH_GRID[index], 0.0 if flat else None, budget)
+               for (index, flat), budget in zip(asked, budgets)]
     assert len(asked) >= 3
     for i in range(len(asked)):
         known = dict(zip(asked[:i], results[:i]))
