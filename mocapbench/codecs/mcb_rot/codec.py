@@ -31,21 +31,10 @@ Design::
          needs side by side (:data:`_PREFETCH`; :meth:`_Encoder.attempts_of`: one compensated quantization and one
          closed loop over the attempts' frames laid end to end, those over the start's size given up once the start
          has finished, as the walk would); the walk then reads them (the same streams; 6.3-6.8 attempts per clip
-         at 24 fps instead of 4.2-5.5 one by one, in 1-2 passes). Encoding speed (``python -m
-         mocapbench.benchmarks.mcb_rot --no-rd --speed``: cmu_test, one thread, CPU, two runs at load 0.9, eps 0.05 /
-         0.1 / 0.5 / 1 cm): 24 fps 2,230-2,290 / 1,990-2,430 / 2,380-2,440 / 2,140-2,630 frames/s, 120 fps
-         4,800-4,980 / 4,390-4,760 / 5,680-6,150 / 4,890-6,260, against 1,160-1,450 / 1,160-1,270 / 1,210-1,580 /
-         1,520-1,990 and 3,190-3,270 / 3,450-3,660 / 3,470-4,450 / 4,120-5,000 in alternate runs of the encoder with
-         attempts one by one, forward kinematics every round of the closed loop and joint-major quantization (the
-         same streams). Since then (same streams: the sha1 of the 96 cmu_test encodes, 12 clips x 4 eps x 24 and 120
-         fps, unchanged) the greedy pick scores only the (missing joint, candidate ancestor) pairs, and the batched
-         closed loop gives an attempt up once it exceeds the budget the walk would give next (:func:`_walk_limit`,
-         on the attempts finished so far; -inf, every attempt still running, once the walk ends without them). The
-         walk's start usually finishes last, so this ends the loop a round early at best: alternate runs against
-         the previous encoder (``prof_enc.py``-style, one thread, CPU time, 3 runs at 24 fps and 2 at 120 fps, load
-         average 3.2-4.1 on this 2-core machine) gave medians 2,200 / 2,270 / 2,450 / 2,470 against 2,290 / 2,370 /
-         2,490 / 2,400 frames/s at 24 fps and 4,550 / 4,930 / 4,930 / 6,430 against 4,740 / 4,910 / 5,790 / 6,050
-         at 120 fps: no gain measurable under that load (noise +-20 %). Segment means (DC) and the significance counts are coded as differences along the segments
+         at 24 fps instead of 4.2-5.5 one by one, in 1-2 passes); the batched closed loop gives an attempt up once it
+         exceeds the budget the walk would give it next (:func:`_walk_limit`). Speeds: ``python -m
+         mocapbench.benchmarks.mcb_rot --no-rd --speed`` (the README quotes a run). Segment means (DC) and the
+         significance counts are coded as differences along the segments
          in one small track that random access reads whole.
       └─ compensated quantization (:mod:`.compensate`, encoder only): joints are quantized level by level down the
          tree, each coding the local rotation that puts its *global* rotation on the original's given its parent as
@@ -69,24 +58,16 @@ Design::
 
 The decoder (:mod:`.decoder`) is vectorized numpy over blocks of chunks written into preallocated outputs: ANS
 decoding (constriction, one call per class and chunk), a batched inverse DCT, the exponential map, one multiply per
-correction and forward kinematics. Everything but the ANS calls is numpy call overhead on a few thousand values,
-so its speed is the number of calls. Made faster (session 4) by: chunks of 256 frames (payload format 5: half the
-ANS streams per clip), SIMD tan instead of sin and cos in the exponential map, forward kinematics gathering each
-product's factors once (contiguous, with the rolled components), entropy sort keys built per chunk from cached
-class rows, signs and raw bits read without N-long index arithmetic, the output rotations as a 2-D transpose, and
-the motion built without re-validating the decoder's own arrays (``Motion.from_decoder``). Measured on cmu_test (12
-clips, 5,587 frames at 120 fps; one thread, CPU time; ``measure`` and the one-frame picks of
-:mod:`mocapbench.benchmarks.mcb_rot`) while another benchmark ran on this 2-core machine (load average 2-3.5), the
-previous decoder interleaved with it: median of 7 runs 83,000 / 93,000 / 82,000 / 109,000 frames/s at eps 0.05 /
-0.1 / 0.5 / 1 cm (ranges 66-105 / 71-106 / 79-121 / 79-129 thousand) against 59,000 / 60,000 / 78,000 / 84,000 for
-the previous decoder (5 runs; 79,000-104,000 on a quiet machine). One frame at a random t (``decode_frames(data, t,
-t + 1)``) entropy decodes its chunk and synthesizes only its segment: 0.9-2.3 ms median, at most 2.7-5.0 ms under
-that load (the previous decoder 3.7-6.1 ms); the first frame of a clip also parses its header. Since session 4's
-second round only the frames asked for go through the exponential map and the corrections, forward kinematics of a
-few frames sums each path at once and the budgets' chain lengths are one cumsum per depth: per-pick minimum over 7
-passes of the 240 picks per eps (load average 3.2-3.5, interleaved with the decoder before): median 1.12-1.15 /
-1.03-1.04 / 0.76 / 0.69 ms at eps 0.05 / 0.1 / 0.5 / 1 cm (before 1.28-1.29 / 1.17-1.18 / 0.92 / 0.84-0.85), the
-first pick of each clip (header parsed) 1.87-2.32 ms (before 2.06-2.59), max 2.4-2.9 ms (before 2.5-3.0).
+correction and forward kinematics. Everything but the ANS calls is numpy call overhead on a few thousand values, so
+its speed is the number of calls. Made faster (session 4) by: chunks of 256 frames (payload format 5: half the ANS
+streams per clip), SIMD tan instead of sin and cos in the exponential map, forward kinematics gathering each
+product's factors once (contiguous, with the rolled components), entropy sort keys built per chunk from cached class
+rows, signs and raw bits read without N-long index arithmetic, the output rotations as a 2-D transpose, and the
+motion built without re-validating the decoder's own arrays (``Motion.from_decoder``). Random access
+(``decode_frames(data, t, t + 1)``) entropy decodes its chunk and sends only the frames asked for through the
+exponential map, the corrections and forward kinematics (a few frames' forward kinematics sums each joint's path at
+once); the first frame of a clip also parses its header. Speeds: ``python -m mocapbench.benchmarks.mcb_rot --no-rd
+--speed`` (the README quotes a run).
 
 Long captures (:mod:`.windowed`): a capture of more than 7,680 frames is coded as independent, about equal windows
 of at most that many frames, each a self-contained payload with its own rate search, closed loop and check of the
