@@ -9,6 +9,7 @@ import pytest
 from mocapbench import metrics
 from mocapbench.codecs import create
 from mocapbench.codecs.mcb_rot import codec as rot_codec
+from mocapbench.codecs.mcb_rot.refine import most_helpful
 from mocapbench.codecs.mcb_rot.quaternions import exp_map
 from mocapbench.motion import Motion
 from mocapbench.synthetic import rig_motion, sinusoidal_motion
@@ -114,7 +115,7 @@ def test_base_estimates_side_by_side_are_the_estimates_one_by_one(name, monkeypa
 
 @pytest.mark.parametrize("seed", range(4))
 def test_most_helpful_picks_the_candidate_a_direct_count_picks(seed):
-    """_most_helpful (scored on the (missing joint, candidate ancestor) pairs only) keeps, per row, the candidate
+    """most_helpful (scored on the (missing joint, candidate ancestor) pairs only) keeps, per row, the candidate
     whose first-order correction most reduces a missing joint's error, as a loop over rows and candidates finds."""
     from types import SimpleNamespace
 
@@ -136,7 +137,7 @@ def test_most_helpful_picks_the_candidate_a_direct_count_picks(seed):
     missing[:, 0] = False
     fix = (rng.random((num_frames, num_joints + 1)) < 0.4) & missing.any(axis=1)[:, None]
     fix[5] = False  # a row with nothing to fix stays empty
-    out = rot_codec._most_helpful(fix, missing, placed, error, glob, relative, root_error,
+    out = most_helpful(fix, missing, placed, error, glob, relative, root_error,
                                   SimpleNamespace(movers=movers))
     for row in range(num_frames):
         candidates = np.flatnonzero(fix[row])
