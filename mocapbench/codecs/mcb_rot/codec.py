@@ -41,8 +41,7 @@ Design::
          the decoder rebuilds it, so the errors of the hips and spine do not add up down to the hands and feet
          (+5-7 % at 24 fps, +6-15 % at 120 fps on cmu_test); the decoder is unchanged.
       └─ refinement (closed loop, :mod:`.refine`): the encoder decodes the base layer, runs forward kinematics and,
-         on every frame
-         where a joint misses ε, replaces the rotation of the over-budget ancestors of the missing joints (and the
+         on every frame where a joint misses ε, replaces the rotation of the over-budget ancestors of the missing joints (and the
          root translation) by a correction quantized finely enough to bring it within its budget, repeating until
          no joint misses. A frame whose every joint is within budget is within ε in any pose (:mod:`.budgets`),
          so the loop always ends. Greedy: each round corrects one joint per missing frame, the one whose correction
