@@ -40,15 +40,15 @@ Design::
          tree, each coding the local rotation that puts its *global* rotation on the original's given its parent as
          the decoder rebuilds it, so the errors of the hips and spine do not add up down to the hands and feet
          (+5-7 % at 24 fps, +6-15 % at 120 fps on cmu_test); the decoder is unchanged.
-      └─ refinement (closed loop, :mod:`.refine`): the encoder decodes the base layer, runs forward kinematics and,
-         on every frame where a joint misses ε, replaces the rotation of the over-budget ancestors of the missing joints (and the
-         root translation) by a correction quantized finely enough to bring it within its budget, repeating until
-         no joint misses. A frame whose every joint is within budget is within ε in any pose (:mod:`.budgets`),
+      └─ refinement (closed loop, :mod:`.refine`): the encoder decodes the base layer, runs forward kinematics and, on
+         every frame where a joint misses ε, replaces the rotation of the over-budget ancestors of the missing joints
+         (and the root translation) by a correction quantized finely enough to bring it within its budget, repeating
+         until no joint misses. A frame whose every joint is within budget is within ε in any pose (:mod:`.budgets`),
          so the loop always ends. Greedy: each round corrects one joint per missing frame, the one whose correction
          most reduces a missing joint's error (to first order); a miss is usually small and one correction ends it
          (+7 % at 24 fps, +11-17 % at 120 fps on cmu_test). The loop runs forward kinematics once; after that each
-         correction turns its joint's subtree (positions and global rotations updated in place, float rounding
-         apart), and the loop works on the frames still missing only.
+         correction turns its joint's subtree (positions and global rotations updated in place, float rounding apart),
+         and the loop works on the frames still missing only.
       └─ shell (``shell_cm`` = d > 0): the bound also holds on ACL's virtual vertices at distance d along every
          joint's axes (:mod:`mocapbench.metrics.shell`). Each vertex is a virtual child bone of length d in the
          budgets, so every joint (leaves too) gets a budget from its lever plus d instead of a fixed angle; the
