@@ -1,28 +1,67 @@
-"""mcb-rot forward kinematics: a few frames (summed down whole paths) give the bits of the depth-by-depth loop."""
+"""mcb-rot forward kinematics: the compiled kernel gives the bits of the closed loop's numpy kinematics, on any
+skeleton and any number of frames, and its outputs whatever their layout."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from mocapbench.codecs.mcb_rot import kinematics
-from mocapbench.codecs.mcb_rot.scratch import Scratch
-from mocapbench.synthetic import cmu_like_skeleton, sinusoidal_motion
+from mocapbench.codecs.mcb_rot.checks import forward_kinematics
+from mocapbench.synthetic import cmu_like_skeleton, rig_motion, sinusoidal_motion
 
 
-@pytest.mark.parametrize("count", [1, 2, 7, kinematics._PATH_FRAMES])
+@settings(max_examples=25, deadline=None, derandomize=True, suppress_health_check=list(HealthCheck))
+@given(
+    seed=st.integers(0, 10_000),
+    joints=st.integers(1, 70),
+    topology=st.sampled_from(["biped", "quadruped", "random"]),
+    frames=st.integers(1, 90),
+)
+def test_kernel_equals_the_closed_loops_numpy_kinematics_bit_for_bit(seed, joints, topology, frames):
+    """The encoder scores its closed loop on :func:`.checks.forward_kinematics`; the decoder returns the kernel's
+    positions: the same bits, so the bound the loop checks is the bound of what is decoded."""
+    motion = rig_motion(num_joints=max(joints, 15), topology=topology, num_frames=frames, seed=seed,
+                        amplitude_deg=90.0)
+    if joints < 15:  # smaller trees than the rigs: the rig's first joints (parents come first)
+        from mocapbench.motion import Motion, Skeleton
+
+        skeleton = motion.skeleton
+        small = Skeleton(skeleton.names[:joints], skeleton.parents[:joints], skeleton.offsets[:joints])
+        motion = Motion(small, motion.fps, motion.root_positions, motion.rotations[:, :joints])
+    expected, _ = forward_kinematics(motion.rotations, motion.root_positions, motion.skeleton)
+    rotations = np.empty_like(motion.rotations)
+    placed = kinematics.positions(motion.rotations, motion.root_positions, motion.skeleton, rotations_out=rotations)
+    np.testing.assert_array_equal(placed, expected)
+    np.testing.assert_array_equal(rotations, motion.rotations)
+    np.testing.assert_allclose(placed, motion.positions(), atol=1e-9)
+
+
+@pytest.mark.parametrize("count", [1, 2, 7, 16, 17])
 def test_few_frames_equal_those_frames_of_a_long_block_bit_for_bit(count):
     motion = sinusoidal_motion(num_frames=200, seed=3)
     quats, roots = motion.rotations, motion.root_positions
-    block = kinematics.positions(quats, roots, motion.skeleton)  # > _PATH_FRAMES: the depth-by-depth loop
+    block = kinematics.positions(quats, roots, motion.skeleton)
     for first in (0, 50, 200 - count):
         part = kinematics.positions(quats[first : first + count], roots[first : first + count], motion.skeleton)
         np.testing.assert_array_equal(part, block[first : first + count])
-        out = np.empty((count, motion.num_joints, 3))
-        kinematics.positions(quats[first : first + count], roots[first : first + count], motion.skeleton, out,
-                             Scratch())
-        np.testing.assert_array_equal(out, block[first : first + count])
-    np.testing.assert_allclose(block, motion.positions(), atol=1e-9)
+
+
+def test_outputs_of_any_layout_are_filled():
+    """Outputs that are views with strides (a window of a larger array, a transpose) get the same values."""
+    motion = sinusoidal_motion(num_frames=30, seed=5)
+    quats, roots, skeleton = motion.rotations, motion.root_positions, motion.skeleton
+    expected = kinematics.positions(quats, roots, skeleton)
+    wide = np.full((30, skeleton.num_joints, 5), np.nan)  # (F, J, 5): positions in [..., 1:4], not C-contiguous
+    rotations = np.full((4, skeleton.num_joints, 30), np.nan).transpose(2, 1, 0)
+    returned = kinematics.positions(quats, roots, skeleton, wide[..., 1:4], rotations)
+    np.testing.assert_array_equal(wide[..., 1:4], expected)
+    np.testing.assert_array_equal(returned, expected)
+    np.testing.assert_array_equal(rotations, quats)
+    component_major = np.ascontiguousarray(quats.transpose(2, 1, 0))  # what the decoder passes: a transposed view
+    np.testing.assert_array_equal(kinematics.positions(component_major.transpose(2, 1, 0), roots, skeleton), expected)
 
 
 def test_identity_rotations_of_one_frame_give_the_rest_pose():

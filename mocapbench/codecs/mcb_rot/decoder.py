@@ -15,15 +15,14 @@ least :data:`BLOCK_FRAMES` frames:
    axes and the exponential map (sin and cos of the half angle from one SIMD tan), the re-referenced segments and
    the corrections (:func:`.stream.segment_signal`, :func:`.stream.assemble`, :func:`.stream.apply_corrections`:
    the functions the encoder's closed loop uses, so its bound check sees bit-identical rotations);
-3. forward kinematics of the block (:mod:`.kinematics`), written into the output arrays (the rotations as a 2-D
-   transpose of a joint-major copy), and the motion built without re-validating what the decoder made
+3. forward kinematics of the block (:mod:`.kinematics`, compiled), which also writes the rotations into the
+   output arrays, and the motion built without re-validating what the decoder made
    (:meth:`mocapbench.motion.Motion.from_decoder`).
 
 Peak memory is the outputs (positions, rotations, roots) plus one block's temporaries, whatever the length of the
 stream; :func:`decode_range` decodes only the blocks holding the frames asked for, synthesizes only their segments
 holding those frames (a chunk is entropy decoded whole, one frame costs one 128-frame segment's inverse DCT), and
-maps to quaternions, corrects and runs forward kinematics only on those frames (a few frames: each joint's position
-summed down its whole path at once, :func:`.kinematics.positions`).
+maps to quaternions, corrects and runs forward kinematics only on those frames.
 
 Speed (cmu_test, 12 clips, 5,587 frames at 120 fps, one thread, CPU time, the benchmark's decode of every clip):
 see :mod:`.codec`'s design notes.
@@ -88,16 +87,8 @@ def decode_range(
         low, high = max(first, start), min(first + len(block_roots), stop)
         inside, out = slice(low - first, high - first), slice(low - start, high - start)
         roots[out] = block_roots[inside]
-        # (n, J, 4) from the component-major block: joint-major first (rows of frames), then one 2-D transpose, twice
-        # as fast as the 3-D one whose inner loop runs over 4 components.
-        target = quats[out]
-        if target.flags.c_contiguous:
-            joint_major = scratch.take("joint major", (num_joints, 4, high - low))
-            np.copyto(joint_major, block_quats[inside].transpose(1, 2, 0))
-            target.reshape(high - low, 4 * num_joints)[...] = joint_major.reshape(4 * num_joints, high - low).T
-        else:
-            target[...] = block_quats[inside]
-        kinematics.positions(block_quats[inside], block_roots[inside], info.skeleton, positions[out], scratch)
+        # The rotations (n, J, 4) are written by the forward kinematics kernel, out of the component-major block.
+        kinematics.positions(block_quats[inside], block_roots[inside], info.skeleton, positions[out], quats[out])
     scratch.trim()
     return positions, roots, quats
 
