@@ -10,27 +10,28 @@ from hypothesis import strategies as st
 
 from mocapbench.codecs.mcb_rot import kinematics
 from mocapbench.codecs.mcb_rot.checks import forward_kinematics
+from mocapbench.motion import Motion, Skeleton
 from mocapbench.synthetic import cmu_like_skeleton, rig_motion, sinusoidal_motion
 
 
+@st.composite
+def rig_motions(draw) -> Motion:
+    """Synthetic rigs of 1 to 70 joints (below 15: a rig's first joints; parents come first) with wide rotations."""
+    joints = draw(st.integers(1, 70))
+    motion = rig_motion(num_joints=max(joints, 15), topology=draw(st.sampled_from(["biped", "quadruped", "random"])),
+                        num_frames=draw(st.integers(1, 90)), seed=draw(st.integers(0, 10_000)), amplitude_deg=90.0)
+    if joints >= 15:
+        return motion
+    skeleton = motion.skeleton
+    small = Skeleton(skeleton.names[:joints], skeleton.parents[:joints], skeleton.offsets[:joints])
+    return Motion(small, motion.fps, motion.root_positions, motion.rotations[:, :joints])
+
+
 @settings(max_examples=25, deadline=None, derandomize=True, suppress_health_check=list(HealthCheck))
-@given(
-    seed=st.integers(0, 10_000),
-    joints=st.integers(1, 70),
-    topology=st.sampled_from(["biped", "quadruped", "random"]),
-    frames=st.integers(1, 90),
-)
-def test_kernel_equals_the_closed_loops_numpy_kinematics_bit_for_bit(seed, joints, topology, frames):
+@given(rig_motions())
+def test_kernel_equals_the_closed_loops_numpy_kinematics_bit_for_bit(motion):
     """The encoder scores its closed loop on :func:`.checks.forward_kinematics`; the decoder returns the kernel's
     positions: the same bits, so the bound the loop checks is the bound of what is decoded."""
-    motion = rig_motion(num_joints=max(joints, 15), topology=topology, num_frames=frames, seed=seed,
-                        amplitude_deg=90.0)
-    if joints < 15:  # smaller trees than the rigs: the rig's first joints (parents come first)
-        from mocapbench.motion import Motion, Skeleton
-
-        skeleton = motion.skeleton
-        small = Skeleton(skeleton.names[:joints], skeleton.parents[:joints], skeleton.offsets[:joints])
-        motion = Motion(small, motion.fps, motion.root_positions, motion.rotations[:, :joints])
     expected, _ = forward_kinematics(motion.rotations, motion.root_positions, motion.skeleton)
     rotations = np.empty_like(motion.rotations)
     placed = kinematics.positions(motion.rotations, motion.root_positions, motion.skeleton, rotations_out=rotations)
