@@ -7,6 +7,10 @@ Conventions (used everywhere in mocapbench):
 * joint ``j``'s local rotation maps vectors of its own frame into its parent's frame; a joint's
   position is its parent's position plus the parent's global rotation applied to ``offsets[j]``
   (the BVH convention);
+* a game rig may also move a joint relative to its parent and scale it: ``Motion.translations`` replaces the
+  offsets frame by frame, ``Motion.scales`` scales a joint's frame (so its children and end sites, not itself);
+  a joint's local transform is ``T @ R @ S`` (glTF, FBX without pivots, ACL). Both are ``None`` when no joint
+  moves or scales, and forward kinematics then does exactly the arithmetic of a rotations-only motion;
 * parents come before children (``parents[j] < j``), the root is joint 0 with parent ``-1``.
 """
 
@@ -34,6 +38,52 @@ def _as_float_array(name: str, value, shape: tuple[int | None, ...]) -> np.ndarr
         bad = np.argwhere(~np.isfinite(array))[0]
         raise ValueError(f"`{name}` holds a non-finite value (NaN or inf) at index {tuple(int(i) for i in bad)}.")
     return array
+
+
+def _frame_and_joint(track: str, bad: np.ndarray, skeleton: Skeleton) -> str:
+    """``"frame 3, joint 'Hips' (1)"`` for the first True entry of ``bad`` (F, J): where a track is wrong."""
+    frame, joint = (int(i) for i in np.argwhere(bad)[0])
+    return f"`{track}` at frame {frame}, joint {skeleton.names[joint]!r} ({joint})"
+
+
+def _track(name: str, value, num_frames: int, skeleton: Skeleton) -> np.ndarray:
+    """A per-joint track as a float64 (F, J, 3) array, finite, or ``ValueError`` naming the joint and the frame."""
+    array = np.array(value, dtype=np.float64)  # a copy: column 0 and the flags are set below
+    expected = (num_frames, skeleton.num_joints, 3)
+    if array.shape != expected:
+        raise ValueError(f"Expected `{name}` to have shape {expected} (frames, joints, xyz), got {array.shape}.")
+    finite = np.isfinite(array).all(axis=2)
+    if not finite.all():
+        raise ValueError(f"Non-finite value (NaN or inf) in {_frame_and_joint(name, ~finite, skeleton)}.")
+    return array
+
+
+def _joint_translations(value, root_positions: np.ndarray, skeleton: Skeleton) -> np.ndarray | None:
+    """The validated translation track, column 0 set to the root positions; ``None`` when no joint moves."""
+    if value is None:
+        return None
+    translations = _track("translations", value, len(root_positions), skeleton)
+    if np.array_equal(translations[:, 1:], np.broadcast_to(skeleton.offsets[1:], translations[:, 1:].shape)):
+        return None
+    translations[:, 0] = root_positions
+    translations.setflags(write=False)
+    return translations
+
+
+def _joint_scales(value, num_frames: int, skeleton: Skeleton) -> np.ndarray | None:
+    """The validated scale track (every entry > 0); ``None`` when every scale is 1."""
+    if value is None:
+        return None
+    scales = _track("scales", value, num_frames, skeleton)
+    positive = (scales > 0).all(axis=2)
+    if not positive.all():
+        where = _frame_and_joint("scales", ~positive, skeleton)
+        frame, joint = (int(i) for i in np.argwhere(~positive)[0])
+        raise ValueError(f"Scale {scales[frame, joint].tolist()} <= 0 in {where}; a scale must be > 0.")
+    if np.all(scales == 1.0):
+        return None
+    scales.setflags(write=False)
+    return scales
 
 
 def _tree_levels(parents: np.ndarray) -> tuple[list[tuple[np.ndarray, np.ndarray]], np.ndarray]:
@@ -223,6 +273,18 @@ class Motion:
     up_axis : str
         ``"y"`` or ``"z"`` (or ``"x"``): the axis that points up in the source's coordinates. Metadata only;
         the arrays keep the source's axes. Default ``"y"``.
+    translations : ndarray, shape (F, J, 3), float, cm, optional
+        Local translation of every joint in its parent's frame, every frame (a game rig's pelvis under a ground
+        root, a stretching bone). ``None`` (the default) means every non-root joint sits at its skeleton offset.
+        Column 0 is always ``root_positions`` (whatever was passed there is replaced). An array in which no
+        non-root joint differs from its offset is stored as ``None``: a track that does not move costs nothing.
+    scales : ndarray, shape (F, J, 3), float, > 0, optional
+        Local scale of every joint along its own axes, every frame; it scales the joint's frame, so it moves the
+        joint's children and end sites, not the joint itself. ``None`` (the default) means 1 everywhere; an array
+        of ones is stored as ``None``.
+
+    Non-finite translations or scales, and scales <= 0, raise ``ValueError`` in one line naming the joint and the
+    frame.
     """
 
     skeleton: Skeleton
@@ -232,6 +294,8 @@ class Motion:
     name: str = ""
     source_unit_cm: float = 1.0
     up_axis: str = "y"
+    translations: np.ndarray | None = None
+    scales: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.skeleton, Skeleton):
@@ -272,9 +336,19 @@ class Motion:
         object.__setattr__(self, "fps", fps)
         object.__setattr__(self, "rotations", quats)
         object.__setattr__(self, "root_positions", roots)
+        object.__setattr__(self, "translations", _joint_translations(self.translations, roots, self.skeleton))
+        object.__setattr__(self, "scales", _joint_scales(self.scales, num_frames, self.skeleton))
 
     @classmethod
-    def from_decoder(cls, skeleton: Skeleton, fps: float, root_positions: np.ndarray, rotations: np.ndarray) -> "Motion":
+    def from_decoder(
+        cls,
+        skeleton: Skeleton,
+        fps: float,
+        root_positions: np.ndarray,
+        rotations: np.ndarray,
+        translations: np.ndarray | None = None,
+        scales: np.ndarray | None = None,
+    ) -> "Motion":
         """A motion from arrays a decoder built itself, without the checks and the normalization of the constructor.
 
         For decoders only, never for user input: ``root_positions`` (F, 3) and ``rotations`` (F, J, 4) must be
@@ -284,6 +358,10 @@ class Motion:
         decoded positions for non-finite values (:meth:`mocapbench.codecs.base.Codec.decode` does), which any
         non-finite rotation or root would reach. Saves the norms and the division of a validated construction
         (0.25 ms of the 5 ms decode of a 465-frame, 31-joint ``mcb-rot`` clip).
+
+        ``translations`` and ``scales`` (F, J, 3) float64, when given, are taken as they are too (read-only, not
+        copied, not folded to ``None``): the decoder passes ``None`` for a track the stream does not carry and
+        sets column 0 of ``translations`` to ``root_positions`` itself. Their shapes and dtypes are checked.
         """
         num_frames = rotations.shape[0]
         if (rotations.dtype != np.float64 or root_positions.dtype != np.float64 or num_frames == 0
@@ -292,11 +370,17 @@ class Motion:
             raise ValueError(f"Motion.from_decoder: expected (F, {skeleton.num_joints}, 4) and (F, 3) float64 arrays "
                              f"and fps > 0, got {rotations.shape} {rotations.dtype}, {root_positions.shape} "
                              f"{root_positions.dtype}, fps {fps}.")
+        for track_name, track in (("translations", translations), ("scales", scales)):
+            if track is not None and (track.dtype != np.float64 or track.shape != (num_frames, skeleton.num_joints, 3)):
+                raise ValueError(f"Motion.from_decoder: expected `{track_name}` as a (F, {skeleton.num_joints}, 3) "
+                                 f"float64 array or None, got {track.shape} {track.dtype}.")
         motion = object.__new__(cls)
-        rotations.setflags(write=False)
-        root_positions.setflags(write=False)
+        for array in (rotations, root_positions, translations, scales):
+            if array is not None:
+                array.setflags(write=False)
         for name, value in (("skeleton", skeleton), ("fps", float(fps)), ("root_positions", root_positions),
-                            ("rotations", rotations), ("name", ""), ("source_unit_cm", 1.0), ("up_axis", "y")):
+                            ("rotations", rotations), ("name", ""), ("source_unit_cm", 1.0), ("up_axis", "y"),
+                            ("translations", translations), ("scales", scales)):
             object.__setattr__(motion, name, value)
         return motion
 
@@ -314,6 +398,44 @@ class Motion:
         """Local rotations as a scipy ``Rotation`` of shape (F, J)."""
         return Rotation.from_quat(self.rotations)
 
+    def local_translations(self) -> np.ndarray:
+        """Every joint's local translation, every frame: ``translations``, or the offsets and the root positions.
+
+        Returns
+        -------
+        ndarray, shape (F, J, 3), float, cm
+        """
+        if self.translations is not None:
+            return self.translations
+        local = np.broadcast_to(self.skeleton.offsets, (self.num_frames, self.num_joints, 3)).copy()
+        local[:, 0] = self.root_positions
+        return local
+
+    def moving_joints(self) -> np.ndarray:
+        """Non-root joints whose translation differs from their skeleton offset on some frame.
+
+        Returns
+        -------
+        ndarray, shape (M,), int
+            Joint indices in increasing order; empty when ``translations`` is ``None``.
+        """
+        if self.translations is None:
+            return np.zeros(0, dtype=np.int64)
+        moves = np.any(self.translations[:, 1:] != self.skeleton.offsets[1:], axis=(0, 2))
+        return np.flatnonzero(moves) + 1
+
+    def scaled_joints(self) -> np.ndarray:
+        """Joints (the root included) whose scale differs from 1 on some frame.
+
+        Returns
+        -------
+        ndarray, shape (S,), int
+            Joint indices in increasing order; empty when ``scales`` is ``None``.
+        """
+        if self.scales is None:
+            return np.zeros(0, dtype=np.int64)
+        return np.flatnonzero(np.any(self.scales != 1.0, axis=(0, 2)))
+
     def global_transforms(self) -> tuple[np.ndarray, np.ndarray]:
         """Forward kinematics: global rotation matrices and positions of every joint.
 
@@ -323,22 +445,36 @@ class Motion:
         root plus the sum of the rotated offsets along each joint's ancestor chain (one matrix product).
         Frames go in blocks of :data:`_FK_BLOCK_FRAMES` so that the intermediate arrays stay in cache.
 
+        With ``translations`` each joint's step from its parent is its translation of that frame instead of its
+        offset; with ``scales`` the local matrix is ``R @ diag(s)`` (local = T R S, eq. of the glTF node
+        transform), so the global matrix of a scaled joint or of a joint below one is rotation times scale.
+
         Returns
         -------
         matrices : ndarray, shape (F, J, 3, 3), float
-            Global rotation of each joint (joint frame to world).
+            Global linear map of each joint (joint frame to world): its global rotation when no joint above it
+            (itself included) is scaled.
         positions : ndarray, shape (F, J, 3), float, cm
         """
-        skeleton = self.skeleton
-        levels, ancestors = _tree_levels(skeleton.parents)
+        levels, ancestors = _tree_levels(self.skeleton.parents)
         matrices = np.empty((self.num_frames, self.num_joints, 3, 3))
         positions = np.empty((self.num_frames, self.num_joints, 3))
         for start in range(0, self.num_frames, _FK_BLOCK_FRAMES):
             block = slice(start, start + _FK_BLOCK_FRAMES)
-            matrices[block], positions[block] = _forward_kinematics(
-                self.rotations[block], self.root_positions[block], skeleton, levels, ancestors
-            )
+            matrices[block], positions[block] = self._forward_kinematics_block(block, levels, ancestors)
         return matrices, positions
+
+    def _forward_kinematics_block(self, block: slice, levels, ancestors) -> tuple[np.ndarray, np.ndarray]:
+        """:func:`_forward_kinematics` of the frames ``block``, with the tracks this motion has."""
+        return _forward_kinematics(
+            self.rotations[block],
+            self.root_positions[block],
+            self.skeleton,
+            levels,
+            ancestors,
+            translations=None if self.translations is None else self.translations[block],
+            scales=None if self.scales is None else self.scales[block],
+        )
 
     def positions(self) -> np.ndarray:
         """Global joint positions by forward kinematics.
@@ -354,9 +490,7 @@ class Motion:
         positions = np.empty((self.num_frames, self.num_joints, 3))
         for start in range(0, self.num_frames, _FK_BLOCK_FRAMES):
             block = slice(start, start + _FK_BLOCK_FRAMES)
-            positions[block] = _forward_kinematics(
-                self.rotations[block], self.root_positions[block], self.skeleton, levels, ancestors
-            )[1]
+            positions[block] = self._forward_kinematics_block(block, levels, ancestors)[1]
         return positions
 
     def end_site_positions(self) -> np.ndarray:
@@ -374,15 +508,7 @@ class Motion:
         """Frames ``start:stop`` as a new motion."""
         if not 0 <= start < stop <= self.num_frames:
             raise ValueError(f"Frame range {start}:{stop} is outside 0:{self.num_frames} or empty.")
-        return Motion(
-            self.skeleton,
-            self.fps,
-            self.root_positions[start:stop],
-            self.rotations[start:stop],
-            self.name,
-            source_unit_cm=self.source_unit_cm,
-            up_axis=self.up_axis,
-        )
+        return self._frames(slice(start, stop), self.fps)
 
     def every(self, step: int) -> "Motion":
         """Every ``step``-th frame from frame 0 as a new motion at ``fps / step`` (24 fps from 120 fps with 5)."""
@@ -390,23 +516,34 @@ class Motion:
             raise ValueError(f"Frame step must be a positive integer, got {step!r}.")
         if step == 1:
             return self
+        return self._frames(slice(None, None, step), self.fps / step)
+
+    def _frames(self, frames: slice, fps: float) -> "Motion":
+        """The frames ``frames`` of every track as a new motion at ``fps``."""
         return Motion(
             self.skeleton,
-            self.fps / step,
-            self.root_positions[::step],
-            self.rotations[::step],
+            fps,
+            self.root_positions[frames],
+            self.rotations[frames],
             self.name,
             source_unit_cm=self.source_unit_cm,
             up_axis=self.up_axis,
+            translations=None if self.translations is None else self.translations[frames],
+            scales=None if self.scales is None else self.scales[frames],
         )
 
     def __repr__(self) -> str:
         """One line: ``Motion('09_06', 141 frames at 120 fps = 1.18 s, Skeleton(31 joints, ...))``; no arrays."""
         unit = "" if self.source_unit_cm == 1.0 else f", source unit {self.source_unit_cm:g} cm"
         up = "" if self.up_axis == "y" else f", {self.up_axis}-up"
+        tracks = ""
+        if self.translations is not None:
+            tracks += f", {len(self.moving_joints())} translated joints"
+        if self.scales is not None:
+            tracks += f", {len(self.scaled_joints())} scaled joints"
         return (
             f"Motion({self.name!r}, {self.num_frames} frames at {self.fps:g} fps = {self.num_frames / self.fps:.2f} s, "
-            f"{self.skeleton!r}{unit}{up})"
+            f"{self.skeleton!r}{unit}{up}{tracks})"
         )
 
 
@@ -421,12 +558,20 @@ def _forward_kinematics(
     skeleton: Skeleton,
     levels: list[tuple[np.ndarray, np.ndarray]],
     ancestors: np.ndarray,
+    translations: np.ndarray | None = None,
+    scales: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Global matrices (F, J, 3, 3) and positions (F, J, 3) cm of a block of frames (see ``global_transforms``)."""
+    """Global matrices (F, J, 3, 3) and positions (F, J, 3) cm of a block of frames (see ``global_transforms``).
+
+    ``translations`` and ``scales`` (F, J, 3) are the block's tracks or ``None``; without them the arithmetic is
+    that of a rotations-only motion, operation for operation.
+    """
     num_frames, num_joints = quats.shape[:2]
     local = Rotation.from_quat(quats.reshape(-1, 4)).as_matrix()
     # local[a, b, j, f]: row a, column b of joint j's local matrix at frame f.
     local = np.ascontiguousarray(local.reshape(num_frames, num_joints, 3, 3).transpose(2, 3, 1, 0))
+    if scales is not None:
+        local *= scales.transpose(2, 1, 0)[None]  # R @ diag(s): column b of R times s_b
     glob = np.empty_like(local)
     glob[:, :, 0] = local[:, :, 0]
     for joints, parents in levels:
@@ -437,9 +582,9 @@ def _forward_kinematics(
             + parent_matrices[:, 1:2] * joint_matrices[1:2]
             + parent_matrices[:, 2:3] * joint_matrices[2:3]
         )
-    # steps[:, j] = parent's global rotation @ offsets[j] (j >= 1); steps[:, 0] = root position.
+    # steps[:, j] = parent's global matrix @ offsets[j] (j >= 1), or @ translations[f, j]; steps[:, 0] = root.
     parent_matrices = glob[:, :, skeleton.parents[1:]]
-    offsets = skeleton.offsets[1:, :, None]
+    offsets = skeleton.offsets[1:, :, None] if translations is None else translations[:, 1:].transpose(1, 2, 0)
     steps = np.empty((3, num_joints, num_frames))
     steps[:, 0] = root_positions.T
     steps[:, 1:] = (

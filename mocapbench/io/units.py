@@ -221,4 +221,19 @@ def turn_axes(motion: Motion, turn: Rotation, up_axis: str) -> Motion:
         root_positions=motion.root_positions @ matrix.T,
         rotations=rotations.as_quat().reshape(motion.rotations.shape),
         up_axis=up_axis,
+        translations=None if motion.translations is None else motion.translations @ matrix.T,
+        scales=None if motion.scales is None else _turned_scales(motion.scales, matrix),
     )
+
+
+def _turned_scales(scales: np.ndarray, matrix: np.ndarray) -> np.ndarray:
+    """Local scales in turned axes: ``turn diag(s) turn^-1`` is diagonal when the turn permutes the axes (up to
+    sign), and then is ``diag`` of the permuted scales; another turn of a non-uniform scale is a shear, refused."""
+    permutation = np.abs(np.rint(matrix))
+    if not np.allclose(np.abs(matrix), permutation, atol=1e-9):
+        uniform = np.all(scales == scales[..., :1])
+        if not uniform:
+            raise ValueError("A turn that does not permute the axes makes a non-uniform scale a shear; "
+                             "turn by multiples of 90 degrees about an axis.")
+        return scales
+    return scales @ permutation.T
