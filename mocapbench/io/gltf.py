@@ -36,7 +36,9 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from mocapbench.io.external_files import check_reference, read_data_uri, read_reference
 from mocapbench.io.node_motion import motion_from_nodes
+from mocapbench.io.read_limits import check_array_bytes, check_motion_size
 from mocapbench.motion import Motion, MotionFormatError
 
 __all__ = ["read_gltf", "write_gltf"]
@@ -86,10 +88,26 @@ class _Reader:
         except (ValueError, KeyError, TypeError, AttributeError, struct.error, OSError, UnicodeDecodeError) as error:
             # pygltflib raises whatever the JSON or dataclass layer raises on a malformed document.
             raise self.error(f"not a readable glTF 2.0 document ({type(error).__name__}: {error})") from None
+        except RecursionError:
+            raise self.error("not a readable glTF 2.0 document (its JSON is nested deeper than the parser allows)") \
+                from None
         version = str(getattr(self.gltf.asset, "version", "") or "")
         if not version.startswith("2."):
             raise self.error(f"expected glTF version 2.x in asset.version, found {version!r}")
         self.buffers: dict[int, bytes] = {}
+        self._check_references()
+
+    def _check_references(self) -> None:
+        """Refuse, before anything is read, a buffer or image URI that is not data: or a file inside the folder."""
+        for kind in ("buffers", "images"):
+            for index, item in enumerate(getattr(self.gltf, kind) or []):
+                uri = getattr(item, "uri", None)
+                if uri is None:
+                    continue
+                if not isinstance(uri, str):
+                    raise self.error(f"{kind}[{index}]: expected a string uri, got {type(uri).__name__}")
+                if not uri.startswith("data:"):
+                    check_reference(self.path.parent, uri, f"{kind}[{index}]", self.error, must_exist=kind == "buffers")
 
     def error(self, message: str) -> MotionFormatError:
         return MotionFormatError(f"{self.path}: {message}.")
@@ -109,20 +127,12 @@ class _Reader:
             if self.blob is None:
                 raise self.error(f"buffers[{index}] has no uri and the file has no binary chunk")
             data = self.blob
+        elif not isinstance(buffer.byteLength, int) or not 0 < buffer.byteLength <= _MAX_FILE_BYTES:
+            raise self.error(f"buffers[{index}] declares byteLength {buffer.byteLength}; expected 1..{_MAX_FILE_BYTES}")
         elif uri.startswith("data:"):
-            head, _, encoded = uri.partition(",")
-            if not head.endswith(";base64"):
-                raise self.error(f"buffers[{index}]: expected a base64 data URI, found {head!r}")
-            try:
-                data = base64.b64decode(encoded, validate=True)
-            except ValueError:
-                raise self.error(f"buffers[{index}]: the data URI is not valid base64") from None
+            data = read_data_uri(uri, buffer.byteLength, f"buffers[{index}]", self.error)
         else:
-            target = self.path.parent / uri
-            try:
-                data = target.read_bytes()
-            except OSError as error:
-                raise self.error(f"buffers[{index}]: cannot read {target}: {error.strerror or error}") from None
+            data = read_reference(self.path.parent, uri, buffer.byteLength, f"buffers[{index}]", self.error)
         if buffer.byteLength is None or len(data) < buffer.byteLength:
             raise self.error(f"buffers[{index}] declares {buffer.byteLength} bytes, found {len(data)}")
         self.buffers[index] = data
@@ -140,6 +150,7 @@ class _Reader:
         width, count = _WIDTH[accessor.type], accessor.count
         if not isinstance(count, int) or not 1 <= count <= _MAX_FRAMES * 4:
             raise self.error(f"{where} has count {count}; expected 1..{_MAX_FRAMES * 4}")
+        check_array_bytes(count * width * 8, self.error, f"{where} as float64")
         if accessor.bufferView is None:
             raise self.error(f"{where} has no bufferView (an all-zero accessor); expected data")
         view = self.item("bufferViews", accessor.bufferView, where)
@@ -379,6 +390,7 @@ def read_gltf(
     num_frames = int(math.floor((stop - start) * rate + 0.01)) + 1
     if num_frames > _MAX_FRAMES:
         raise reader.error(f"{num_frames} frames at {rate} fps exceed the limit of {_MAX_FRAMES}")
+    check_motion_size(num_frames, len(order), reader.error, f"at {rate:g} fps")
     at = start + np.arange(num_frames) / rate
 
     num_joints = len(order)
