@@ -62,8 +62,8 @@ class AclLibrary:
         lib.mcb_acl_version.restype = ctypes.c_int
         lib.mcb_acl_compress.restype = ctypes.c_int
         lib.mcb_acl_compress.argtypes = [
-            _f32p, _f32p, ctypes.POINTER(ctypes.c_int32), _u32, _u32, ctypes.c_float, ctypes.c_float, ctypes.c_float,
-            ctypes.c_int, ctypes.c_int, ctypes.c_int, ctypes.c_int, ctypes.c_int,
+            _f32p, _f32p, _f32p, ctypes.POINTER(ctypes.c_int32), _u32, _u32, ctypes.c_float, ctypes.c_float,
+            ctypes.c_float, ctypes.c_int, ctypes.c_int, ctypes.c_int, ctypes.c_int, ctypes.c_int, ctypes.c_int,
             ctypes.POINTER(ctypes.c_void_p), ctypes.POINTER(_u32), ctypes.c_char_p, _u32,
         ]
         lib.mcb_acl_free.restype = None
@@ -74,7 +74,9 @@ class AclLibrary:
             ctypes.POINTER(ctypes.c_int), ctypes.POINTER(ctypes.c_int), ctypes.c_char_p, _u32,
         ]
         lib.mcb_acl_decompress.restype = ctypes.c_int
-        lib.mcb_acl_decompress.argtypes = [ctypes.c_char_p, _u32, _u32, _u32, _u32, _f32p, _f32p, ctypes.c_char_p, _u32]
+        lib.mcb_acl_decompress.argtypes = [
+            ctypes.c_char_p, _u32, _u32, _u32, _u32, _f32p, _f32p, _f32p, ctypes.c_char_p, _u32,
+        ]
         lib.mcb_acl_time_single_pose.restype = ctypes.c_int
         lib.mcb_acl_time_single_pose.argtypes = [
             ctypes.c_char_p, _u32, _u32, _u32, ctypes.POINTER(ctypes.c_double), ctypes.POINTER(ctypes.c_double),
@@ -90,6 +92,7 @@ class AclLibrary:
         parents: np.ndarray,
         sample_rate: float,
         *,
+        scales: np.ndarray | None = None,
         precision_cm: float,
         shell_cm: float,
         level: str,
@@ -97,6 +100,7 @@ class AclLibrary:
         translation_format: str,
         optimize_loops: bool,
         strip_trivial: bool,
+        pre_process: bool = False,
     ) -> bytes:
         """ACL's compressed buffer for local transforms.
 
@@ -105,19 +109,29 @@ class AclLibrary:
         rotations : ndarray, shape (F, J, 4), float32, scalar-last unit quaternions
         translations : ndarray, shape (F, J, 3), float32, cm
         parents : ndarray, shape (J,), int32, -1 for the root
+        scales : ndarray, shape (F, J, 3), float32, optional
+            Local scales (> 0); ``None`` is 1 everywhere.
+        pre_process : bool
+            Run ACL's ``pre_process_track_list`` on the raw tracks before compressing them (recommended actions,
+            lossy policy, the same qvvf error metric).
         """
         rotations = np.ascontiguousarray(rotations, dtype=np.float32)
         translations = np.ascontiguousarray(translations, dtype=np.float32)
+        scales_pointer = None
+        if scales is not None:
+            scales = np.ascontiguousarray(scales, dtype=np.float32)
+            scales_pointer = _pointer(scales, _f32p)
         parents = np.ascontiguousarray(parents, dtype=np.int32)
         num_frames, num_joints = rotations.shape[:2]
         out = ctypes.c_void_p()
         size = _u32()
         error = ctypes.create_string_buffer(_ERROR_SIZE)
         status = self._lib.mcb_acl_compress(
-            _pointer(rotations, _f32p), _pointer(translations, _f32p), _pointer(parents, ctypes.POINTER(ctypes.c_int32)),
-            num_joints, num_frames, sample_rate, precision_cm, shell_cm, LEVELS[level],
-            ROTATION_FORMATS[rotation_format], TRANSLATION_FORMATS[translation_format], int(optimize_loops),
-            int(strip_trivial), ctypes.byref(out), ctypes.byref(size), error, _ERROR_SIZE,
+            _pointer(rotations, _f32p), _pointer(translations, _f32p), scales_pointer,
+            _pointer(parents, ctypes.POINTER(ctypes.c_int32)), num_joints, num_frames, sample_rate, precision_cm,
+            shell_cm, LEVELS[level], ROTATION_FORMATS[rotation_format], TRANSLATION_FORMATS[translation_format],
+            int(optimize_loops), int(strip_trivial), int(pre_process), ctypes.byref(out), ctypes.byref(size), error,
+            _ERROR_SIZE,
         )
         if status != 0:
             raise AclError(error.value.decode(errors="replace"))
@@ -142,25 +156,29 @@ class AclLibrary:
             _name_of(ROTATION_FORMATS, rotation.value), _name_of(TRANSLATION_FORMATS, translation.value),
         )
 
-    def decompress(self, buffer: bytes, num_joints: int, start: int, stop: int) -> tuple[np.ndarray, np.ndarray]:
+    def decompress(
+        self, buffer: bytes, num_joints: int, start: int, stop: int, *, scales: bool = False
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
         """Frames ``start:stop`` through ACL's decompression context (nearest sample, as ACL's own error check).
 
         Returns
         -------
         rotations : ndarray, shape (stop - start, J, 4), float32
         translations : ndarray, shape (stop - start, J, 3), float32, cm
+        scales : ndarray, shape (stop - start, J, 3), float32, or None unless ``scales``
         """
         count = stop - start
         rotations = np.empty((count, num_joints, 4), dtype=np.float32)
         translations = np.empty((count, num_joints, 3), dtype=np.float32)
+        scale_array = np.empty((count, num_joints, 3), dtype=np.float32) if scales else None
         error = ctypes.create_string_buffer(_ERROR_SIZE)
         status = self._lib.mcb_acl_decompress(
             buffer, len(buffer), num_joints, start, stop, _pointer(rotations, _f32p), _pointer(translations, _f32p),
-            error, _ERROR_SIZE,
+            None if scale_array is None else _pointer(scale_array, _f32p), error, _ERROR_SIZE,
         )
         if status != 0:
             raise AclError(error.value.decode(errors="replace"))
-        return rotations, translations
+        return rotations, translations, scale_array
 
     def time_single_pose(self, buffer: bytes, num_frames: int, repeats: int) -> tuple[float, float]:
         """Wall and process-CPU seconds of ``repeats`` single-pose decodes (seek + decompress_tracks) in C."""

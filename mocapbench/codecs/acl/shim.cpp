@@ -8,10 +8,13 @@
 //
 // Layout of the arrays (all float32, little-endian, C order):
 //   rotations    (F, J, 4)  local rotations, scalar-last quaternions (x, y, z, w)
-//   translations (F, J, 3)  local translations, cm (the root's position; the bone offset for other joints)
+//   translations (F, J, 3)  local translations, cm (the root's position; each other joint's translation in its
+//                           parent's frame: its bone offset where it does not move)
+//   scales       (F, J, 3)  local scales, unitless (NULL: 1 everywhere)
 //   parents      (J,)       int32 parent index, -1 for the root
 
 #include <acl/compression/compress.h>
+#include <acl/compression/pre_process.h>
 #include <acl/compression/track_array.h>
 #include <acl/compression/transform_error_metrics.h>
 #include <acl/core/ansi_allocator.h>
@@ -50,6 +53,7 @@ namespace
 	{
 		float* rotations;     // (J, 4)
 		float* translations;  // (J, 3)
+		float* scales;        // (J, 3), or nullptr: scales are not wanted
 
 		void RTM_SIMD_CALL write_rotation(uint32_t track_index, rtm::quatf_arg0 rotation)
 		{
@@ -59,6 +63,12 @@ namespace
 		void RTM_SIMD_CALL write_translation(uint32_t track_index, rtm::vector4f_arg0 translation)
 		{
 			rtm::vector_store3(translation, translations + 3 * track_index);
+		}
+
+		void RTM_SIMD_CALL write_scale(uint32_t track_index, rtm::vector4f_arg0 scale)
+		{
+			if (scales != nullptr)
+				rtm::vector_store3(scale, scales + 3 * track_index);
 		}
 	};
 
@@ -124,7 +134,7 @@ namespace
 
 	template<class settings_type>
 	int decompress_with(const acl::compressed_tracks& tracks, uint32_t start, uint32_t stop, float* rotations,
-		float* translations, char* error, uint32_t error_size)
+		float* translations, float* scales, char* error, uint32_t error_size)
 	{
 		acl::decompression_context<settings_type> context;
 		if (!context.initialize(tracks))
@@ -139,6 +149,7 @@ namespace
 		{
 			writer.rotations = rotations + size_t(frame - start) * num_tracks * 4;
 			writer.translations = translations + size_t(frame - start) * num_tracks * 3;
+			writer.scales = scales == nullptr ? nullptr : scales + size_t(frame - start) * num_tracks * 3;
 			// ACL's own error measurement samples at index / rate with the nearest-sample policy.
 			context.seek(float(frame) / sample_rate, acl::sample_rounding_policy::nearest);
 			context.decompress_tracks(writer);
@@ -168,11 +179,13 @@ extern "C"
 	// (free it with mcb_acl_free) and *out_size its size in bytes.
 	//   level: compression_level8 (0 lowest .. 4 highest, 100 automatic)
 	//   rotation_format: rotation_format8 (0 quatf_full, 2 quatf_drop_w_full, 3 quatf_drop_w_variable)
-	//   translation_format: vector_format8 (0 vector3f_full, 1 vector3f_variable)
-	MCB_EXPORT int mcb_acl_compress(const float* rotations, const float* translations, const int32_t* parents,
-		uint32_t num_joints, uint32_t num_frames, float sample_rate, float precision_cm, float shell_cm,
-		int level, int rotation_format, int translation_format, int optimize_loops, int strip_trivial,
-		void** out_buffer, uint32_t* out_size, char* error, uint32_t error_size)
+	//   translation_format: vector_format8 (0 vector3f_full, 1 vector3f_variable); scales stay variable
+	//   pre_process: non-zero runs ACL's pre_process_track_list on the raw tracks first (its recommended actions,
+	//     lossy, with the same qvvf error metric as the compression; optimize_looping only when optimize_loops)
+	MCB_EXPORT int mcb_acl_compress(const float* rotations, const float* translations, const float* scales,
+		const int32_t* parents, uint32_t num_joints, uint32_t num_frames, float sample_rate, float precision_cm,
+		float shell_cm, int level, int rotation_format, int translation_format, int optimize_loops, int strip_trivial,
+		int pre_process, void** out_buffer, uint32_t* out_size, char* error, uint32_t error_size)
 	{
 		try
 		{
@@ -191,8 +204,10 @@ extern "C"
 				{
 					const float* q = rotations + (size_t(frame) * num_joints + joint) * 4;
 					const float* t = translations + (size_t(frame) * num_joints + joint) * 3;
+					const rtm::vector4f scale = scales == nullptr ? rtm::vector_set(1.0F)
+						: rtm::vector_load3(scales + (size_t(frame) * num_joints + joint) * 3);
 					track[frame] = rtm::qvv_set(rtm::quat_set(q[0], q[1], q[2], q[3]), rtm::vector_set(t[0], t[1], t[2]),
-						rtm::vector_set(1.0F));
+						scale);
 				}
 				raw_tracks[joint] = std::move(track);
 			}
@@ -205,13 +220,31 @@ extern "C"
 				return 2;
 			}
 
+			acl::qvvf_transform_error_metric error_metric;
+			if (pre_process != 0)
+			{
+				acl::pre_process_settings_t pre_settings;
+				pre_settings.actions = acl::pre_process_actions::recommended;
+				if (optimize_loops == 0)
+					pre_settings.actions &= ~acl::pre_process_actions::optimize_looping;
+				pre_settings.precision_policy = acl::pre_process_precision_policy::lossy;
+				pre_settings.error_metric = &error_metric;
+				const acl::error_result pre_result = acl::pre_process_track_list(g_allocator, pre_settings, raw_tracks);
+				if (pre_result.any())
+				{
+					char message[200];
+					std::snprintf(message, sizeof(message), "ACL pre-processing failed: %s", pre_result.c_str());
+					set_error(error, error_size, message);
+					return 2;
+				}
+			}
+
 			acl::compression_settings settings = acl::get_default_compression_settings();
 			settings.level = acl::compression_level8(level);
 			settings.rotation_format = acl::rotation_format8(rotation_format);
 			settings.translation_format = acl::vector_format8(translation_format);
 			settings.optimize_loops = optimize_loops != 0;
 			settings.keyframe_stripping.strip_trivial = strip_trivial != 0;
-			acl::qvvf_transform_error_metric error_metric;
 			settings.error_metric = &error_metric;
 
 			acl::output_stats stats;
@@ -277,9 +310,9 @@ extern "C"
 	}
 
 	// Decompress frames [start, stop) of a buffer that holds `num_joints` tracks; writes (stop - start, J, 4)
-	// rotations and (stop - start, J, 3) translations.
+	// rotations, (stop - start, J, 3) translations and, unless `scales` is NULL, (stop - start, J, 3) scales.
 	MCB_EXPORT int mcb_acl_decompress(const uint8_t* data, uint32_t size, uint32_t num_joints, uint32_t start, uint32_t stop,
-		float* rotations, float* translations, char* error, uint32_t error_size)
+		float* rotations, float* translations, float* scales, char* error, uint32_t error_size)
 	{
 		validated_buffer buffer;
 		if (!buffer.load(data, size, error, error_size))
@@ -297,8 +330,8 @@ extern "C"
 			return 2;
 		}
 		if (is_default_format(*buffer.tracks))
-			return decompress_with<acl::default_transform_decompression_settings>(*buffer.tracks, start, stop, rotations, translations, error, error_size);
-		return decompress_with<any_format_transform_settings>(*buffer.tracks, start, stop, rotations, translations, error, error_size);
+			return decompress_with<acl::default_transform_decompression_settings>(*buffer.tracks, start, stop, rotations, translations, scales, error, error_size);
+		return decompress_with<any_format_transform_settings>(*buffer.tracks, start, stop, rotations, translations, scales, error, error_size);
 	}
 
 	// Time the decompression of single poses, the way an engine samples a clip: one context initialized
@@ -331,6 +364,7 @@ extern "C"
 		pose_writer writer;
 		writer.rotations = rotations;
 		writer.translations = translations;
+		writer.scales = nullptr;
 		const float sample_rate = buffer.tracks->get_sample_rate();
 		float sum = 0.0F;
 		const double cpu0 = cpu_seconds();
