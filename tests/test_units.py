@@ -59,10 +59,10 @@ def test_up_axis_detected_on_walking_rigs(topology, up):
 
 
 @pytest.mark.parametrize("up", ["y", "z"])
-def test_up_axis_detected_from_the_rest_pose_when_standing(up):
+def test_up_axis_detected_from_the_body_when_standing(up):
     standing = rig_motion(up_axis=up, speed_cm_s=0.0, seed=4)
     axis, reason = detect_up_axis(standing)
-    assert axis == up and "rest pose" in reason
+    assert axis == up and "root-to-Head direction" in reason
     assert 140 < rest_height_cm(standing.skeleton, up) < 200
 
 

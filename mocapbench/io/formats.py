@@ -22,11 +22,15 @@ from mocapbench.io import MotionFileNotFoundError
 from mocapbench.io.units import parse_units, rest_height_warning, with_source
 from mocapbench.motion import Motion, MotionFormatError
 
-__all__ = ["READ_SUFFIXES", "WRITE_SUFFIXES", "read_motion", "write_motion"]
+__all__ = ["READ_SUFFIXES", "WRITE_SUFFIXES", "UnitCheckError", "read_motion", "write_motion"]
 
 READ_SUFFIXES = (".bvh", ".amc", ".gltf", ".glb", ".fbx")
 WRITE_SUFFIXES = (".bvh", ".gltf", ".glb")
 _GLTF_UNIT_CM = 100.0  # glTF 2.0: "the units for all linear distances are meters"
+
+
+class UnitCheckError(MotionFormatError):
+    """Under ``--strict``, a file whose body is not a body's size in the unit it is read with."""
 
 
 def read_motion(
@@ -37,6 +41,7 @@ def read_motion(
     asf: str | Path | None = None,
     drop_first_frame: bool = False,
     fps: float | None = None,
+    strict: bool = False,
 ) -> tuple[Motion, list[str]]:
     """Read a BVH, AMC, glTF, GLB or FBX file into a Motion in cm, with its source unit and up axis set.
 
@@ -44,17 +49,20 @@ def read_motion(
     ----------
     path : str or Path
     units : str or float, optional, keyword-only
-        ``--units``: a unit name or cm per unit (:func:`mocapbench.io.units.parse_units`). Default: cm for BVH, m
-        for glTF/GLB, the ASF's own for AMC, the file's own for FBX.
+        ``--units``: a unit name or cm per unit (:func:`mocapbench.io.units.parse_units`). Default: the sidecar's
+        (``FILE.units`` beside the file, :func:`mocapbench.io.unit_choice.read_sidecar`), else cm for BVH, m for
+        glTF/GLB, the ASF's own for AMC, the file's own for FBX.
     up : str, optional, keyword-only
-        ``"y"`` or ``"z"``; default detected (:func:`mocapbench.io.units.detect_up_axis`; glTF is always Y-up,
-        FBX says its own).
+        ``"y"`` or ``"z"``; default the sidecar's, else detected from the frames
+        (:func:`mocapbench.io.units.detect_up_axis`; glTF is always Y-up, FBX says its own).
     asf : str or Path, optional, keyword-only
         Skeleton of an AMC file; default the ``.asf`` beside it.
     drop_first_frame : bool, keyword-only
         Drop frame 0 of a BVH file (the CMU reference pose).
     fps : float, optional, keyword-only
         Sampling rate of a glTF animation (default: its key spacing); the frame rate of an AMC file (default 120).
+    strict : bool, keyword-only
+        ``--strict``: a unit warning is an error (:class:`UnitCheckError`) instead of a line in ``warnings``.
 
     Returns
     -------
@@ -68,13 +76,20 @@ def read_motion(
     MotionFormatError
         A missing, unknown or malformed file, in one line naming it.
     ValueError
-        A bad ``units`` or ``up`` value, in one line.
+        A bad ``units`` or ``up`` value, or a bad sidecar, in one line.
+    UnitCheckError
+        With ``strict``: the size of the body says the unit is wrong (the warning's line).
     """
+    from mocapbench.io.unit_choice import read_sidecar
     from mocapbench.io.units import parse_up_axis
 
     path = Path(path)
     if not path.exists():
         raise MotionFileNotFoundError(f"{path}: no such file.")
+    if units is None or up is None:
+        sidecar = read_sidecar(path)
+        units = sidecar.get("units") if units is None else units
+        up = sidecar.get("up") if up is None else up
     unit_cm = None if units is None else parse_units(units)
     up_axis = None if up is None else parse_up_axis(up)
     suffix = path.suffix.lower()
@@ -106,6 +121,8 @@ def read_motion(
         )
     motion = with_source(motion, unit_cm=unit_cm, up_axis=up_axis)
     warning = rest_height_warning(motion)
+    if warning and strict:
+        raise UnitCheckError(f"{path}: {warning} (--strict)")
     return motion, [f"{path}: {warning}"] if warning else []
 
 

@@ -2,9 +2,10 @@
 
 Every :class:`~mocapbench.motion.Motion` is in cm; a file is in its own unit. This module turns a user's
 ``--units`` (``cm``, ``mm``, ``m``, ``inch``, ``cmu`` or a number of cm per unit) into cm per unit, detects the up
-axis of a motion (Y or Z; or takes ``--up``), measures the rest height along it and warns when that height is
-not a body's (outside 50-250 cm), naming the unit that would make it one. Errors and epsilons elsewhere are
-always in cm of the real body: that holds only when the unit is right, hence the warning.
+axis of a motion from its frames (Y or Z; or takes ``--up``), measures the rest pose along the axis that stands up
+in those frames and warns when its size is not a body's (outside 50-250 cm, or an adult's proportions at a size no
+adult has), naming the unit that would make it one. Errors and epsilons elsewhere are always in cm of the real
+body: that holds only when the unit is right, hence the warning (an error under ``--strict``).
 """
 
 from __future__ import annotations
@@ -27,6 +28,11 @@ __all__ = [
     "detect_up_axis",
     "rest_height_cm",
     "rest_height_warning",
+    "rest_up_axis",
+    "body_shape",
+    "BodyShape",
+    "ADULT_HIP_FRACTION",
+    "ADULT_STATURE_CM",
     "with_source",
     "turn_axes",
 ]
@@ -119,19 +125,28 @@ def rest_height_cm(skeleton: Skeleton, up_axis: str) -> float:
 
 
 def detect_up_axis(motion: Motion) -> tuple[str, str]:
-    """Which of Y and Z points up, and why.
+    """Which of Y and Z points up in the frames, and why.
 
-    Rule: when the root travels (more than 50 cm, and 3 times more across one axis than along the other), the
-    axis it travels least along is up (people and animals walk on the floor). Otherwise the axis along which
-    the rest pose is taller is up (a standing body is taller than it is deep). A clip that neither travels nor
-    stands upright in its rest pose can be wrong: pass ``--up``.
+    Rules, in order:
+
+    1. When the root travels (more than 50 cm, and 3 times more across one axis than along the other), the axis
+       it travels least along is up: people and animals walk on the floor.
+    2. Otherwise the body's long axis over the clip: the direction from the root to the head (a joint named like
+       ``head``; without one, the rest-pose point farthest from the root along the rest pose's taller axis) is
+       measured on every frame (at most 512, evenly spaced); the axis it lies along most on average is up. The
+       frames decide, not the rest pose: a rig whose rest pose stands along Y but whose root turns it to stand
+       along Z in every frame is Z-up. A ground-level root (game rigs, whose pelvis is a translated child) works
+       the same way: the head is above it.
+    3. A clip of one joint: the axis along which the rest pose is taller.
+
+    A quadruped that neither walks nor has a head above its root can be wrong: pass ``--up``.
 
     Returns
     -------
     axis : str
         ``"y"`` or ``"z"``.
     reason : str
-        One line for ``inspect`` and warnings, with the measured extents in cm.
+        One line for ``inspect``, ``compare`` and warnings, with the measurements.
     """
     travel = np.ptp(motion.root_positions[:, 1:], axis=0)  # (2,) cm along y, z
     small, large = sorted(travel)
@@ -142,6 +157,15 @@ def detect_up_axis(motion: Motion) -> tuple[str, str]:
             f"the root travels {travel['yz'.index(other)]:.0f} cm along {other} and "
             f"{travel['yz'.index(axis)]:.0f} cm along {axis}"
         )
+    head, how = _head_joint(motion.skeleton)
+    if head > 0:
+        share = _body_axis_share(motion, head)
+        axis = "yz"[int(np.argmax(share[1:]))]
+        return axis, (
+            f"the root-to-{motion.skeleton.names[head]} direction ({how}) lies {share[_AXES.index(axis)]:.0%} "
+            f"along {axis} on average over the clip ({share[1 + (axis == 'y')]:.0%} along "
+            f"{'z' if axis == 'y' else 'y'})"
+        )
     extent = np.ptp(_rest_points(motion.skeleton)[:, 1:], axis=0)
     axis = "yz"[int(np.argmax(extent))]
     other = "yz".replace(axis, "")
@@ -151,34 +175,179 @@ def detect_up_axis(motion: Motion) -> tuple[str, str]:
     )
 
 
+_MAX_AXIS_FRAMES = 512
+
+
+def _head_joint(skeleton: Skeleton) -> tuple[int, str]:
+    """The joint whose direction from the root is the body's long axis, and how it was chosen (0: none).
+
+    A joint named like a head (``Head``, ``mixamorig:Head``, ``Bip01 Head``) when there is one; else the rest-pose
+    joint farthest from the root along the taller of the rest pose's Y and Z extents (the head or a foot: both lie
+    along the body's long axis).
+    """
+    names = [name.lower().replace(":", " ").replace("_", " ").split() for name in skeleton.names]
+    exact = [j for j, words in enumerate(names) if j and words and words[-1] == "head"]
+    loose = [j for j, words in enumerate(names) if j and any("head" in word for word in words)]
+    if exact or loose:
+        return (exact or loose)[0], "named"
+    rest = skeleton.rest_positions()
+    if len(rest) < 2:
+        return 0, ""
+    axis = 1 + int(np.argmax(np.ptp(_rest_points(skeleton)[:, 1:], axis=0)))
+    distance = np.abs(rest[:, axis] - rest[0, axis])
+    return int(np.argmax(distance)), f"the rest pose's farthest joint along {_AXES[axis]}"
+
+
+def _body_axis_share(motion: Motion, head: int) -> np.ndarray:
+    """Mean absolute x, y, z components of the unit root-to-``head`` vector over the frames, shape (3,)."""
+    step = max(1, -(-motion.num_frames // _MAX_AXIS_FRAMES))
+    positions = motion.every(step).positions() if step > 1 else motion.positions()
+    vectors = positions[:, head] - positions[:, 0]
+    lengths = np.linalg.norm(vectors, axis=1, keepdims=True)
+    vectors = vectors[lengths[:, 0] > 1e-9] / lengths[lengths[:, 0] > 1e-9]
+    return np.abs(vectors).mean(axis=0) if len(vectors) else np.zeros(3)
+
+
+def rest_up_axis(motion: Motion, up_axis: str | None = None) -> str:
+    """The axis of the rest pose that stands along ``up_axis`` (default ``motion.up_axis``) in the frames.
+
+    Usually the same axis; a rig whose root turns its Y-standing rest pose to stand along Z in every frame has
+    ``"y"`` here for ``"z"`` up. The world's up vector is taken into the root's frame on every frame (at most 512)
+    and the rest axis (Y or Z) it lies along most on average is returned.
+    """
+    up = _AXES.index(up_axis or motion.up_axis)
+    step = max(1, -(-motion.num_frames // _MAX_AXIS_FRAMES))
+    root = Rotation.from_quat(motion.rotations[::step, 0])
+    in_root = root.inv().apply(np.eye(3)[up])
+    share = np.abs(in_root).mean(axis=0)
+    return "yz"[int(np.argmax(share[1:]))]
+
+
+@dataclasses.dataclass(frozen=True)
+class BodyShape:
+    """The rest pose measured along its up axis, to tell a body's size from its proportions.
+
+    Attributes
+    ----------
+    stature_cm : float
+        Extent of the rest pose (joints and end sites) along the axis, cm.
+    hip_height_cm : float
+        Height above the lowest rest point of the joint where the legs meet (the lowest common ancestor of the
+        leaves near the floor, within 10 % of the stature), cm; 0 when no leaf is near the floor.
+    legs : int
+        How many branches of that joint reach near the floor: 2 for a biped (a quadruped's front legs hang from
+        the spine, so its floor leaves meet in 3 or more branches).
+    """
+
+    stature_cm: float
+    hip_height_cm: float
+    legs: int
+
+    @property
+    def hip_fraction(self) -> float:
+        """Hip height over stature (an adult human's is about 0.5; a toddler's 0.4 or less)."""
+        return self.hip_height_cm / self.stature_cm if self.stature_cm > 0 else 0.0
+
+    @property
+    def adult_human(self) -> bool:
+        """Two legs, and hips at an adult's fraction of the stature (see :data:`ADULT_HIP_FRACTION`)."""
+        low, high = ADULT_HIP_FRACTION
+        return self.legs == 2 and low <= self.hip_fraction <= high
+
+
+#: Hip height over stature of an adult human skeleton (the joint where the legs meet, over the rest pose's extent).
+#: Adults' legs are about half their stature (more on a skeleton that stops at the neck or lacks a head-top end
+#: site, as CMU's BVH release does); a child's are shorter (below 0.42 before the age of about 4), so a body of
+#: these proportions is an adult's, and an adult's stature lies in :data:`ADULT_STATURE_CM`.
+ADULT_HIP_FRACTION = (0.42, 0.75)
+#: Statures (cm) of adult-proportioned skeletons that need no warning.
+ADULT_STATURE_CM = (120.0, 230.0)
+
+
+def body_shape(skeleton: Skeleton, axis: str) -> BodyShape:
+    """The rest pose's stature, hip height and legs along ``axis`` (see :class:`BodyShape`)."""
+    joints = skeleton.rest_positions()
+    column = _AXES.index(axis)
+    has_child = np.zeros(skeleton.num_joints, dtype=bool)
+    has_child[skeleton.parents[skeleton.parents >= 0]] = True
+    leaf_joints = np.flatnonzero(~has_child)
+    ends = skeleton.end_site_parents
+    heights = np.concatenate([joints[leaf_joints, column], (joints[ends] + skeleton.end_site_offsets)[:, column]])
+    owners = np.concatenate([leaf_joints, ends]).astype(int)
+    all_heights = _rest_points(skeleton)[:, column]
+    low, stature = float(all_heights.min()), float(np.ptp(all_heights))
+    near = sorted({int(j) for j in owners[heights - low <= 0.1 * stature]})
+    if not near or stature <= 0:
+        return BodyShape(stature, 0.0, 0)
+    paths = [_path_from_root(skeleton.parents, joint) for joint in near]
+    common = 0
+    while all(len(p) > common + 1 for p in paths) and len({p[common + 1] for p in paths}) == 1:
+        common += 1
+    meet = paths[0][common]
+    branches = {p[common + 1] if len(p) > common + 1 else meet for p in paths}
+    return BodyShape(stature, float(joints[meet, column] - low), len(branches))
+
+
+def _path_from_root(parents: np.ndarray, joint: int) -> list[int]:
+    path = [int(joint)]
+    while parents[path[-1]] >= 0:
+        path.append(int(parents[path[-1]]))
+    return path[::-1]
+
+
 def rest_height_warning(motion: Motion, up_axis: str | None = None) -> str | None:
-    """A one-line warning when the rest height is not a body's (outside 50-250 cm), else None.
+    """A one-line warning when the rest pose's size is not a body's in the unit it was read with, else None.
+
+    Two checks, both on the rest pose along the axis that stands up in the frames (:func:`rest_up_axis`, or
+    ``up_axis`` when given):
+
+    * the stature is outside 50-250 cm (:data:`REST_HEIGHT_RANGE_CM`);
+    * the skeleton has an adult human's proportions (two legs, hips at 42-75 % of the stature: an adult's, see
+      :class:`BodyShape`) but not an adult's stature (:data:`ADULT_STATURE_CM`), and another unit of
+      :data:`UNITS_CM` gives one closer to 170 cm: a file in inches read as cm is a 64 cm person with an adult's
+      legs, which no person is.
 
     The motion's arrays are in cm, read with ``motion.source_unit_cm`` cm per file unit. The warning names the
-    height, the unit it was read with, and the unit of :data:`UNITS_CM` that gives the height closest to 170 cm
-    inside the range (if any).
+    height, the unit it was read with, and the unit that makes the body a body (if any).
     """
-    up_axis = up_axis or motion.up_axis
-    height = rest_height_cm(motion.skeleton, up_axis)
-    low, high = REST_HEIGHT_RANGE_CM
-    if low <= height <= high:
-        return None
+    axis = up_axis or rest_up_axis(motion)
+    shape = body_shape(motion.skeleton, axis)
+    height = shape.stature_cm
     used = motion.source_unit_cm
-    message = (
-        f"rest height is {height:.1f} cm along {up_axis} read as {unit_label(used)}; "
-        f"a body is {low:.0f}-{high:.0f} cm"
-    )
+    low, high = REST_HEIGHT_RANGE_CM
+    message = f"rest height is {height:.1f} cm along {axis} read as {unit_label(used)}"
+    if low <= height <= high:
+        if not shape.adult_human or ADULT_STATURE_CM[0] <= height <= ADULT_STATURE_CM[1]:
+            return None
+        fits = _units_closer_to_a_body(height, used, ADULT_STATURE_CM)
+        if not fits:
+            return None
+        name, likely = fits[0]
+        return (message + f", but its hips are at {shape.hip_fraction:.0%} of its height, an adult's proportions, "
+                f"and no adult is {height:.0f} cm tall: the file is likely in {name} ({likely:.1f} cm tall); "
+                f"pass --units {name}.")
+    message += f"; a body is {low:.0f}-{high:.0f} cm"
     if height <= 0:
         return message + ": the rest pose is flat along the up axis; check --up."
-    in_units = height / used
-    candidates = [
-        (abs(math.log(in_units * cm / _TYPICAL_HEIGHT_CM)), name, in_units * cm) for name, cm in UNITS_CM.items()
-    ]
-    fits = sorted(c for c in candidates if low <= c[2] <= high)
+    fits = _units_closer_to_a_body(height, used, REST_HEIGHT_RANGE_CM)
     if not fits:
         return message + ": no unit of --units makes it one; check --units and --up."
-    _, name, likely = fits[0]
+    name, likely = fits[0]
     return message + f": the file is likely in {name} ({likely:.1f} cm tall); pass --units {name}."
+
+
+def _units_closer_to_a_body(height_cm: float, used_cm: float, window: tuple[float, float]) -> list[tuple[str, float]]:
+    """Units of :data:`UNITS_CM` that put the height inside ``window`` and closer to 170 cm than ``used_cm`` does.
+
+    Returns ``(name, height in cm)`` pairs, closest first (in log ratio to 170 cm).
+    """
+    in_units = height_cm / used_cm
+    current = abs(math.log(height_cm / _TYPICAL_HEIGHT_CM))
+    candidates = sorted(
+        (abs(math.log(in_units * cm / _TYPICAL_HEIGHT_CM)), name, in_units * cm) for name, cm in UNITS_CM.items()
+    )
+    return [(name, value) for distance, name, value in candidates
+            if window[0] <= value <= window[1] and distance < current - 1e-9]
 
 
 def with_source(motion: Motion, *, unit_cm: float | None = None, up_axis: str | None = None) -> Motion:
