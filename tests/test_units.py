@@ -34,7 +34,7 @@ def test_parse_units(text, cm):
     assert parse_units(text) == pytest.approx(cm)
 
 
-@pytest.mark.parametrize("text", ["furlong", "0", "-1", "nan", "inf", ""])
+@pytest.mark.parametrize("text", ["furlong", "0", "-1", "nan", "inf", "", "1e-45", "1e6"])
 def test_bad_units_one_line(text):
     with pytest.raises(ValueError, match="--units") as error:
         parse_units(text)
@@ -138,7 +138,7 @@ def test_cli_inspect_motion_file_reports_axis_and_height(tmp_path, capsys):
     ("argv", "message"),
     [
         (["--units", "parsec"], "--units 'parsec': expected one of cm, mm, m, inch, cmu"),
-        (["--units", "-3"], "--units '-3': a number of cm per unit must be finite"),
+        (["--units", "-3"], "--units '-3': a number of cm per unit must be in [0.0001, 100000]"),
     ],
 )
 def test_cli_bad_units_one_line(tmp_path, capsys, argv, message):

@@ -33,7 +33,10 @@ from dataclasses import dataclass
 
 from mocapbench.entropy.errors import BitstreamError
 
-__all__ = ["MAGIC", "MIN_FPS", "MAX_FPS", "FORMAT_VERSION", "FORMAT_VERSIONS", "Header", "pack", "unpack", "read_header", "BitstreamError"]
+__all__ = [
+    "MAGIC", "MIN_FPS", "MAX_FPS", "MIN_UNIT_CM", "MAX_UNIT_CM", "FORMAT_VERSION", "FORMAT_VERSIONS", "Header", "pack",
+    "unpack", "read_header", "unit_in_range", "BitstreamError",
+]
 
 MAGIC = b"MCB\x00"
 # BE CAREFUL WHEN CHANGING: versions are only ever appended, so that old streams stay readable.
@@ -47,7 +50,10 @@ MAX_FRAMES = 100_000_000  # ~10 days at 120 fps
 MAX_JOINTS = 4096
 MAX_PAYLOAD_BYTES = 1 << 31
 MAX_NAME_BYTES = 64
-MAX_UNIT_CM = 1e6  # 10 km per unit: anything larger is a corrupt field
+# Source length units a stream may carry, cm per unit: 1 micrometre to 1 km. Outside this range a unit is a
+# corrupt field (a unit of 1e-45 cm would write a BVH with values near 1e46); float32 rounding is allowed at both ends.
+MIN_UNIT_CM = 1e-4
+MAX_UNIT_CM = 1e5
 UP_AXES = ("x", "y", "z", "?")
 # Frame rates a stream may carry, frames per second: one frame per 1000 s to 100,000 per second. Outside this
 # range a rate is a corrupt field (fps = 5e-324 or 1e308 would write "Frame Time: inf" to a BVH file).
@@ -94,6 +100,12 @@ class Header:
     up_axis: str = "?"
 
 
+def unit_in_range(unit_cm: float) -> bool:
+    """Whether ``unit_cm`` (cm per source unit) lies in [MIN_UNIT_CM, MAX_UNIT_CM], up to float32 rounding."""
+    relative = 2.0**-23  # float32 rounding of the header field
+    return MIN_UNIT_CM * (1 - relative) <= unit_cm <= MAX_UNIT_CM * (1 + relative)
+
+
 def pack(
     codec: str,
     num_frames: int,
@@ -117,7 +129,7 @@ def pack(
     payload : bytes
         What the codec wrote.
     source_unit_cm : float, keyword-only
-        Centimetres per length unit of the source file, in (0, 1e6]. Default 1 (cm).
+        Centimetres per length unit of the source file, in [:data:`MIN_UNIT_CM`, :data:`MAX_UNIT_CM`]. Default 1 (cm).
     up_axis : str, keyword-only
         ``"x"``, ``"y"``, ``"z"`` or ``"?"`` (unknown, the default).
     """
@@ -130,8 +142,8 @@ def pack(
         raise ValueError(f"num_joints must be in [1, {MAX_JOINTS}], got {num_joints}.")
     if not MIN_FPS <= fps <= MAX_FPS:
         raise ValueError(f"fps must be in [{MIN_FPS:g}, {MAX_FPS:g}], got {fps}.")
-    if not 0 < source_unit_cm <= MAX_UNIT_CM:
-        raise ValueError(f"source_unit_cm must be in (0, {MAX_UNIT_CM:g}] cm, got {source_unit_cm}.")
+    if not unit_in_range(source_unit_cm):
+        raise ValueError(f"source_unit_cm must be in [{MIN_UNIT_CM:g}, {MAX_UNIT_CM:g}] cm, got {source_unit_cm}.")
     if up_axis not in UP_AXES:
         raise ValueError(f"up_axis must be one of {list(UP_AXES)}, got {up_axis!r}.")
     if len(payload) >= MAX_PAYLOAD_BYTES:
@@ -199,9 +211,10 @@ def read_header(data: bytes) -> tuple[Header, memoryview]:
             f"Corrupt header: expected 1 <= F <= {MAX_FRAMES}, 1 <= J <= {MAX_JOINTS}, {MIN_FPS:g} <= fps <= {MAX_FPS:g}; "
             f"found F={num_frames}, J={num_joints}, fps={fps}."
         )
-    if not 0 < unit_cm <= MAX_UNIT_CM or axis not in b"xyz?":
+    if not unit_in_range(unit_cm) or axis not in b"xyz?":
         raise BitstreamError(
-            f"Corrupt header: expected a source unit in (0, {MAX_UNIT_CM:g}] cm and an up axis x, y, z or ?; "
+            f"Corrupt header: expected a source unit in [{MIN_UNIT_CM:g}, {MAX_UNIT_CM:g}] cm and an up axis x, y, z "
+            f"or ?; "
             f"found {unit_cm} cm and {bytes(axis)!r}."
         )
     header = Header(

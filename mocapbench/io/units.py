@@ -77,8 +77,10 @@ def parse_units(text: str | float) -> float:
             raise ValueError(
                 f"--units {text!r}: expected one of {', '.join(UNITS_CM)} or a number of cm per unit (e.g. 5.6444)."
             ) from None
-    if not (math.isfinite(value) and 0 < value <= 1e6):
-        raise ValueError(f"--units {text!r}: a number of cm per unit must be finite and in (0, 1e6].")
+    from mocapbench.codecs.container import MAX_UNIT_CM, MIN_UNIT_CM, unit_in_range  # the range a stream carries
+
+    if not (math.isfinite(value) and unit_in_range(value)):
+        raise ValueError(f"--units {text!r}: a number of cm per unit must be in [{MIN_UNIT_CM:g}, {MAX_UNIT_CM:g}].")
     return value
 
 

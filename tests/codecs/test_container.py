@@ -119,7 +119,11 @@ def test_version_1_streams_still_read():
     assert bytes(payload) == b"ab"
 
 
-@pytest.mark.parametrize(("unit", "axis"), [(0.0, b"y"), (-1.0, b"y"), (float("nan"), b"y"), (2e6, b"y"), (1.0, b"w")])
+@pytest.mark.parametrize(
+    ("unit", "axis"),
+    [(0.0, b"y"), (-1.0, b"y"), (float("nan"), b"y"), (2e6, b"y"), (1e6, b"y"), (1e-45, b"y"), (5e-5, b"y"),
+     (1.0, b"w")],
+)
 def test_corrupt_unit_or_axis_rejected(unit, axis):
     name = b"c"
     body = bytes([len(name)]) + name + struct.pack("<IHdfcI", 10, 3, 30.0, unit, axis, 0)
@@ -128,7 +132,17 @@ def test_corrupt_unit_or_axis_rejected(unit, axis):
         container.read_header(data)
 
 
-@pytest.mark.parametrize(("kwargs", "message"), [({"source_unit_cm": 0.0}, "source_unit_cm"), ({"up_axis": "up"}, "up_axis")])
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [({"source_unit_cm": 0.0}, "source_unit_cm"), ({"source_unit_cm": 1e-45}, r"source_unit_cm must be in \[0.0001"),
+     ({"source_unit_cm": 1e6}, r"100000\] cm, got 1000000.0"), ({"up_axis": "up"}, "up_axis")],
+)
 def test_pack_refuses_bad_unit_or_axis(kwargs, message):
     with pytest.raises(ValueError, match=message):
         container.pack("c", 5, 2, 30.0, b"", **kwargs)
+
+
+@pytest.mark.parametrize("unit", [container.MIN_UNIT_CM, 0.1, 2.54, 100.0, container.MAX_UNIT_CM])
+def test_units_at_the_ends_of_the_range_round_trip_through_float32(unit):
+    header, _ = container.read_header(container.pack("c", 5, 2, 30.0, b"", source_unit_cm=unit))
+    assert header.source_unit_cm == pytest.approx(unit, rel=1e-7)
