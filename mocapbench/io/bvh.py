@@ -182,6 +182,8 @@ class _HierarchyParser:
         if len(name_words) != 1 or name_words[0] in "{}":
             raise self.error(keyword_line, f"expected one joint name after ROOT/JOINT, got {name_words}.")
         name = name_words[0]
+        if any(ord(c) < 32 or c == "\x7f" for c in name):
+            raise self.error(keyword_line, f"joint name {name!r} holds a control character (NUL, ...); expected text.")
         if name in self.names:
             raise self.error(keyword_line, f"joint name {name!r} is used twice; joint names must be unique.")
         if len(self.joints) >= MAX_JOINTS:
@@ -257,6 +259,8 @@ class _Reader:
         if not raw:
             return None
         self.line += 1
+        if self.line == 1 and raw.startswith(b"\xef\xbb\xbf"):
+            raw = raw[3:]  # a UTF-8 byte-order mark, as some Windows editors write
         try:
             return raw.decode("utf-8")
         except UnicodeDecodeError as error:
