@@ -15,6 +15,13 @@ goes through this module, so that the same three promises hold everywhere:
   name appeared meanwhile, so even a file created between the check and the write is never overwritten. A
   folder is refused even with ``force``.
 
+* **No temporary outlives its write.** A write killed outright (``kill -9``, a power cut) cannot remove its
+  temporary; the next write to the same name does. A temporary is removed only when it is certainly one of ours
+  and dead: its name is exactly this module's pattern for that target (``.<name>.<8 random characters>.tmp``), it
+  is a regular file (never a link, never followed) owned by the current user, older than
+  :data:`STALE_TEMPORARY_S`, and no process holds the advisory lock every live write keeps on its temporary
+  (``flock``: the kernel drops it when the writer dies). Where ``flock`` does not exist nothing is removed.
+
 Names that become a single path component (a report name, a run name) are checked with :func:`check_name`.
 
 Examples
@@ -35,13 +42,20 @@ import contextlib
 import errno
 import io
 import os
+import re
 import stat
 import tempfile
+import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import IO, Any
 
 import numpy as np
+
+try:
+    import fcntl
+except ImportError:  # Windows: no flock, so no stale temporary can be told from a live one
+    fcntl = None  # type: ignore[assignment]
 
 __all__ = [
     "OutputError",
@@ -57,6 +71,10 @@ __all__ = [
 # Characters a name that becomes one path component must not hold (a separator, NUL, or a control character).
 _FORBIDDEN_NAME_CHARACTERS = frozenset("/\\\0") | frozenset(chr(c) for c in range(32)) | {chr(127)}
 MAX_NAME_LENGTH = 128
+#: Seconds a temporary must have existed before a write may remove it as stale (a live write takes its lock
+#: microseconds after creating it, so this only closes that window).
+STALE_TEMPORARY_S = 1.0
+_TEMPORARY_RANDOM = r"[a-z0-9_]{8}"  # tempfile.mkstemp's random part
 
 
 class OutputError(OSError):
@@ -148,8 +166,13 @@ def open_output(
     if mode not in ("wb", "w"):
         raise ValueError(f"open_output: mode must be 'wb' or 'w', got {mode!r}.")
     path = check_output(path, force=force)
-    handle, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name[:64]}.", suffix=".tmp")
+    prefix = f".{path.name[:64]}."
+    _remove_stale_temporaries(path.parent, prefix)
+    handle, temporary = tempfile.mkstemp(dir=path.parent, prefix=prefix, suffix=".tmp")
     try:
+        if fcntl is not None:
+            with contextlib.suppress(OSError):  # a file system without locks: then no cleaner can take it either
+                fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)  # held until this process closes it or dies
         os.fchmod(handle, 0o666 & ~_umask())
         raw = os.fdopen(handle, "wb")
         file: IO[Any] = raw if mode == "wb" else io.TextIOWrapper(raw, encoding=encoding, newline="\n")
@@ -162,6 +185,38 @@ def open_output(
         with contextlib.suppress(FileNotFoundError):
             os.unlink(temporary)
         raise
+
+
+def _remove_stale_temporaries(folder: Path, prefix: str) -> None:
+    """Remove the temporaries of dead writes named ``<prefix><random>.tmp`` in ``folder`` (see the module docstring).
+
+    Each candidate is opened without following a link, checked on the open descriptor (a regular file, the same
+    one the name showed, ours, old enough) and removed only if its lock can be taken. Any failure skips it.
+    """
+    if fcntl is None:
+        return
+    pattern = re.compile(re.escape(prefix) + _TEMPORARY_RANDOM + r"\.tmp")
+    try:
+        entries = [entry.name for entry in os.scandir(folder) if pattern.fullmatch(entry.name)]
+    except OSError:
+        return
+    now = time.time()
+    for name in entries:
+        with contextlib.suppress(OSError):
+            seen = os.lstat(folder / name)
+            if not stat.S_ISREG(seen.st_mode) or seen.st_uid != os.getuid() or now - seen.st_mtime < STALE_TEMPORARY_S:
+                continue
+            handle = os.open(folder / name, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0))
+            try:
+                opened = os.fstat(handle)
+                if (opened.st_dev, opened.st_ino) != (seen.st_dev, seen.st_ino) or not stat.S_ISREG(opened.st_mode):
+                    continue
+                fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)  # fails while a live write holds it
+                current = os.lstat(folder / name)
+                if (current.st_dev, current.st_ino) == (seen.st_dev, seen.st_ino):
+                    os.unlink(folder / name)
+            finally:
+                os.close(handle)
 
 
 def _commit(temporary: Path, path: Path, force: bool) -> None:
