@@ -159,3 +159,19 @@ def test_units_per_file_on_the_command_line(tmp_path):
 def test_bad_unit_choices_are_one_line(values, message):
     with pytest.raises(ValueError, match=message):
         UnitChoice.parse(values)
+
+
+def test_the_hydra_folder_dataset_runs_the_same_checks(tmp_path, caplog):
+    from mocapbench.experiments.datasets import DatasetError, load_clips
+
+    _write(rig_motion(num_joints=31, seed=8), tmp_path / "inches.bvh", 2.54)
+    _write(_turned_by_the_root(rig_motion(num_joints=31, speed_cm_s=0.0, seed=9)), tmp_path / "turned.bvh", 1.0)
+    spec = {"name": "studio", "kind": "folder", "path": str(tmp_path)}
+    with caplog.at_level("WARNING"):
+        motions = load_clips(spec)
+    assert [m.up_axis for m in motions] == ["y", "z"]
+    assert any("inches.bvh" in r.message and "pass --units inch" in r.message for r in caplog.records)
+    with pytest.raises(DatasetError, match=r"'studio': .*inches\.bvh.*--strict.*strict_units: true"):
+        load_clips({**spec, "strict_units": True})
+    sidecar_path(tmp_path / "inches.bvh").write_text("units: inch\n")
+    assert [m.source_unit_cm for m in load_clips({**spec, "strict_units": True})] == [2.54, 1.0]

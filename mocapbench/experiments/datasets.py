@@ -9,8 +9,10 @@ A dataset config is a plain mapping with a ``kind``:
     ``split`` (``cmu_train``, ``cmu_test``, ``cmu_all``) or an explicit ``clips`` list (e.g. ``[09_06]``) read
     from ASF/AMC under ``data_dir``; ``train`` names a split or a clip list in the same form.
 ``folder``
-    Every ``*.bvh`` and ``*.amc`` file in the folder ``path`` (:func:`mocapbench.datasets.cmu.load_folder`: an AMC
-    is read on the folder's ASF; ``length_unit_cm``, ``drop_first_frame`` and ``fps`` are passed on); ``train``
+    Every ``*.bvh`` and ``*.amc`` file in the folder ``path``, each read and checked by
+    :func:`mocapbench.io.formats.read_motion` as the command line reads it (``units`` (or ``length_unit_cm``),
+    ``up``, ``drop_first_frame`` and ``fps`` passed on, the file's ``FILE.units`` sidecar read when ``units`` is
+    null, the unit and up-axis checks logged, or fatal with ``strict_units: true``); ``train``
     another folder (``train: {path: ...}``) or ``null`` to fit learned codecs on the measured clips themselves
     (stated in the report as in-sample).
 ``cmu_tree``
@@ -319,22 +321,11 @@ def _iter_full_rate(spec: Mapping[str, Any], names: Sequence[str] | None) -> Ite
                 yield (amc(path, asf_path, name, 120.0) if asf_path is not None else
                        read_bvh(path, length_unit_cm=cmu.CMU_CM_PER_UNIT, drop_first_frame=True, name=name))
     elif kind == "folder":
-        from mocapbench.io.asf_amc import find_asf
-
         for file in _folder_files(spec, where):
-            if file.stem not in keep:
-                continue
-            try:
-                if file.suffix.lower() == ".bvh":
-                    motion = read_bvh(file, length_unit_cm=float(spec.get("length_unit_cm", 1.0)),
-                                      drop_first_frame=bool(spec.get("drop_first_frame", False)))
-                else:
-                    motion = amc(file, find_asf(file), file.stem, float(spec.get("fps", 120.0)))
-            except (MotionFormatError, OSError, ValueError) as error:
-                # One unreadable file must not fail every job: it is named in one line and the rest runs.
-                log.warning("skipped %s: %s", file, " ".join(str(error).split()))
-                continue
-            yield motion
+            if file.stem in keep:
+                motion = _read_folder_file(spec, file)
+                if motion is not None:
+                    yield motion
     elif kind == "cmu_tree":
         for name, file, asf_path in _tree_files(spec, where):
             if name not in keep:
@@ -479,9 +470,34 @@ def _cmu(spec: Mapping[str, Any], where: str) -> list[Motion]:
 
 
 def _folder(spec: Mapping[str, Any], where: str) -> list[Motion]:
-    from mocapbench.datasets import cmu
+    return list(_iter_full_rate(spec, None))
 
-    path = Path(str(_require(spec, "path", where))).expanduser()
-    return list(cmu.load_folder(path, length_unit_cm=float(spec.get("length_unit_cm", 1.0)),
-                                drop_first_frame=bool(spec.get("drop_first_frame", False)),
-                                fps=float(spec.get("fps", 120.0))))
+
+def _read_folder_file(spec: Mapping[str, Any], file: Path) -> Motion | None:
+    """One file of a ``kind: folder`` dataset, read and checked as the command line reads it.
+
+    :func:`mocapbench.io.formats.read_motion` with the dataset's ``units`` (or the older ``length_unit_cm``),
+    ``up``, ``fps`` and ``drop_first_frame``, and the file's sidecar (``FILE.units``) when the dataset gives no
+    unit: a unit that does not fit the body is logged as a warning in one line, or, with ``strict_units: true``,
+    fails the run (:class:`DatasetError`). A file no reader takes is logged and skipped (None), so one bad file does
+    not fail every job.
+    """
+    from mocapbench.io.formats import UnitCheckError, read_motion
+
+    units = spec.get("units")
+    if units is None and spec.get("length_unit_cm") is not None:
+        units = float(spec["length_unit_cm"])
+    try:
+        motion, warnings = read_motion(
+            file, units=units, up=spec.get("up"), fps=float(spec.get("fps") or 120.0),
+            drop_first_frame=bool(spec.get("drop_first_frame", False)), strict=bool(spec.get("strict_units", False)),
+        )
+    except UnitCheckError as error:
+        raise DatasetError(f"dataset {spec.get('name', '?')!r}: {error} (strict_units: true)") from None
+    except (MotionFormatError, OSError, ValueError) as error:
+        log.warning("skipped %s: %s", file, " ".join(str(error).split()))
+        return None
+    for warning in warnings:
+        log.warning("%s", warning)
+    log.info("%s: %s, %s up", file, motion.source_unit_cm, motion.up_axis)
+    return motion
