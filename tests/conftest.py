@@ -72,6 +72,22 @@ def cmu_full_dir() -> Path:
 
 
 @pytest.fixture(scope="session")
+def bandai_dir() -> Path:
+    """The Bandai Namco data folder (``manifest.csv``, ``bvh/``), found as
+    :func:`mocapbench.datasets.bandai.bandai_data_dir`: skipped with where it looked when missing, a failure under
+    ``CI=true``."""
+    from mocapbench.datasets.bandai import bandai_data_dir
+    from mocapbench.datasets.cmu import DataNotFoundError
+
+    try:
+        return bandai_data_dir()
+    except DataNotFoundError as error:
+        if running_in_ci():
+            raise
+        pytest.skip(f"needs the Bandai Namco data folder (CI=true makes this a failure): {error}")
+
+
+@pytest.fixture(scope="session")
 def acl_codec():
     """``create("acl", **params)``. Where ACL's headers or a C++ compiler are missing the test is skipped with the
     registry's one-line reason, except under ``CI=true`` (CI has ../shared), where it fails."""

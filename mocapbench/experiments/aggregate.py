@@ -105,7 +105,8 @@ def read_errors(folders: Iterable[str | Path]) -> pd.DataFrame:
 
 
 # Per-config columns carried into the curve points when the rows hold them: codec traits, timing facts.
-_FIRST = ("codes_rotations", "family", "needs_model", "random_access", "latency_frames", "dataset_desc", "cmu_data")
+_FIRST = ("codes_rotations", "family", "needs_model", "random_access", "latency_frames", "dataset_desc", "cmu_data",
+          "bandai_data")
 _SUMS = ("encode_cpu_s", "decode_cpu_s")
 _MAXES = ("encode_wall_spread_s", "decode_wall_spread_s", "encode_load_after", "decode_load_after",
           "encode_threads", "decode_threads", "shell_max_err_cm", "shell_p99_err_cm")  # shell: worst clip, as L∞

@@ -15,6 +15,10 @@ A dataset config is a plain mapping with a ``kind``:
     null, the unit and up-axis checks logged, or fatal with ``strict_units: true``); ``train``
     another folder (``train: {path: ...}``) or ``null`` to fit learned codecs on the measured clips themselves
     (stated in the report as in-sample).
+``bandai``
+    The Bandai Namco Research Motion Dataset 1 (:mod:`mocapbench.datasets.bandai`: a game rig, 30 fps): ``split``
+    ``bandai_test``, ``bandai_train`` or ``bandai_all`` (the manifest's ``split`` column) read from BVH under
+    ``data_dir`` (null: ``$MOCAPBENCH_BANDAI_DIR``, else ``../shared/data/bandai``); ``train`` names another split.
 ``cmu_tree``
     The whole CMU database as a user downloads it (``dataset=cmu_full``): every ``SS_TT.amc`` below ``path``, at
     any depth, read on the ``SS.asf`` beside it (the layout of CMU's ``allasfamc.zip``, ``subjects/SS/``, and of
@@ -57,6 +61,7 @@ __all__ = [
     "describe_dataset",
     "describe_training",
     "cmu_used",
+    "bandai_used",
 ]
 
 # Bytes per frame of a CMU AMC file (31 joints; 799 on the 63 clips of ../shared/data/cmu) and of a CMU BVH file,
@@ -167,6 +172,15 @@ def cmu_used(spec: Mapping[str, Any]) -> bool:
     return bool(kinds & {"cmu", "cmu_tree"})
 
 
+def bandai_used(spec: Mapping[str, Any]) -> bool:
+    """Whether ``spec`` (or its training set) reads the Bandai Namco dataset, so the report must cite it."""
+    spec = _plain(spec)
+    kinds = {spec.get("kind")}
+    if isinstance(spec.get("train"), Mapping):
+        kinds.add(spec["train"].get("kind", spec.get("kind")))
+    return "bandai" in kinds
+
+
 def _inherit(parent: Mapping[str, Any], train: Any) -> dict[str, Any]:
     """The training spec: a mapping that inherits ``kind`` and ``data_dir`` from the measured dataset."""
     if not isinstance(train, Mapping):
@@ -206,6 +220,8 @@ def _describe_clips(spec: Mapping[str, Any]) -> str:
         return f"CMU ASF/AMC {what}"
     if kind == "folder":
         return f"folder {spec.get('path')}"
+    if kind == "bandai":
+        return f"Bandai Namco BVH {spec.get('split')}"
     if kind == "cmu_tree":
         what = f"clips {','.join(str(c) for c in spec['clips'])}" if spec.get("clips") else "every clip"
         less = f" except {len(spec['exclude'])} excluded" if spec.get("exclude") else ""
@@ -224,8 +240,8 @@ def _load_cached(key: str) -> tuple[Motion, ...]:
         motions = _cmu(spec, where)
     elif kind == "folder":
         motions = _folder(spec, where)
-    elif kind == "cmu_tree":
-        motions = list(iter_clips(spec))
+    elif kind in ("cmu_tree", "bandai"):
+        motions = list(_iter_full_rate(spec, None))
     else:
         raise DatasetError(f"dataset {where}: `kind` must be one of {list(_KINDS)}, got {kind!r}.")
     if not motions:
@@ -234,7 +250,7 @@ def _load_cached(key: str) -> tuple[Motion, ...]:
     return tuple(motion.every(step) for motion in motions)
 
 
-_KINDS = ("synthetic", "cmu", "folder", "cmu_tree")
+_KINDS = ("synthetic", "cmu", "folder", "cmu_tree", "bandai")
 
 
 def catalogue(spec: Mapping[str, Any]) -> list[ClipRef]:
@@ -260,6 +276,8 @@ def catalogue(spec: Mapping[str, Any]) -> list[ClipRef]:
         refs = [ClipRef(file.stem, _estimate_frames(file)) for file in _folder_files(spec, where)]
     elif kind == "cmu_tree":
         refs = [ClipRef(name, _estimate_frames(file)) for name, file, _ in _tree_files(spec, where)]
+    elif kind == "bandai":
+        refs = [ClipRef(name, frames) for name, frames, _ in _bandai_files(spec, where)]
     else:
         raise DatasetError(f"dataset {where}: `kind` must be one of {list(_KINDS)}, got {kind!r}.")
     if not refs:
@@ -334,6 +352,20 @@ def _iter_full_rate(spec: Mapping[str, Any], names: Sequence[str] | None) -> Ite
                 yield read_bvh(file, length_unit_cm=cmu.CMU_CM_PER_UNIT, drop_first_frame=True, name=name)
             else:
                 yield amc(file, asf_path, name, float(spec.get("fps", 120.0)))
+    elif kind == "bandai":
+        for name, _, file in _bandai_files(spec, where):
+            if name in keep:
+                yield read_bvh(file, name=name)  # cm, every frame a frame of motion
+
+
+def _bandai_files(spec: Mapping[str, Any], where: str) -> list[tuple[str, int, Path]]:
+    """(name, frames, BVH file) of every clip of a ``kind: bandai`` spec."""
+    from mocapbench.datasets import bandai
+
+    split = str(_require(spec, "split", where))
+    if split not in bandai.SPLITS:
+        raise DatasetError(f"dataset {where}: `split` must be one of {list(bandai.SPLITS)}, got {split!r}.")
+    return bandai.clip_files(split, _resolve_data_dir(spec.get("data_dir")))
 
 
 def _cmu_selection(spec: Mapping[str, Any], where: str) -> tuple[Path, Any, Any, str]:

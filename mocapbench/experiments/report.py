@@ -440,9 +440,16 @@ def build_report(
                              "--name", name, "--anchor", anchor,
                              *[a for b in bounds if b not in BOUNDS_CM for a in ("--bounds", f"{b:g}")]]))
     doc.code("\n".join(lines))
-    if "cmu_data" in rows and rows["cmu_data"].fillna(False).astype(bool).any():
+    used = {column: column in rows and rows[column].fillna(False).astype(bool).any()
+            for column in ("cmu_data", "bandai_data")}
+    if any(used.values()):
+        from mocapbench.datasets.bandai import ACKNOWLEDGEMENT as BANDAI_ACKNOWLEDGEMENT
+
         doc.heading("Acknowledgement")
-        doc.paragraph(CMU_ACKNOWLEDGEMENT)
+        if used["cmu_data"]:
+            doc.paragraph(CMU_ACKNOWLEDGEMENT)
+        if used["bandai_data"]:
+            doc.paragraph(BANDAI_ACKNOWLEDGEMENT)
 
     write_results(out, rows, points)
     write_text(out / "report.md", doc.markdown())

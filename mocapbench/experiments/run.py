@@ -144,6 +144,7 @@ def run_job(cfg: Any, output_dir: Path, fitted_dir: Path | None = None) -> dict[
                 "dataset_desc": datasets.describe_dataset(dataset_cfg),
                 "train_set": datasets.describe_training(dataset_cfg),
                 "cmu_data": datasets.cmu_used(dataset_cfg),
+                "bandai_data": datasets.bandai_used(dataset_cfg),
                 **fit,
                 "job_dir": str(output_dir),
                 "shard_index": index,
