@@ -15,7 +15,7 @@ import warnings
 import numpy as np
 import pandas as pd
 
-__all__ = ["pareto_front", "bd_rate_percent", "bd_rate_table", "DEFAULT_ANCHOR"]
+__all__ = ["pareto_front", "rate_at_error", "common_error", "bd_rate_percent", "bd_rate_table", "DEFAULT_ANCHOR"]
 
 # The strongest generic pipeline (channel-major, order-1/2 prediction, byte shuffle, zstd): what a user would
 # otherwise build from off-the-shelf tools, so a negative BD-rate means beating the best generic baseline.
@@ -47,6 +47,51 @@ def pareto_front(rate: np.ndarray, error: np.ndarray) -> tuple[np.ndarray, np.nd
         out_rate.append(r)
         out_error.append(e)
     return np.array(out_rate), np.array(out_error)
+
+
+def rate_at_error(rate, error, target_cm: float) -> float:
+    """The rate of a curve at exactly ``target_cm`` of error, interpolated on its Pareto front in log-log.
+
+    Between two front points, ``log(rate)`` is linear in ``log(error)`` (the space BD-rate integrates in), so a
+    codec's rate at an L∞ it was not run at is read off its own curve, never taken from the nearest grid point.
+
+    Parameters
+    ----------
+    rate, error : array-like, shape (N,)
+        A codec's points: any positive rate measure (bits per joint per frame, or 1 / compression ratio) and the
+        error in cm.
+    target_cm : float
+
+    Returns
+    -------
+    float
+        The rate at ``target_cm``; NaN when the front does not span it (no extrapolation).
+    """
+    front_rate, front_error = pareto_front(rate, error)
+    if not len(front_rate) or not front_error.min() <= target_cm <= front_error.max():
+        return float("nan")
+    # np.interp needs increasing x: the front's error falls as its rate rises, so read it backwards.
+    log_rate = np.interp(np.log(target_cm), np.log(front_error[::-1]), np.log(front_rate[::-1]))
+    return float(np.exp(log_rate))
+
+
+def common_error(curves, at_most_cm: float) -> float:
+    """The largest error <= ``at_most_cm`` that every curve's Pareto front spans (NaN when there is none).
+
+    Parameters
+    ----------
+    curves : iterable of (rate, error) pairs of arrays
+    at_most_cm : float
+        The bound the comparison is made at: codecs are compared at it when they all reach it, else at the
+        largest error below it they share.
+    """
+    low, high = 0.0, float(at_most_cm)
+    for rate, error in curves:
+        _, front_error = pareto_front(rate, error)
+        if not len(front_error):
+            return float("nan")
+        low, high = max(low, front_error.min()), min(high, front_error.max())
+    return high if high >= low else float("nan")
 
 
 def bd_rate_percent(anchor_rate, anchor_error, test_rate, test_error, method: str = "pchip") -> tuple[float, str]:

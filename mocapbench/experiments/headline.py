@@ -4,7 +4,9 @@ Input: :func:`mocapbench.experiments.aggregate.curve_points` (one row per datase
 the failed jobs (:func:`mocapbench.experiments.aggregate.read_errors`). Each codec's best complete config under
 the bound (highest ratio whose worst-clip L∞ stays below it) is ranked; a codec with no such config, a codec whose
 every job failed and a codec that cannot run here (:data:`mocapbench.codecs.registry.UNAVAILABLE`) keep a row with
-the reason instead of a rank. Beside rate and error the columns say what a user choosing a codec must know: does
+the reason instead of a rank. Codecs are ranked by the measured config (the stream a user gets); every ratio
+*between* codecs (the winner's margin over the runner-up) is taken at one L∞, read off each codec's curve
+(log-log interpolation on its Pareto front, as BD-rate does), never from two grid points at two errors. Beside rate and error the columns say what a user choosing a codec must know: does
 it output rotations (can it write BVH/glTF), does it need a model fit for the skeleton (and how many bytes), its
 latency in frames, random access, its family.
 """
@@ -16,7 +18,7 @@ from typing import Iterable, Sequence
 import numpy as np
 import pandas as pd
 
-__all__ = ["DEFAULT_BOUNDS_CM", "TRAIT_COLUMNS", "headline_table", "winner_sentences", "synthetic_only_note",
+__all__ = ["DEFAULT_BOUNDS_CM", "TRAIT_COLUMNS", "EQUAL_CR", "EQUAL_FACTOR", "EQUAL_AT", "headline_table", "winner_sentences", "synthetic_only_note",
            "is_synthetic", "failure_reasons"]
 
 DEFAULT_BOUNDS_CM = (1.0, 3.0)
@@ -191,20 +193,57 @@ def headline_table(
                     unranked.append({"codec": codec, **_traits(codec, None),
                                      "config": f"unavailable here: {reason}"})
             ranked.sort(key=lambda r: -float(r["CR"]))
+            _equal_error_columns(ranked, ds, bound)
             for rank, row in enumerate(ranked, 1):
                 out.append({"dataset": dataset, "L∞ bound": f"< {bound:g} cm", "rank": rank, **row})
             for row in unranked:
                 out.append({"dataset": dataset, "L∞ bound": f"< {bound:g} cm", "rank": "–", **row})
     # What decides first (rate, error, rotations, model, latency), then speeds and the rest: the leading
     # columns fit a laptop screen, the others scroll.
-    columns = ["dataset", "L∞ bound", "rank", "codec", "config", "CR", "bits/joint/frame", "L∞ cm",
+    columns = ["dataset", "L∞ bound", "rank", "codec", "config", "CR", EQUAL_CR, EQUAL_FACTOR, EQUAL_AT,
+               "bits/joint/frame", "L∞ cm",
                "rotations (BVH/glTF)", "needs model", "latency frames", "random access", "decode frames/s",
                "encode frames/s", "mean cm", "model bytes", "family", "clips", "note"]
     table = pd.DataFrame(out)
     for column in columns:
         if column not in table:
-            table[column] = np.nan if column in _METRICS.values() else ""
+            table[column] = np.nan if column in (*_METRICS.values(), EQUAL_CR, EQUAL_FACTOR, EQUAL_AT) else ""
     return table[columns]
+
+
+#: Columns of the comparison at equal error: each codec's ratio read off its own curve at exactly the bound, and
+#: rank 1's ratio over this codec's at the largest L∞ <= the bound both curves reach (both interpolated in log-log
+#: on the Pareto fronts, :func:`mocapbench.experiments.bdrate.rate_at_error`). The ``CR`` column is the best
+#: measured config under the bound (the stream a user gets); a ratio between two codecs is never taken from it,
+#: because two grid points sit at two different errors.
+EQUAL_CR = "CR at L∞ = bound"
+EQUAL_FACTOR = "rank 1 ÷ this at equal L∞"
+EQUAL_AT = "equal L∞ cm"
+
+
+def _curve(points: pd.DataFrame, codec: str) -> tuple[np.ndarray, np.ndarray]:
+    """``(1 / compression ratio, L∞ cm)`` of a codec's complete configs: a rate curve in the space BD-rate uses."""
+    group = points[(points["codec"] == codec) & points["complete"]]
+    ratio = group["compression_ratio"].to_numpy(float)
+    with np.errstate(divide="ignore"):
+        return 1.0 / ratio, group["max_err_cm"].to_numpy(float)
+
+
+def _equal_error_columns(ranked: list[dict], points: pd.DataFrame, bound: float) -> None:
+    """Fill :data:`EQUAL_CR`, :data:`EQUAL_FACTOR` and :data:`EQUAL_AT` of the ranked rows (rank 1 first)."""
+    from mocapbench.experiments.bdrate import common_error, rate_at_error
+
+    curves = {row["codec"]: _curve(points, row["codec"]) for row in ranked}
+    for row in ranked:
+        row[EQUAL_CR] = 1.0 / rate_at_error(*curves[row["codec"]], bound)
+    if not ranked:
+        return
+    first = curves[ranked[0]["codec"]]
+    for row in ranked[1:]:
+        mine = curves[row["codec"]]
+        at = common_error([first, mine], bound)
+        row[EQUAL_AT] = at
+        row[EQUAL_FACTOR] = rate_at_error(*mine, at) / rate_at_error(*first, at) if np.isfinite(at) else np.nan
 
 
 def _default_config_text(row: pd.Series) -> str:
@@ -232,8 +271,13 @@ def winner_sentences(table: pd.DataFrame) -> list[str]:
                 f"({float(first['bits/joint/frame']):.3g} bits/joint/frame, L∞ {float(first['L∞ cm']):.3g} cm)")
         if len(ranked) > 1:
             second = ranked.iloc[1]
-            text += (f", {float(first['CR']) / float(second['CR']):.2g}x the runner-up {second['codec']} "
-                     f"({_ratio(float(second['CR']))})")
+            factor, at = float(second[EQUAL_FACTOR]), float(second[EQUAL_AT])
+            if np.isfinite(factor):
+                text += (f"; at equal L∞ ({at:.3g} cm, read off each codec's curve) it is {factor:.3g}x the "
+                         f"runner-up {second['codec']} (best config under the bound {_ratio(float(second['CR']))})")
+            else:
+                text += (f"; the runner-up {second['codec']} ({_ratio(float(second['CR']))}) cannot be compared "
+                         f"with it at equal L∞: their measured L∞ ranges do not overlap")
         if first["rotations (BVH/glTF)"] != "yes":
             rotations = ranked[ranked["rotations (BVH/glTF)"] == "yes"]
             if rotations.empty:

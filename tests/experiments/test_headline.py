@@ -63,7 +63,9 @@ def test_the_winner_is_stated_with_its_margin_and_the_best_rotation_codec():
     sentences = winner_sentences(headline_table(POINTS, (0.6, 1.0), unavailable={}))
     assert sentences[0].startswith("cmu_test, L∞ < 0.6 cm: mcb-linf wins at 90:1")
     assert "no codec that outputs rotations" in sentences[0]
-    assert "3x the runner-up quant-delta-zstd (30:1)" in sentences[1]
+    # mcb-linf has one point (0.5 cm), quant-delta-zstd none under 0.8 cm: no L∞ at which both were measured.
+    assert "the runner-up quant-delta-zstd (30:1) cannot be compared with it at equal L∞" in sentences[1]
+    assert "3x" not in sentences[1]
     assert "the best codec that outputs rotations (BVH/glTF) is quant-rot-zstd at 5:1" in sentences[1]
     assert "needs a model" in sentences[1]
     nothing = winner_sentences(headline_table(POINTS, (0.1,), unavailable={}))
@@ -101,3 +103,23 @@ def test_a_claim_needs_five_real_clips():
     guarded = guard_verdicts(claims, rows)["holds?"].tolist()
     assert guarded == ["too few clips (1 real clip; a verdict needs 5)", "no",
                        "too few clips (0 real clips; a verdict needs 5)", "not run"]
+
+
+def test_the_margin_over_the_runner_up_is_taken_at_equal_error_on_each_curve():
+    # Grid points: b's best under 1 cm is 20:1 at 0.8 cm, a's is 10:1 at 0.5 cm (2x apart at two errors).
+    # On their curves at exactly 1 cm (log-log): a = 20:1, b = 20 * 1.5 ** (log 1.25 / log 1.5) = 25:1: 1.25x.
+    points = pd.DataFrame([_point("a", 10.0, 0.5), _point("a", 40.0, 2.0), _point("b", 20.0, 0.8),
+                           _point("b", 30.0, 1.2)])
+    table = headline_table(points, (1.0,), unavailable={})
+    assert list(table["codec"]) == ["b", "a"]
+    assert list(table["CR"]) == [20.0, 10.0]
+    assert table["CR at L∞ = bound"].tolist() == pytest.approx([25.0, 20.0])
+    assert table["rank 1 ÷ this at equal L∞"].iloc[1] == pytest.approx(1.25)
+    assert table["equal L∞ cm"].iloc[1] == 1.0
+    sentence = winner_sentences(table)[0]
+    assert "at equal L∞ (1 cm, read off each codec's curve) it is 1.25x the runner-up a" in sentence
+    assert "2x" not in sentence
+    # A bound beyond one curve: compared at the largest L∞ both reach (1.2 cm), never extrapolated.
+    wide = headline_table(points, (3.0,), unavailable={})
+    assert wide["equal L∞ cm"].iloc[1] == 1.2
+    assert np.isnan(wide.loc[wide["codec"] == "b", "CR at L∞ = bound"].item())
