@@ -16,6 +16,7 @@ from typing import Iterable
 import numpy as np
 import pandas as pd
 
+from mocapbench.experiments.animator_metrics import pool_animator_columns
 from mocapbench.experiments.document import markdown_table
 from mocapbench.experiments.results import ERRORS_FILE, RESULTS_FILE, CorruptResultsError, read_rows, scan_rows
 from mocapbench.io.safe_output import check_output, write_text
@@ -118,8 +119,9 @@ def curve_points(data: pd.DataFrame) -> pd.DataFrame:
 
     Rate is pooled (total bytes over total joint-frames, so long clips weigh more, as a whole dataset would be
     stored); ``max_err_cm`` is the worst clip's L-inf, ``p99_err_cm`` the worst clip's p99, ``mean_err_cm`` and
-    ``kg_percent`` frame-weighted means; speeds are total frames over total CPU seconds (``encode_fps``,
-    ``decode_fps``; wall seconds for rows without CPU times) and over wall seconds (``*_wall_fps``). ``clips``
+    ``kg_percent`` frame-weighted means; what animators see is pooled as
+    :func:`mocapbench.experiments.animator_metrics.pool_animator_columns` says; speeds are total frames over total
+    CPU seconds (``encode_fps``, ``decode_fps``; wall seconds for rows without CPU times) and over wall seconds (``*_wall_fps``). ``clips``
     counts the clips;
     a config that failed on some clip of the dataset has fewer clips than the others and is flagged in
     ``complete``.
@@ -162,6 +164,8 @@ def curve_points(data: pd.DataFrame) -> pd.DataFrame:
         seconds = f"{step}_cpu_s" if f"{step}_cpu_s" in out and out[f"{step}_cpu_s"].notna().all() else f"{step}_s"
         out[f"{step}_fps"] = out["frames"] / out[seconds].replace(0, np.nan)
         out[f"{step}_wall_fps"] = out["frames"] / out[f"{step}_s"].replace(0, np.nan)
+    out = out.merge(pool_animator_columns(frame, ["dataset", "codec", "config_hash"]), how="left",
+                    on=["dataset", "codec", "config_hash"])
     most = out.groupby("dataset")["clips"].transform("max")
     out["complete"] = out["clips"] == most
     return out.drop(columns=["w_mean", "w_kg"])

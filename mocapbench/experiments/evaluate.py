@@ -11,11 +11,12 @@ from typing import Any
 import numpy as np
 
 from mocapbench import metrics
-from mocapbench.codecs.base import Codec
+from mocapbench.codecs.base import Codec, Decoded
+from mocapbench.experiments.animator_metrics import animator_columns
 from mocapbench.metrics.timing import measure
 from mocapbench.motion import Motion
 
-__all__ = ["evaluate", "package_versions", "codec_traits", "TimingSettings"]
+__all__ = ["evaluate", "evaluate_with_decoded", "package_versions", "codec_traits", "TimingSettings"]
 
 _PACKAGES = ("mocapbench", "numpy", "scipy", "torch", "PyWavelets", "zstandard", "bitarray")
 
@@ -68,6 +69,17 @@ def evaluate(
     reference_positions: np.ndarray | None = None,
     timing: TimingSettings | None = None,
 ) -> dict[str, Any]:
+    """The results row of :func:`evaluate_with_decoded`, without the decoded motion."""
+    return evaluate_with_decoded(codec, motion, reference_positions=reference_positions, timing=timing)[0]
+
+
+def evaluate_with_decoded(
+    codec: Codec,
+    motion: Motion,
+    *,
+    reference_positions: np.ndarray | None = None,
+    timing: TimingSettings | None = None,
+) -> tuple[dict[str, Any], Decoded]:
     """Encode and decode ``motion``, timed as :class:`TimingSettings` says, and measure the result.
 
     Parameters
@@ -82,7 +94,7 @@ def evaluate(
 
     Returns
     -------
-    dict
+    row : dict
         ``codec``, ``param_<field>`` for every config field, ``config_hash``, clip facts (``clip``, ``frames``,
         ``joints``, ``fps``, ``height_cm``), rate (``raw_bytes``, ``bitstream_bytes``, ``model_bytes``,
         ``compression_ratio``, ``bits_per_joint_frame``), distortion (``max_err_cm``, ``max_err_percent_height``,
@@ -92,7 +104,11 @@ def evaluate(
         of the process, which the cost estimator of :mod:`mocapbench.experiments.cost` reads; ``encode_fps``,
         ``decode_fps``: frames per CPU second; ``encode_wall_spread_s``, ``encode_repeats``, ``encode_warmup``,
         ``encode_threads``, ``encode_load_before``, ``encode_load_after`` and the same for decode), the codec's
-        traits (:func:`codec_traits`) and package versions. KG is NaN for a static clip, where it is undefined.
+        traits (:func:`codec_traits`), what animators see (end sites, jitter, foot sliding, bone lengths, joint
+        rotations: :mod:`mocapbench.experiments.animator_metrics`) and package versions. KG is NaN for a static
+        clip, where it is undefined.
+    decoded : Decoded
+        What the last timed decode returned (the report's player shows it).
     """
     timing = timing or TimingSettings()
     reference = motion.positions() if reference_positions is None else reference_positions
@@ -152,8 +168,9 @@ def evaluate(
             **encode_timing.as_columns("encode"),
             **decode_timing.as_columns("decode"),
             **codec_traits(codec),
+            **animator_columns(motion, positions, decoded.motion, reference),
         }
     )
     row.update(stats)
     row.update(package_versions())
-    return row
+    return row, decoded

@@ -80,9 +80,10 @@ def run_job(cfg: Any, output_dir: Path, fitted_dir: Path | None = None) -> dict[
     ----------
     cfg : DictConfig
         The composed ``benchmark`` config (``codec``, ``dataset``, ``shard``, ``threads_per_job``,
-        ``save_example``).
+        ``save_example``, ``save_worst``).
     output_dir : Path
-        The job's folder: ``results.jsonl``, ``errors.jsonl``, ``example.npz`` and ``job.json`` go there.
+        The job's folder: ``results.jsonl``, ``errors.jsonl``, ``example.npz``, ``worst.npz``
+        (:mod:`mocapbench.experiments.worst_clip`) and ``job.json`` go there.
     fitted_dir : Path, optional
         Where the sweep keeps learned state shared by its jobs (``<sweep dir>/fitted``); default
         ``<output_dir>/fitted``.
@@ -98,7 +99,8 @@ def run_job(cfg: Any, output_dir: Path, fitted_dir: Path | None = None) -> dict[
     from tqdm import tqdm
 
     from mocapbench.experiments import datasets, fitted, shards
-    from mocapbench.experiments.evaluate import evaluate
+    from mocapbench.experiments.evaluate import evaluate_with_decoded
+    from mocapbench.experiments.worst_clip import save_worst, worst_error
     from mocapbench.experiments.sweeper import JOB_FILE
 
     start = time.perf_counter()
@@ -151,14 +153,20 @@ def run_job(cfg: Any, output_dir: Path, fitted_dir: Path | None = None) -> dict[
                 "shard_count": total,
             }
             example = cfg.get("save_example", True) and index == 0 and not (output_dir / EXAMPLE_FILE).exists()
+            keep_worst = cfg.get("save_worst", True)
+            worst = worst_error(output_dir)
             motions = datasets.iter_clips(dataset_cfg, todo)
             for motion in tqdm(motions, total=len(todo), desc=f"{codec.name} clips", unit="clip", leave=False,
                                disable=None):
                 try:
                     reference = motion.positions()
-                    row = evaluate(codec, motion, reference_positions=reference, timing=timing)
+                    row, decoded = evaluate_with_decoded(codec, motion, reference_positions=reference,
+                                                         timing=timing)
                     if example and motion.name == clips[0]:
                         _save_example(output_dir, codec, motion, reference)
+                    if keep_worst and row["max_err_cm"] > worst:
+                        save_worst(output_dir, motion, reference, decoded.positions, row)
+                        worst = row["max_err_cm"]
                 except Exception as error:  # noqa: BLE001 - every failure is recorded and the job goes on
                     fail("evaluate", error, motion.name)
                     continue

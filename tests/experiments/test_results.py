@@ -69,13 +69,13 @@ def test_corrupt_line_marks_the_job_unfinished_and_resume_redoes_only_its_clip(c
 
     from mocapbench.experiments import evaluate as evaluate_module
 
-    original, seen = evaluate_module.evaluate, []
+    original, seen = evaluate_module.evaluate_with_decoded, []
 
     def counting(codec, motion, **kwargs):
         seen.append(motion.name)
         return original(codec, motion, **kwargs)
 
-    monkeypatch.setattr(evaluate_module, "evaluate", counting)
+    monkeypatch.setattr(evaluate_module, "evaluate_with_decoded", counting)
     assert run_job(cfg, tmp_path)["status"] == "done"
     assert seen == ["synthetic-seed2"]
     assert sorted(r["clip"] for r in read_rows(path)) == [f"synthetic-seed{i}" for i in (1, 2, 3)]

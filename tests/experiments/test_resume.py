@@ -10,6 +10,7 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from mocapbench.experiments.aggregate import aggregate
@@ -27,7 +28,7 @@ def test_killed_job_resumes_clip_by_clip(compose_benchmark, tmp_path, monkeypatc
     cfg = compose_benchmark(["codec=quant-delta-zstd", *FOUR_CLIPS])
     from mocapbench.experiments import evaluate as evaluate_module
 
-    original = evaluate_module.evaluate
+    original = evaluate_module.evaluate_with_decoded
     calls = []
 
     def dying_evaluate(codec, motion, **kwargs):
@@ -36,7 +37,7 @@ def test_killed_job_resumes_clip_by_clip(compose_benchmark, tmp_path, monkeypatc
         calls.append(motion.name)
         return original(codec, motion, **kwargs)
 
-    monkeypatch.setattr(evaluate_module, "evaluate", dying_evaluate)
+    monkeypatch.setattr(evaluate_module, "evaluate_with_decoded", dying_evaluate)
     with pytest.raises(Killed):
         run_job(cfg, tmp_path)
     rows = read_rows(tmp_path / "results.jsonl")
@@ -50,7 +51,7 @@ def test_killed_job_resumes_clip_by_clip(compose_benchmark, tmp_path, monkeypatc
         seen.append(motion.name)
         return original(codec, motion, **kwargs)
 
-    monkeypatch.setattr(evaluate_module, "evaluate", counting_evaluate)
+    monkeypatch.setattr(evaluate_module, "evaluate_with_decoded", counting_evaluate)
     record = run_job(cfg, tmp_path)
     assert seen == ["synthetic-seed3", "synthetic-seed4"]  # finished clips are not run again
     resumed = read_rows(tmp_path / "results.jsonl")
@@ -66,14 +67,14 @@ def test_failing_clip_is_recorded_and_the_job_goes_on(compose_benchmark, tmp_pat
     cfg = compose_benchmark(["codec=quant-delta-zstd", *FOUR_CLIPS])
     from mocapbench.experiments import evaluate as evaluate_module
 
-    original = evaluate_module.evaluate
+    original = evaluate_module.evaluate_with_decoded
 
     def flaky(codec, motion, **kwargs):
         if motion.name == "synthetic-seed2":
             raise ValueError("bad clip for this test")
         return original(codec, motion, **kwargs)
 
-    monkeypatch.setattr(evaluate_module, "evaluate", flaky)
+    monkeypatch.setattr(evaluate_module, "evaluate_with_decoded", flaky)
     record = run_job(cfg, tmp_path)
     assert record["status"] == "failed" and record["errors"] == 1
     assert [r["clip"] for r in read_rows(tmp_path / "results.jsonl")] == ["synthetic-seed1", "synthetic-seed3",
@@ -113,3 +114,18 @@ def test_killed_sweep_reruns_without_duplicates_or_loss(tmp_path):
     after = {str(p): read_rows(p) for p in folder.rglob("results.jsonl")}
     for path, rows in before.items():  # nothing written before the kill was lost or changed
         assert after[path][: len(rows)] == rows
+
+
+def test_a_job_keeps_its_worst_clip_for_the_player(compose_benchmark, tmp_path):
+    from mocapbench.experiments.worst_clip import WORST_FILE, load_worst
+
+    cfg = compose_benchmark(["codec=mcb-linf", "codec.eps_cm=2.0", *FOUR_CLIPS])
+    assert run_job(cfg, tmp_path)["status"] == "done"
+    rows = read_rows(tmp_path / "results.jsonl")
+    worst_row = max(rows, key=lambda r: r["max_err_cm"])
+    worst = load_worst(tmp_path / WORST_FILE)
+    assert worst["clip"] == worst_row["clip"] and worst["max_err_cm"] == worst_row["max_err_cm"]
+    assert worst["original"].shape == worst["decoded"].shape == (40, 31, 3)
+    assert worst["names"][worst["worst_joint"]] == worst_row["worst_joint"]
+    errors = np.linalg.norm(worst["original"] - worst["decoded"], axis=-1)
+    assert errors[worst["worst_frame"], worst["worst_joint"]] == pytest.approx(worst_row["max_err_cm"], abs=1e-4)
