@@ -133,14 +133,25 @@ class Decoded:
         return f"Decoded({header.codec!r}, {header.num_frames} frames x {header.num_joints} joints, {what}, {size} bytes)"
 
 
-def _longest_chain_cm(skeleton) -> float:
-    """Largest sum of bone-offset lengths from the root to any joint (end sites included), cm."""
-    lengths = np.linalg.norm(skeleton.offsets, axis=1)
+def _longest_chain_cm(skeleton, translations=None, scales=None) -> float:
+    """Largest sum of bone lengths from the root to any joint (end sites included), cm: the offsets', or with a
+    translation track (F, J, 3) each joint's longest translation, each times the largest scale above it."""
+    if translations is None:
+        lengths = np.linalg.norm(skeleton.offsets, axis=1)
+    else:
+        lengths = np.linalg.norm(translations, axis=2).max(axis=0)
     lengths[0] = 0.0
+    stretch = np.ones(skeleton.num_joints)  # largest scale factor of each joint's frame (its own and above)
+    if scales is not None:
+        stretch = np.abs(scales).max(axis=(0, 2))
+        for joint in range(1, skeleton.num_joints):
+            stretch[joint] *= stretch[skeleton.parents[joint]]
     reach = lengths.copy()
     for joint in range(1, skeleton.num_joints):  # parents come before children
-        reach[joint] += reach[skeleton.parents[joint]]
-    ends = reach[skeleton.end_site_parents] + np.linalg.norm(skeleton.end_site_offsets, axis=1)
+        reach[joint] = lengths[joint] * stretch[skeleton.parents[joint]] + reach[skeleton.parents[joint]]
+    ends = reach[skeleton.end_site_parents] + (
+        np.linalg.norm(skeleton.end_site_offsets, axis=1) * stretch[skeleton.end_site_parents]
+    )
     return float(max(reach.max(), ends.max(initial=0.0)))
 
 
@@ -173,6 +184,11 @@ class Codec(abc.ABC):
     max_coordinate_cm: ClassVar[float] = 1e6
     # Fewest joints the codec can code (a codec that models a pose below the root needs 2).
     min_joints: ClassVar[int] = 1
+    # The per-joint tracks of a game rig a rotation codec carries besides local rotations and the root translation:
+    # "translations" (a joint that moves relative to its parent) and "scales". A rotation codec refuses a motion with
+    # a track it does not carry, in one line naming the joint, never dropping it; a codec that codes joint positions
+    # codes what the tracks do to them and needs none.
+    carries_tracks: ClassVar[tuple[str, ...]] = ()
 
     def __init__(self, config: CodecConfig | None = None) -> None:
         if config is None:
@@ -230,12 +246,36 @@ class Codec(abc.ABC):
                 f"{self.name}: needs a skeleton of at least {self.min_joints} joints, the motion {motion.name!r} has "
                 f"{motion.num_joints}."
             )
-        reach = float(np.abs(motion.root_positions).max()) + _longest_chain_cm(motion.skeleton)
+        self.check_tracks(motion)
+        reach = float(np.abs(motion.root_positions).max()) + _longest_chain_cm(
+            motion.skeleton, motion.translations, motion.scales
+        )
         if not reach <= self.max_coordinate_cm:
             raise ValueError(
                 f"{self.name}: the motion {motion.name!r} reaches {reach:.3g} cm from the origin; this codec's "
                 f"numeric range is ±{self.max_coordinate_cm:g} cm (re-centre the motion, check its length unit, or "
                 "pick another codec)."
+            )
+
+    def check_tracks(self, motion: Motion) -> None:
+        """Refuse, in one ``ValueError`` line naming the joint, a rotation codec's motion with a translation or scale
+        track the codec does not carry (:attr:`carries_tracks`)."""
+        if not self.codes_rotations:
+            return
+        names = motion.skeleton.names
+        if motion.translations is not None and "translations" not in self.carries_tracks:
+            joint = int(motion.moving_joints()[0])
+            raise ValueError(
+                f"{self.name}: joint {names[joint]!r} of {motion.name or 'the motion'!r} moves relative to its parent "
+                f"(a translation track, as a game rig's pelvis); {self.name} codes rotations on fixed bones and "
+                "cannot carry it (acl, mcb-rot and quant-rot-zstd can, as can every codec of joint positions)."
+            )
+        if motion.scales is not None and "scales" not in self.carries_tracks:
+            joint = int(motion.scaled_joints()[0])
+            raise ValueError(
+                f"{self.name}: joint {names[joint]!r} of {motion.name or 'the motion'!r} is scaled (a scale track); "
+                f"{self.name} codes rotations of unscaled bones and cannot carry it (acl and quant-rot-zstd can, as "
+                "can every codec of joint positions)."
             )
 
     def decode(self, data: bytes, *, limits: DecodeLimits | None = None) -> Decoded:

@@ -1,8 +1,9 @@
 """``acl``: the Animation Compression Library 2.1 (Frechette; github.com/nfrechette/acl) as a measured codec.
 
 The production reference for skeletal clips (the codec behind Unreal Engine's ACL plugin). Each joint becomes
-one ACL ``qvvf`` transform track: its local rotation, its local translation (the root's position; the bone
-offset, constant, for every other joint) and a unit scale. ``compress_track_list`` compresses them with the
+one ACL ``qvvf`` transform track: its local rotation, its local translation (the root's position; for every other
+joint its translation track where it moves, as a game rig's pelvis, else its bone offset, constant) and its scale
+(1 unless the motion has a scale track). ``compress_track_list`` compresses them with the
 ``qvvf_transform_error_metric`` (ACL's default), a per-track ``precision`` (cm) and ``shell_distance`` (cm)
 and ACL's recommended settings (``get_default_compression_settings()``: variable bit rates, loop optimization,
 trivial keyframe stripping), with the level, the formats and those two switches exposed as config fields.
@@ -14,7 +15,7 @@ compresses are themselves within precision of the raw ones, so the error measure
 of both steps (the sweep takes ACL at whichever setting gives the better front).
 Every frame is decoded through ACL's ``decompression_context`` (seek to ``frame / fps``, nearest sample,
 ``decompress_tracks``), the same sampling ACL's own error measurement uses. The decoder rebuilds the full
-:class:`Motion` from the decoded local rotations and root translation on the skeleton carried in the stream;
+:class:`Motion` from the decoded local rotations, translations and scales on the skeleton carried in the stream;
 positions are its forward kinematics.
 
 Stream payload: the skeleton blob (:mod:`mocapbench.codecs.skeleton_blob`: names, parents, channel orders,
@@ -71,7 +72,12 @@ def _check_motion(motion: Motion) -> None:
             f"acl: {frames} frames x {joints} joints is {40 * frames * joints} bytes of raw tracks, over ACL's "
             f"32-bit buffer limit of {MAX_RAW_BYTES} bytes; split the clip."
         )
-    for name, values in (("root position", motion.root_positions), ("bone offset", motion.skeleton.offsets)):
+    tracks = [("root position", motion.root_positions), ("bone offset", motion.skeleton.offsets)]
+    if motion.translations is not None:
+        tracks.append(("translation", motion.translations))
+    if motion.scales is not None:
+        tracks.append(("scale", motion.scales))
+    for name, values in tracks:
         too_big = np.abs(values) > _FLOAT32_MAX / 2
         if too_big.any():
             index = tuple(int(i) for i in np.argwhere(too_big)[0])
@@ -85,6 +91,7 @@ class AclCodec(Codec):
 
     name = "acl"
     codes_rotations = True
+    carries_tracks = ("translations", "scales")  # ACL's qvvf tracks: a translation and a scale on every joint
     family = "production"
     random_access = True  # ACL seeks any sample directly: decode_frames decompresses only the frames asked for
     smoke_params = {"precision_cm": 0.01, "shell_cm": 3.0}
@@ -160,13 +167,12 @@ class AclCodec(Codec):
         """ACL's compressed buffer of one clip (a whole motion, or one window of a long capture)."""
         config = self.config
         rotations = motion.rotations.astype(np.float32)
-        translations = np.empty((motion.num_frames, motion.num_joints, 3), dtype=np.float32)
-        translations[:, 0] = motion.root_positions
-        translations[:, 1:] = motion.skeleton.offsets[1:]
+        translations = motion.local_translations().astype(np.float32)  # the bone offset where a joint does not move
+        scales = None if motion.scales is None else motion.scales.astype(np.float32)
         variable = config.rotation_format.endswith("variable") or config.translation_format.endswith("variable")
         try:
             return library.compress(
-                rotations, translations, motion.skeleton.parents.astype(np.int32), motion.fps,
+                rotations, translations, motion.skeleton.parents.astype(np.int32), motion.fps, scales=scales,
                 precision_cm=config.precision_cm, shell_cm=config.shell_cm, level=config.level,
                 rotation_format=config.rotation_format, translation_format=config.translation_format,
                 optimize_loops=config.optimize_loops,
@@ -215,22 +221,32 @@ class AclCodec(Codec):
         motion's arrays (one window's float32 arrays beside them)."""
         skeleton, clips, library = self._read(header, payload)
         rotations = np.empty((stop - start, header.num_joints, 4))
-        roots = np.empty((stop - start, 3))
+        translations = np.empty((stop - start, header.num_joints, 3))
+        scales = np.empty((stop - start, header.num_joints, 3))
         for clip_start, clip_stop, buffer, _ in clips:
             first, last = max(start, clip_start), min(stop, clip_stop)
             if first >= last:
                 continue
             try:
-                part, translations, _ = library.decompress(buffer, header.num_joints, first - clip_start, last - clip_start)
+                part, moved, scaled = library.decompress(
+                    buffer, header.num_joints, first - clip_start, last - clip_start, scales=True
+                )
             except AclError as error:
                 raise BitstreamError(f"acl: {error}.") from error
-            if not (np.all(np.isfinite(part)) and np.all(np.isfinite(translations))):
+            if not (np.all(np.isfinite(part)) and np.all(np.isfinite(moved)) and np.all(np.isfinite(scaled))):
                 raise BitstreamError("acl: ACL decoded non-finite values.")
             if np.any(np.einsum("...i,...i->...", part, part) < 0.25):
                 raise BitstreamError("acl: ACL decoded a quaternion far from unit length.")
+            if np.any(scaled <= 0):
+                raise BitstreamError("acl: ACL decoded a scale <= 0.")
             rotations[first - start : last - start] = part
-            roots[first - start : last - start] = translations[:, 0]
-        motion = Motion(skeleton=skeleton, fps=header.fps, root_positions=roots, rotations=OwnedQuaternions(rotations))
+            translations[first - start : last - start] = moved
+            scales[first - start : last - start] = scaled
+        # A joint that does not move is a constant track of its float32 bone offset, which ACL returns bit for bit
+        # (the stored skeleton's offsets are those float32 values), and a joint that does not scale returns 1:
+        # Motion stores such tracks as None, so a CMU clip decodes to the rotations-only motion it was.
+        motion = Motion(skeleton=skeleton, fps=header.fps, root_positions=translations[:, 0],
+                        rotations=OwnedQuaternions(rotations), translations=translations, scales=scales)
         return motion.positions(), motion
 
     def decode_payload(self, header: Header, payload: memoryview):
