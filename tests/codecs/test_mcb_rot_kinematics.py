@@ -77,3 +77,25 @@ def test_identity_rotations_of_one_frame_give_the_rest_pose():
     for joint in range(skeleton.num_joints):  # identity rotations: the sums of the offsets down each path
         expected[joint] = offsets[joint] + (expected[skeleton.parents[joint]] if joint else 0.0)
     np.testing.assert_allclose(rest[0], expected, atol=1e-12)
+
+
+def test_translation_tracks_step_each_joint_by_its_translation_bit_for_bit():
+    """A game rig's translated joint steps from its parent by its translation of the frame, in the kernel as in the
+    closed loop's numpy kinematics (the same bits), and as in Motion's forward kinematics (float rounding)."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+    from game_rig import game_rig_motion
+
+    motion = game_rig_motion(50, seed=4)
+    steps = motion.local_translations()
+    moving = np.zeros(motion.num_joints, dtype=bool)
+    moving[motion.moving_joints()] = True
+    expected, _ = forward_kinematics(motion.rotations, motion.root_positions, motion.skeleton, translations=steps)
+    placed = kinematics.positions(motion.rotations, motion.root_positions, motion.skeleton, translations=steps,
+                                  moving=moving)
+    np.testing.assert_array_equal(placed, expected)
+    np.testing.assert_allclose(placed, motion.positions(), atol=1e-9)
+    still = kinematics.positions(motion.rotations, motion.root_positions, motion.skeleton)
+    assert np.abs(still - placed).max() > 100  # the Hips OFFSET is metres from where the pelvis is

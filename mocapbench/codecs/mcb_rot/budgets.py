@@ -20,6 +20,13 @@ carried by ``k``'s frame, so it is a virtual child of ``k`` with a bone of lengt
 ``a`` is ``C(a, k) + d``, from ``k`` itself ``d``. The budgets are then computed over joints and vertices alike; every
 joint has a lever of at least ``d`` (leaves included: their budget follows the shell distance instead of
 ``free_angle_rad``).
+
+End sites (the head, finger and toe tips a viewer draws) are points rigidly carried by their joint's frame too: with
+``ends_cm`` each joint ``k`` gets a virtual child of length ``max(d, e_k)``, ``e_k`` its longest end-site offset, so
+the bound covers every end site and a leaf with an end site has a lever instead of ``free_angle_rad``. A game rig's
+translated joint (a pelvis that moves relative to a ground root) has no fixed bone: with ``bones_cm`` its bone length
+is the longest its translation gets on any frame, so ``|p_k - p_a| <= C(a, k)`` still holds in every pose; the error
+of the translation itself is taken off the bound by the caller.
 """
 
 from __future__ import annotations
@@ -66,16 +73,18 @@ class Budgets:
     shell_cm: float = 0.0
 
 
-def _chains(skeleton: Skeleton) -> tuple[np.ndarray, np.ndarray]:
+def _chains(skeleton: Skeleton, bones: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Chain lengths ``C[a, k]`` (cm, 0 unless ``a`` is a proper ancestor of ``k``) and the ancestor matrix ``[k, a]``.
 
     ``C[a, k]`` is the sum of the bone lengths of the joints below ``a`` on the path to ``k``, added from the top
     down (``((b_1 + b_2) + b_3) ...``, as the encoder's closed loop relies on these exact floats): one ``cumsum``
     along the paths of every joint for each starting depth, with the bones at or above that depth zeroed (adding
-    zeros first changes no bit). The only Python loop builds the paths (J small list operations).
+    zeros first changes no bit). The only Python loop builds the paths (J small list operations). ``bones`` (J,) cm
+    replaces the offsets' lengths when given.
     """
     num_joints = skeleton.num_joints
-    bones = np.sqrt(np.sum(skeleton.offsets**2, axis=1))
+    if bones is None:
+        bones = np.sqrt(np.sum(skeleton.offsets**2, axis=1))
     parents = skeleton.parents.tolist()
     paths = [[0]]  # paths[k]: the joints from the root down to k
     for k in range(1, num_joints):
@@ -105,6 +114,9 @@ def joint_budgets(
     free_angle_rad: float,
     allocation_power: float = 0.0,
     shell_cm: float = 0.0,
+    *,
+    ends_cm: np.ndarray | None = None,
+    bones_cm: np.ndarray | None = None,
 ) -> Budgets:
     """Angle budgets of every joint and the root translation budget for an L-inf bound of ``bound_cm``.
 
@@ -123,15 +135,23 @@ def joint_budgets(
         closer to independent, and a finite p lets a joint that moves many joints take a finer step.
     shell_cm : float, >= 0
         Distance of the virtual vertices that must also stay within the bound, cm (0: joints only).
+    ends_cm : ndarray, shape (J,), float, cm, optional, keyword-only
+        Each joint's longest end-site offset (0 where it has none): its end sites must stay within the bound too.
+    bones_cm : ndarray, shape (J,), float, cm, optional, keyword-only
+        Each joint's bone length (default: its offset's): the longest translation of a translated joint.
     """
-    chain, ancestors = _chains(skeleton)
+    chain, ancestors = _chains(skeleton, bones_cm)
     movers = ancestors.copy()
-    if shell_cm > 0:
-        # The vertices of joint k: virtual children of k at distance d (columns J..2J-1 of the chain matrix).
-        vertices = np.where(ancestors.T, chain + shell_cm, 0.0)
-        np.fill_diagonal(vertices, shell_cm)
+    reach = np.full(skeleton.num_joints, float(shell_cm))
+    if ends_cm is not None:
+        reach = np.maximum(reach, ends_cm)
+    if reach.max(initial=0.0) > 0:
+        # The vertices and end sites of joint k: a virtual child of k at distance reach[k] (columns J..2J-1 of the
+        # chain matrix; a joint with neither has a column equal to its own, which changes no sum's maximum).
+        vertices = np.where(ancestors.T, chain + reach[None, :], 0.0)
+        np.fill_diagonal(vertices, reach)
         chain = np.concatenate([chain, vertices], axis=1)
-        np.fill_diagonal(movers, True)
+        movers[np.diag_indices_from(movers)] = reach > 0
     lever = chain.max(axis=1)  # S_a
     has_lever = lever > 0
     relative = np.divide(chain, lever[:, None], out=np.zeros_like(chain), where=has_lever[:, None])

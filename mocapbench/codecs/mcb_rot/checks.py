@@ -1,9 +1,15 @@
-"""What the ``mcb-rot`` encoder checks on every frame: joint position errors and, with a shell, ACL's vertex errors.
+"""What the ``mcb-rot`` encoder checks on every frame: joint position errors, end-site errors and, with a shell,
+ACL's vertex errors.
 
 The shell error of joint ``k`` is :mod:`mocapbench.metrics.shell`'s: the largest displacement of the three virtual
 vertices at distance ``d`` along ``k``'s global axes, ``|d (R_ref - R_dec) e_i + (p_ref - p_dec)|``. The encoder's
 closed loop keeps ``max(joint error, shell error)`` within the bound; the final check of the encoder is the metric
 itself on the decoded :class:`~mocapbench.motion.Motion`.
+
+End sites (the tips a viewer draws: head top, fingers, toes) are carried by their joint's frame: an end site's error
+counts as its joint's, so a joint misses when one of its end sites does, and the closed loop corrects the rotations
+that move it (the joint's own among them, :mod:`.budgets`). A game rig's translated joints step from their parent by
+their decoded translation of the frame instead of their offset, in forward kinematics as in the decoder.
 """
 
 from __future__ import annotations
@@ -69,7 +75,7 @@ _PLANS: dict = {}
 
 
 def forward_kinematics(quats: np.ndarray, roots: np.ndarray, skeleton: Skeleton,
-                       leaves: bool = True) -> tuple[np.ndarray, np.ndarray]:
+                       leaves: bool = True, translations: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Joint positions (n, J, 3) cm and global rotations (n, J, 4) of local rotations ``quats`` (n, J, 4) and root
     positions ``roots`` (n, 3) cm, one tree depth at a time; without ``leaves`` the global rotations of the joints
     without children are left at zero (they move no joint: only the shell reads them).
@@ -79,7 +85,8 @@ def forward_kinematics(quats: np.ndarray, roots: np.ndarray, skeleton: Skeleton,
     arrays with x, y, z stacked, as there (a few numpy calls per depth; the loop runs on few frames, where the calls
     cost more than the arithmetic). Its positions are the decoder's bit for bit (the same operations in the same
     order; a test checks it), and the encoder's final check decodes with the decoder's. The results are transposed
-    views.
+    views. ``translations`` (n, J, 3) cm: every joint's step from its parent on each frame (the offsets for the joints
+    that do not move, so each joint's arithmetic is the decoder's with its offset or its translation).
     """
     parents, offsets = skeleton.parents, skeleton.offsets
     every, inner = _plan(parents)
@@ -94,7 +101,10 @@ def forward_kinematics(quats: np.ndarray, roots: np.ndarray, skeleton: Skeleton,
         p = np.take(glob, parents[1:], axis=1)
         pv, pw = p[:3], p[3]
         p1, p2 = pv[_ROLL1], pv[_ROLL2]
-        v = offsets[1:].T[:, :, None]  # (3, J - 1, 1)
+        if translations is None:
+            v = offsets[1:].T[:, :, None]  # (3, J - 1, 1)
+        else:
+            v = np.ascontiguousarray(translations[:, 1:].transpose(2, 1, 0))  # (3, J - 1, n)
         t = p1 * (2.0 * v[_ROLL2])
         t -= p2 * (2.0 * v[_ROLL1])  # 2 u x v
         turned = p1 * t[_ROLL2]
@@ -108,16 +118,21 @@ def forward_kinematics(quats: np.ndarray, roots: np.ndarray, skeleton: Skeleton,
 
 
 class PointTargets:
-    """The original motion's checked points: joint positions (F, J, 3) cm and, with a shell of ``shell_cm`` > 0,
-    its vertices' offsets from their joints, ``d R e_i`` as (F, J, 3, 3) (column i: vertex i)."""
+    """The original motion's checked points: joint positions (F, J, 3) cm, with ``ends`` its end-site positions
+    (F, E, 3) cm, and with a shell of ``shell_cm`` > 0 its vertices' offsets from their joints, ``d R e_i`` as
+    (F, J, 3, 3) (column i: vertex i). ``translations`` (F, J, 3) cm: the decoded steps of every joint from its parent
+    (the stream's translation tracks; None: the skeleton's offsets), with which the decoded points are placed."""
 
-    def __init__(self, positions: np.ndarray, rotations: np.ndarray, skeleton: Skeleton, shell_cm: float) -> None:
+    def __init__(self, positions: np.ndarray, rotations: np.ndarray, skeleton: Skeleton, shell_cm: float,
+                 ends: np.ndarray | None = None, translations: np.ndarray | None = None) -> None:
         self.positions = positions
         self.skeleton = skeleton
         self.shell_cm = float(shell_cm)
         self.vertices = None
         if self.shell_cm > 0:
             self.vertices = self.shell_cm * quat.as_matrix(global_quaternions(rotations, skeleton.parents))
+        self.ends = None if ends is None or len(skeleton.end_site_parents) == 0 else ends
+        self.translations = translations
 
     def tiled(self, count: int) -> "PointTargets":
         """The same targets repeated ``count`` times along the frames (frame ``f`` of copy ``k`` is ``k F + f``): what
@@ -126,6 +141,8 @@ class PointTargets:
         tiled.skeleton, tiled.shell_cm = self.skeleton, self.shell_cm
         tiled.positions = np.tile(self.positions, (count, 1, 1))
         tiled.vertices = None if self.vertices is None else np.tile(self.vertices, (count, 1, 1, 1))
+        tiled.ends = None if self.ends is None else np.tile(self.ends, (count, 1, 1))
+        tiled.translations = None if self.translations is None else np.tile(self.translations, (count, 1, 1))
         return tiled
 
     def errors(self, frames: np.ndarray, quats: np.ndarray, roots: np.ndarray) -> np.ndarray:
@@ -135,7 +152,10 @@ class PointTargets:
 
     def evaluate(self, frames: np.ndarray, quats: np.ndarray, roots: np.ndarray) -> tuple[np.ndarray, ...]:
         """:meth:`errors`, the decoded joint positions (n, J, 3) cm and global rotations (n, J, 4)."""
-        decoded, glob = forward_kinematics(quats, roots, self.skeleton, leaves=self.vertices is not None)
+        translations = None if self.translations is None else self.translations[frames]
+        decoded, glob = forward_kinematics(quats, roots, self.skeleton,
+                                           leaves=self.vertices is not None or self.ends is not None,
+                                           translations=translations)
         return self.errors_of(frames, decoded, glob), decoded, glob
 
     def errors_of(self, frames: np.ndarray, decoded: np.ndarray, glob: np.ndarray) -> np.ndarray:
@@ -147,4 +167,9 @@ class PointTargets:
             axes = self.shell_cm * quat.as_matrix(glob)
             displacement = self.vertices[frames] - axes + moved[..., :, None]  # (n, J, 3 coords, 3 vertices)
             squared = np.maximum(squared, np.sum(displacement**2, axis=-2).max(axis=-1))
+        if self.ends is not None:  # an end site's error is its joint's
+            parents = self.skeleton.end_site_parents
+            placed = decoded[:, parents] + quat.rotate(glob[:, parents], self.skeleton.end_site_offsets)
+            missed = self.ends[frames] - placed
+            np.maximum.at(squared.T, parents, np.sum(missed**2, axis=-1).T)
         return np.sqrt(squared)

@@ -44,11 +44,14 @@ def compose(p: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return xyz, pw * bw - pv.sum(axis=0)
 
 
-def _forward(local, roots, parents, offsets, positions, rotations):  # pragma: no cover (runs compiled)
+def _forward(local, roots, parents, offsets, positions, rotations, translations,
+             moving):  # pragma: no cover (runs compiled)
     """The kernel: ``local`` (4, J, F) unit quaternions x y z w, ``roots`` (F, 3) cm, ``parents`` (J,) int with
     ``0 <= parents[j] < j`` for j >= 1, ``offsets`` (J, 3) cm; writes ``positions`` (F, J, 3) cm and, unless it has
-    no frames, ``rotations`` (F, J, 4) (``local`` transposed). Loops over frames innermost: the component-major
-    reads are contiguous."""
+    no frames, ``rotations`` (F, J, 4) (``local`` transposed). ``translations`` (F, J, 3) cm replaces the offset of
+    every joint ``j`` with ``moving[j]`` (a translated joint of a game rig), frame by frame, in the same arithmetic;
+    with no joint moving it may have no frames. Loops over frames innermost: the component-major reads are
+    contiguous."""
     num_joints, num_frames = local.shape[1], local.shape[2]
     glob = np.empty((4, num_joints, num_frames))
     copy_rotations = rotations.shape[0] > 0
@@ -61,7 +64,11 @@ def _forward(local, roots, parents, offsets, positions, rotations):  # pragma: n
         p = parents[j]
         vx, vy, vz = offsets[j, 0], offsets[j, 1], offsets[j, 2]
         vx2, vy2, vz2 = 2.0 * vx, 2.0 * vy, 2.0 * vz
+        moves = moving[j]
         for f in range(num_frames):
+            if moves:
+                vx, vy, vz = translations[f, j, 0], translations[f, j, 1], translations[f, j, 2]
+                vx2, vy2, vz2 = 2.0 * vx, 2.0 * vy, 2.0 * vz
             px, py, pz, pw = glob[0, p, f], glob[1, p, f], glob[2, p, f], glob[3, p, f]
             tx = py * vz2 - pz * vy2  # t = 2 q x v
             ty = pz * vx2 - px * vz2
@@ -84,6 +91,9 @@ def _forward(local, roots, parents, offsets, positions, rotations):  # pragma: n
                     rotations[f, j, c] = local[c, j, f]
 
 
+_NO_TRANSLATIONS = np.zeros((0, 0, 3))
+
+
 @cache
 def _kernel():
     """:func:`_forward` compiled (numba imported here, on first use)."""
@@ -94,9 +104,13 @@ def _kernel():
 
 def positions(
     quats: np.ndarray, roots: np.ndarray, skeleton: Skeleton, out: np.ndarray | None = None,
-    rotations_out: np.ndarray | None = None,
+    rotations_out: np.ndarray | None = None, translations: np.ndarray | None = None,
+    moving: np.ndarray | None = None,
 ) -> np.ndarray:
     """Global joint positions (F, J, 3) cm of local rotations ``quats`` (F, J, 4), unit, and ``roots`` (F, 3) cm.
+
+    ``translations`` (F, J, 3) cm with ``moving`` (J,) bool: the joints whose step from their parent is their
+    translation of the frame instead of their skeleton offset (a stream's translation tracks; default none).
 
     Written into ``out`` (F, J, 3) when given (and returned); ``rotations_out`` (F, J, 4), when given, receives
     ``quats``. ``quats`` laid out as a transposed (4, J, F) C-contiguous array (what :func:`.stream.assemble`
@@ -111,8 +125,11 @@ def positions(
     rotations = (np.empty((0, num_joints, 4)) if rotations_out is None
                  else rotations_out if rotations_direct else np.empty((num_frames, num_joints, 4)))
     # A Skeleton guarantees 0 <= parents[j] < j (checked when it was built): the kernel indexes without bounds checks.
+    if translations is None:
+        translations, moving = _NO_TRANSLATIONS, np.zeros(num_joints, dtype=np.bool_)
     _kernel()(local, roots, np.asarray(skeleton.parents, dtype=np.int64),
-              np.ascontiguousarray(skeleton.offsets, dtype=np.float64), result, rotations)
+              np.ascontiguousarray(skeleton.offsets, dtype=np.float64), result, rotations,
+              np.ascontiguousarray(translations, dtype=np.float64), np.asarray(moving, dtype=np.bool_))
     if not rotations_direct:
         rotations_out[...] = rotations
     if out is None or direct:
