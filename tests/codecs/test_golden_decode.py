@@ -5,8 +5,9 @@ rewrite; ``make_golden.py`` there says how): ``mcb-linf`` with the shipped model
 partial one, with a cut between two takes, and untrained (bone vectors, band tables) on a 15-joint rig; ``svd``,
 ``quant-rot-zstd`` and ``pga-ik``. The ``mcb-rot-*`` streams were made at e15a012 in payload format 3 (a cut with
 the shell bound, a 15-joint rig, a spinning joint with principal axes and re-referenced segments), the
-``mcb-rot4-*`` ones in format 4 and the ``mcb-rot5-*`` ones in format 5 (a cut with the shell bound over chunks of
-several segments, the spinning joint): later formats must keep decoding them, in whole and in part. The sums and 256 sampled values of the positions (and quaternions)
+``mcb-rot4-*`` ones in format 4, the ``mcb-rot5-*`` ones in format 5 (a cut with the shell bound over chunks of
+several segments, the spinning joint) and the ``mcb-rot6-*`` ones in format 6 (the native runtime's layout; also a
+rig with short segments in long chunks): later formats must keep decoding them, in whole and in part. The sums and 256 sampled values of the positions (and quaternions)
 must agree.
 
 Tolerance: 1e-9 cm (1e-12 for quaternions). The block-wise decoders run the same arithmetic on every element
@@ -40,6 +41,7 @@ def _check(summary: dict, array: np.ndarray, atol: float) -> None:
 def test_every_golden_case_is_there():
     assert CASES == ["mcb-linf-bands", "mcb-linf-cut", "mcb-linf-trained", "mcb-rot-cut-shell", "mcb-rot-rig",
                      "mcb-rot-spin", "mcb-rot4-cut-shell", "mcb-rot4-spin", "mcb-rot5-cut-shell", "mcb-rot5-spin",
+                     "mcb-rot6-cut-shell", "mcb-rot6-rig", "mcb-rot6-spin",
                      "pga-ik", "quant-rot-zstd", "svd"]
 
 
@@ -85,7 +87,7 @@ def test_an_old_mcb_rot_stream_decodes_in_part_as_in_whole(case):
 
     data = (GOLDEN / f"{case}.mcb").read_bytes()
     header, payload = container.unpack(data, "mcb-rot")
-    assert payload[0] == {"rot": 3, "rot4": 4, "rot5": 5}[case.split("-")[1]]
+    assert payload[0] == {"rot": 3, "rot4": 4, "rot5": 5, "rot6": 6}[case.split("-")[1]]
     codec = create("mcb-rot")
     whole = codec.decode(data)
     third = header.num_frames // 3

@@ -18,7 +18,7 @@ from mocapbench.entropy.bitio import ByteReader, ByteWriter
 from mocapbench.motion import Skeleton
 from mocapbench.synthetic import sinusoidal_motion
 
-DEFAULTS = Settings.create(0.05, 0.0499, 2.0**3.5, 1.0, 0.45, 0.05, np.deg2rad(1.0), 0.0, 128, 256, 0.0)
+DEFAULTS = Settings.create(0.05, 0.0499, 2.0**3.5, 1.0, 0.45, 0.05, np.deg2rad(1.0), 0.0, 128, 128, 0.0)
 
 
 def _round_trip(settings: Settings) -> tuple[Settings, int]:
@@ -26,8 +26,8 @@ def _round_trip(settings: Settings) -> tuple[Settings, int]:
     settings.write(writer)
     data = writer.getvalue()
     reader = ByteReader(data)
-    assert reader.read_u8() == stream.FORMAT == 5
-    back = Settings.read(reader, 5)
+    assert reader.read_u8() == stream.FORMAT == 6
+    back = Settings.read(reader, stream.FORMAT)
     reader.expect_end("settings")
     return back, len(data)
 
@@ -51,19 +51,19 @@ def test_settings_that_differ_from_the_defaults_read_back_exactly(change):
 
 
 def test_a_format_4_header_reads_its_own_defaults():
-    """Format 4 left out chunks of 128 frames (its default), format 5 leaves out 256: the same flags read back as
-    each format's default, and a format 4 header written before format 5 (by hand here: flags 0) reads 128."""
+    """Formats 4 and 6 leave out chunks of 128 frames (their default), format 5 leaves out 256: the same flags read
+    back as each format's default, and a format 4 header written before format 5 (by hand here: flags 0) reads 128."""
     writer = ByteWriter()
     writer.write_f32(0.05)
     writer.write_f32(0.0499)
     writer.write_varint(0)  # every setting at its default
     writer.write_u8(71)  # multiplier code: 2^3.5
-    for version, chunk in ((4, 128), (5, 256)):
+    for version, chunk in ((4, 128), (5, 256), (6, 128)):
         back = Settings.read(ByteReader(writer.getvalue()), version)
         assert (back.chunk_frames, back.segment_frames, back.multiplier) == (chunk, 128, stream._f32(2.0**3.5))
-    four = dataclasses.replace(DEFAULTS, chunk_frames=128)
-    back, size = _round_trip(four)  # written as format 5: chunks of 128 are not its default
-    assert back == four and size == 13
+    five = dataclasses.replace(DEFAULTS, chunk_frames=256)
+    back, size = _round_trip(five)  # written as format 6: chunks of 256 are not its default
+    assert back == five and size == 13
 
 
 def test_the_bound_is_rounded_down_to_float32():
@@ -161,11 +161,11 @@ def test_the_skeleton_grid_costs_at_most_a_third_of_eps(eps):
     assert skeleton_step_exponent(2 * eps, skeleton) >= exponent  # a coarser bound, a grid no finer
 
 
-def test_a_format_5_stream_reads_its_counts_from_the_header(synthetic_motion):
+def test_a_format_6_stream_reads_its_counts_from_the_header(synthetic_motion):
     codec = create("mcb-rot", eps_cm=0.5, segment_frames=32, chunk_frames=64)
     data = codec.encode(synthetic_motion)
     header, payload = container.unpack(data, "mcb-rot")
-    assert payload[0] == 5  # (format 4's layout, but for the default chunk length)
+    assert payload[0] == 6
     info = stream.read_info(header, payload)
     assert info.counts.shape == (info.layout.num_segments, info.channels)
     assert np.all(info.counts <= (info.layout.lengths - 1)[:, None])
@@ -191,3 +191,15 @@ def test_assemble_on_some_frames_of_segments_equals_those_frames_of_the_whole(sy
     part_roots, part_quats = stream.assemble(info, segments, part, skip=skip)
     np.testing.assert_array_equal(part_roots, roots[skip : skip + count])
     np.testing.assert_array_equal(part_quats, quats[skip : skip + count])
+
+
+@pytest.mark.parametrize("nominal", [1, 16, 30, 64, 100, 128, 256, 1000, 4096])
+def test_the_integer_bands_are_the_float_formula_s(nominal):
+    """Format 6's classes must not depend on a ``log2``: the integer bands equal the float formula formats 2-5
+    were written with, on every segment length up to the nominal one."""
+    from mocapbench.codecs.mcb_rot.classes import NUM_BANDS, band_of
+
+    for length in range(1, nominal + 1):
+        k = np.arange(1, length)
+        expected = np.minimum(NUM_BANDS - 1, 1 + np.floor(2 * np.log2(np.maximum(1.0, k * (nominal / length)))))
+        np.testing.assert_array_equal(band_of(k, length, nominal), expected.astype(np.int64))

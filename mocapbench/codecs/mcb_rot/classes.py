@@ -40,9 +40,18 @@ def tables(rounding: float) -> ClassTables:
 
 def band_of(frequency: np.ndarray, length: int, nominal: int) -> np.ndarray:
     """Band (1..NUM_BANDS-1) of DCT frequencies ``k >= 1`` of a segment of ``length`` frames, on the scale of
-    ``nominal`` frames: half-octaves of ``k nominal / length``."""
-    scaled = np.maximum(1.0, frequency * (nominal / length))
-    return np.minimum(NUM_BANDS - 1, 1 + np.floor(2 * np.log2(scaled)).astype(np.int64))
+    ``nominal`` frames: half-octaves of ``k nominal / length``, ``1 + floor(2 log2(max(1, k nominal / length)))``.
+
+    Computed in integers (``1 + `` the largest ``m`` with ``(k nominal)^2 >= length^2 2^m``), so that a decoder in
+    another language finds the same class whatever its ``log2``: the same bands as the float formula (a rational
+    ``k nominal / length`` is never a power of sqrt(2) with an odd exponent; a test compares both).
+    """
+    scaled = np.asarray(frequency, dtype=np.int64) * int(nominal)
+    square, unit = scaled * scaled, int(length) * int(length)
+    band = np.ones(scaled.shape, dtype=np.int64)
+    for m in range(1, NUM_BANDS - 1):
+        band += square >= unit << m
+    return band
 
 
 def _costs(values: np.ndarray, groups: np.ndarray, num_groups: int, rounding: float) -> np.ndarray:

@@ -115,7 +115,7 @@ from mocapbench.codecs.mcb_rot.stream import (
     write_payload,
 )
 from mocapbench.codecs.registry import register_codec
-from mocapbench.codecs.skeleton_blob import pack_skeleton_compact, unpack_skeleton_compact
+from mocapbench.codecs.mcb_rot.skeleton6 import pack_skeleton_runtime, unpack_skeleton_runtime
 from mocapbench.entropy.bitio import ByteReader
 from mocapbench.entropy.errors import BitstreamError
 from mocapbench.metrics.shell import motion_shell_errors
@@ -162,7 +162,7 @@ class McbRotCodec(Codec):
         eps_cm: float = param(1.0, low=1e-3, high=100.0, unit="cm", doc="guaranteed L-inf bound on every joint")
         segment_frames: int = param(128, low=1, high=4096, unit="frames", doc="DCT segment length (the latency)")
         chunk_frames: int = param(
-            256, low=1, high=1 << 20, unit="frames", doc="random-access unit: segments are coded in chunks this long"
+            128, low=1, high=1 << 20, unit="frames", doc="random-access unit: segments are coded in chunks this long"
         )
         step_rel: float = param(
             0.0, low=0.0, high=1e4, unit="x budget", doc="base step over the error budget (0: rate search per stream)"
@@ -222,8 +222,8 @@ class McbRotCodec(Codec):
                 f"mcb-rot: the stream holds at most {container.MAX_JOINTS} joints, the motion has {motion.num_joints}."
             )
         config = self.config
-        skeleton_blob = pack_skeleton_compact(motion.skeleton, skeleton_step_exponent(config.eps_cm, motion.skeleton))
-        stored = unpack_skeleton_compact(ByteReader(skeleton_blob), stepped=True)
+        skeleton_blob = pack_skeleton_runtime(motion.skeleton, skeleton_step_exponent(config.eps_cm, motion.skeleton))
+        stored = unpack_skeleton_runtime(ByteReader(skeleton_blob))
         discrepancy = offset_discrepancy_cm(motion.skeleton, stored)
         bound = config.eps_cm * (1.0 - 2 * _SAFETY_MARGIN) - 2.0 * discrepancy
         if bound <= 0.5 * config.eps_cm:  # defensive: skeleton_step_exponent keeps 2 x discrepancy below eps / 3

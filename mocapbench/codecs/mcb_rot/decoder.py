@@ -39,9 +39,11 @@ from mocapbench.codecs.mcb_rot.stream import (
     StreamInfo,
     apply_corrections,
     assemble,
+    runtime_tables,
     segment_signal,
     tables,
 )
+from mocapbench.entropy.rans6 import decode_unit
 from mocapbench.entropy.ans import class_groups, read_tokens, values_of_tokens
 from mocapbench.entropy.bitio import ByteReader
 from mocapbench.entropy.errors import BitstreamError
@@ -173,6 +175,8 @@ def read_chunks(
         If a chunk is corrupt: ANS words that do not decode, counts outside their segments, corrections past the
         chunk's end, bytes left over.
     """
+    if info.version >= 6:
+        return _read_units(info, payload, chunks, scratch)
     layout = info.layout
     coder_tables = tables(info.settings.rounding)
     channels = info.channels
@@ -250,6 +254,56 @@ def read_chunks(
     chunk_offset = (np.cumsum(chunk_frames) - chunk_frames) * slots
     flat = local + np.repeat(chunk_offset, corrections)
     return ac, flat, values.reshape(-1, 3)
+
+
+def _read_units(
+    info: StreamInfo, payload: memoryview, chunks: np.ndarray, scratch: Scratch | None = None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`read_chunks` of a format 6 stream: each chunk one rANS unit in natural order (its coefficients segment
+    by segment, channel by channel, then the correction gaps and values), decoded value after value."""
+    layout = info.layout
+    channels = info.channels
+    slots = len(info.correction_steps)
+    first_segment = layout.chunk_starts[chunks]
+    segments = np.arange(first_segment[0], layout.chunk_starts[chunks[-1] + 1])
+    lengths = layout.lengths[segments]
+    counts = info.counts[segments[0] : segments[-1] + 1]
+    padded = max(int(lengths.max()) - 1, 0)
+    shape = (len(segments), channels, padded)
+    mask = np.empty(shape, dtype=bool) if scratch is None else scratch.take("mask", shape, bool)
+    np.less(np.arange(padded), counts[:, :, None], out=mask)
+    ac = np.empty(shape) if scratch is None else scratch.take("ac", shape)
+    ac.fill(0.0)
+    side = _SIDE + np.array([info.gap_class, info.value_class])
+    flats, values, frame_at = [], [], 0
+    unit_tables = runtime_tables()
+    for chunk in chunks.tolist():
+        reader = ByteReader(payload[: info.chunk_offsets[chunk + 1]], int(info.chunk_offsets[chunk]))
+        mine = np.arange(layout.chunk_starts[chunk], layout.chunk_starts[chunk + 1]) - segments[0]
+        frames = int(lengths[mine].sum())
+        count = reader.read_varint("correction count")
+        if count > frames * slots:
+            raise BitstreamError(f"mcb-rot: chunk {chunk}: expected at most {frames * slots} corrections, found {count}.")
+        coded = [_class_rows(info, int(lengths[i]))[mask[i, :, : lengths[i] - 1]] for i in mine.tolist()]
+        classes = np.concatenate(coded + [np.repeat(side, [count, 3 * count])])
+        if len(classes) > info.unit_values:
+            raise BitstreamError(f"mcb-rot: chunk {chunk}: {len(classes)} values, the header says at most "
+                                 f"{info.unit_values}.")
+        decoded = decode_unit(reader, classes, unit_tables, f"mcb-rot: chunk {chunk}")
+        reader.expect_end(f"chunk {chunk}")
+        held = len(classes) - 4 * count
+        ac_values = decoded[:held]
+        gaps = decoded[held : held + count]
+        if gaps.size and gaps.min() < 0:
+            raise BitstreamError(f"mcb-rot: chunk {chunk}: a correction gap is negative.")
+        local = np.cumsum(gaps + 1) - 1
+        if local.size and local[-1] >= frames * slots:
+            raise BitstreamError(f"mcb-rot: chunk {chunk}: corrections run past the chunk's end.")
+        flats.append(local + frame_at * slots)
+        values.append(decoded[held + count :].reshape(-1, 3))
+        ac[mine[0] : mine[-1] + 1][mask[mine[0] : mine[-1] + 1]] = ac_values
+        frame_at += frames
+    return ac, np.concatenate(flats), np.concatenate(values)
 
 
 def _coefficient_keys(info: StreamInfo, lengths: np.ndarray, segment_key: np.ndarray, mask: np.ndarray,
