@@ -33,7 +33,7 @@ a chunk holds (the runtime sizes its cache by it before decoding anything); the 
 chunk are *rANS units* (:mod:`mocapbench.entropy.rans6`): two interleaved states, values in natural order (no sort
 by class to undo), static tables fixed by the format (the AC tables of rounding 0.45 whatever the stream's rounding);
 chunks default to 128 frames (one segment), and the bands are computed in integers (:func:`.classes.band_of`).
-On cmu_test it costs 0.5-2.2 % of format 5's bytes at 120 fps, 0.4-1.1 % at 24 fps.
+The cost in bytes against format 5 is in the README.
 
 Coding only the coefficients up to each channel's last nonzero one (as JPEG's end-of-block) skips the runs of
 zeros at high frequencies: at ε = 1 cm 85 % of the AC coefficients of cmu_test are never coded, so decoding reads a
