@@ -187,3 +187,46 @@ def test_frames_times_joints_is_checked_against_the_limits_before_allocating(tmp
         _refused(small, "over the limit output_bytes=1,000,000")
     with using_limits(DecodeLimits(max_joints=10)):
         _refused(small, "over the limit joints=10")
+
+
+def _set(path_in_document, value):
+    def edit(document):
+        node = document
+        for key in path_in_document[:-1]:
+            node = node[key]
+        node[path_in_document[-1]] = value
+    return edit
+
+
+@pytest.mark.parametrize(
+    ("edit", "fragment"),
+    [
+        (_set(("nodes", 1, "rotation"), [0, 0, 1]), "nodes[1].rotation must be 4 finite numbers"),
+        (_set(("nodes", 1, "translation"), "up"), "nodes[1].translation must be 3 finite numbers"),
+        (_set(("nodes", 0, "children"), [1, -2]), "nodes[0].children must be an array of integers >= 0"),
+        (_set(("animations", 0, "samplers", 0), None), "animations[0].samplers must be an array of JSON objects"),
+        (_set(("animations", 0, "channels", 0, "target"), 5), "animations[0].channels[0].target must be a JSON object"),
+        (_set(("accessors", 0, "byteOffset"), -1), "accessors[0].byteOffset must be an integer >= 0, got -1"),
+        (_set(("bufferViews", 0, "byteStride"), 1e308), "bufferViews[0].byteStride must be an integer >= 0"),
+        (_set(("buffers", 0, "uri"), 7), "buffers[0].uri must be a string"),
+        (_set(("skins",), {"joints": [0]}), "skins must be a JSON array"),
+        (_set(("asset",), None), "asset must be a JSON object"),
+    ],
+)
+@pytest.mark.parametrize("binary", [False, True])
+def test_a_field_of_the_wrong_json_type_is_one_line_naming_it(tmp_path, edit, fragment, binary):
+    document = _document(tmp_path)
+    edit(document)
+    if binary:
+        blob = base64.b64decode(_document(tmp_path)["buffers"][0]["uri"].split(",", 1)[1])
+        if isinstance(document.get("buffers"), list) and isinstance(document["buffers"][0].get("uri"), str):
+            del document["buffers"][0]["uri"]
+        text = json.dumps(document).encode()
+        text += b" " * (-len(text) % 4)
+        chunks = struct.pack("<I4s", len(text), b"JSON") + text + struct.pack("<I4s", len(blob), b"BIN\0") + blob
+        path = tmp_path / "typed.glb"
+        path.write_bytes(struct.pack("<4sII", b"glTF", 2, 12 + len(chunks)) + chunks)
+    else:
+        path = tmp_path / "typed.gltf"
+        path.write_text(json.dumps(document))
+    _refused(path, fragment)

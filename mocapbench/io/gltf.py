@@ -29,6 +29,7 @@ than one skin at a time (``skin=`` chooses), cameras and meshes (ignored).
 from __future__ import annotations
 
 import base64
+import json
 import math
 import struct
 from pathlib import Path
@@ -37,6 +38,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from mocapbench.io.external_files import check_reference, read_data_uri, read_reference
+from mocapbench.io.gltf_schema import check_document
 from mocapbench.io.node_motion import motion_from_nodes
 from mocapbench.io.read_limits import check_array_bytes, check_motion_size
 from mocapbench.motion import Motion, MotionFormatError
@@ -76,12 +78,15 @@ class _Reader:
             raise self.error("the file is empty")
         try:
             if data[:4] == b"glTF":
+                check_document(json.loads(_glb_json(data)), self.error)
                 self.gltf = pygltflib.GLTF2.load_from_bytes(data)
                 self.blob = self.gltf.binary_blob()
             else:
                 if path.suffix.lower() == ".glb":
                     raise self.error(f"expected a binary glTF (magic b'glTF'), found {data[:4]!r}")
-                self.gltf = pygltflib.GLTF2.from_json(data.decode("utf-8"))
+                text = data.decode("utf-8")
+                check_document(json.loads(text), self.error)
+                self.gltf = pygltflib.GLTF2.from_json(text)
                 self.blob = None
         except MotionFormatError:
             raise
@@ -173,6 +178,16 @@ class _Reader:
         if not np.all(np.isfinite(values)):
             raise self.error(f"{where} holds a non-finite value")
         return values
+
+
+def _glb_json(data: bytes) -> bytes:
+    """The JSON chunk of a GLB file (glTF 2.0, 4.4: a 12-byte header, then a chunk of type ``JSON``)."""
+    if len(data) < 20:
+        raise ValueError(f"a GLB of {len(data)} bytes has no JSON chunk")
+    length, kind = struct.unpack_from("<I4s", data, 12)
+    if kind != b"JSON" or 20 + length > len(data):
+        raise ValueError(f"expected a JSON chunk of {length} bytes at byte 12, found type {kind!r} in {len(data)} bytes")
+    return data[20:20 + length]
 
 
 def _trs_matrix(node) -> np.ndarray:
