@@ -14,6 +14,9 @@
   the way game engines store clips. Each quaternion is made scalar-positive (``w >= 0``), its x, y, z are
   range-reduced per joint over the clip and quantized to ``rotation_bits``, ``w`` is rebuilt from the unit
   norm (ACL's "drop W" format, ``quatf_drop_w_variable``). Tracks constant over the clip cost no bits per frame.
+  A game rig's translation tracks (joints that move relative to their parent) are quantized with the root's step
+  and its scale tracks with ``scale_step``, in a section after the rotations that a motion without them does not
+  write (its stream is the bytes it always was; streams written before the section decode as they did).
 
 All three byte-plane the quantized integers per channel (time-major, delta-coded) before zstd, which is
 what makes a general-purpose compressor see the temporal coherence.
@@ -303,13 +306,17 @@ class QuantRotZstdCodec(Codec):
     name = "quant-rot-zstd"
     family = "generic"
     codes_rotations = True
+    carries_tracks = ("translations", "scales")
     smoke_params = {"rotation_bits": 12, "translation_step_cm": 0.05}
     smoke_max_error_cm = 0.5
 
     @dataclass(frozen=True)
     class Config(CodecConfig):
         rotation_bits: int = param(12, low=2, high=24, unit="bits", doc="bits per quaternion x, y, z over its range")
-        translation_step_cm: float = param(0.05, low=1e-4, high=100.0, unit="cm", doc="root translation step")
+        translation_step_cm: float = param(
+            0.05, low=1e-4, high=100.0, unit="cm", doc="step of the root translation and of every translation track"
+        )
+        scale_step: float = param(1e-4, low=1e-7, high=1.0, doc="step of the scale tracks (unitless)")
         zstd_level: int = param(19, low=1, high=22, doc=_ZSTD_LEVEL_DOC)
 
     def encode_payload(self, motion: Motion) -> bytes:
@@ -337,7 +344,27 @@ class QuantRotZstdCodec(Codec):
         writer.write_array(low, np.float32)
         writer.write_array(high, np.float32)
         writer.write_blob(_pack_int_tracks(tracks, self.config.zstd_level))
+        if motion.translations is not None or motion.scales is not None:
+            self._write_joint_tracks(writer, motion)
         return writer.getvalue()
+
+    def _write_joint_tracks(self, writer: ByteWriter, motion: Motion) -> None:
+        """The game-rig section: varint T, varint S, the T translated then the S scaled joints (varints, increasing),
+        f64 scale step, then one blob of the 3 T + 3 S integer tracks (translations cm / translation step, scales /
+        scale step), coded as the rotations' tracks."""
+        moving, scaled = motion.moving_joints(), motion.scaled_joints()
+        writer.write_varint(len(moving))
+        writer.write_varint(len(scaled))
+        writer.write_varints(np.concatenate([moving, scaled]))
+        writer.write_array(np.array([self.config.scale_step]), np.float64)
+        tracks = np.empty((motion.num_frames, 3 * (len(moving) + len(scaled))), dtype=np.int64)
+        if len(moving):
+            tracks[:, : 3 * len(moving)] = quantize(motion.translations[:, moving], self.config.translation_step_cm
+                                                    ).reshape(motion.num_frames, -1)
+        if len(scaled):
+            tracks[:, 3 * len(moving) :] = quantize(motion.scales[:, scaled], self.config.scale_step
+                                                    ).reshape(motion.num_frames, -1)
+        writer.write_blob(_pack_int_tracks(tracks, self.config.zstd_level))
 
     def decode_payload(self, header: Header, payload: memoryview):
         reader = ByteReader(payload)
@@ -352,6 +379,7 @@ class QuantRotZstdCodec(Codec):
         low = reader.read_array(channels, np.float32, "rotation minima").astype(np.float64)
         high = reader.read_array(channels, np.float32, "rotation maxima").astype(np.float64)
         blob = reader.read_blob("tracks")
+        joint_tracks = self._read_joint_tracks(reader, header, skeleton, step) if reader.remaining else None
         reader.expect_end()
         scale = np.where(high > low, (high - low) / ((1 << bits) - 1), 1.0)
         num_frames = header.num_frames
@@ -369,9 +397,40 @@ class QuantRotZstdCodec(Codec):
         for start in range(0, num_frames, _BLOCK_FRAMES):
             xyz = quats[start : start + _BLOCK_FRAMES, :, :3]
             quats[start : start + _BLOCK_FRAMES, :, 3] = np.sqrt(np.clip(1.0 - np.sum(xyz**2, axis=-1), 0.0, None))
+        translations = scales = None
+        if joint_tracks is not None:
+            translations, scales = joint_tracks
+            translations[:, 0] = roots
         # The quaternions are handed over for keeps: Motion normalizes them in place instead of copying them.
-        motion = Motion(skeleton=skeleton, fps=header.fps, root_positions=roots, rotations=OwnedQuaternions(quats))
+        motion = Motion(skeleton=skeleton, fps=header.fps, root_positions=roots, rotations=OwnedQuaternions(quats),
+                        translations=translations, scales=scales)
         return motion.positions(), motion
+
+    def _read_joint_tracks(self, reader: ByteReader, header: Header, skeleton, step: float):
+        """(translations (F, J, 3) cm, scales (F, J, 3) or None) of the game-rig section, every field checked."""
+        num_joints, num_frames = header.num_joints, header.num_frames
+        counts = [reader.read_varint("translated joints"), reader.read_varint("scaled joints")]
+        if counts[0] > num_joints - 1 or counts[1] > num_joints or sum(counts) == 0:
+            raise BitstreamError(f"quant-rot-zstd: expected at most {num_joints - 1} translated and {num_joints} "
+                                 f"scaled joints (some), found {counts[0]} and {counts[1]}.")
+        joints = reader.read_varints(sum(counts), "tracked joints").astype(np.int64)
+        moving, scaled = joints[: counts[0]], joints[counts[0] :]
+        for kind, chosen, first in (("translated", moving, 1), ("scaled", scaled, 0)):
+            if len(chosen) and (chosen[0] < first or chosen[-1] >= num_joints or np.any(np.diff(chosen) <= 0)):
+                raise BitstreamError(f"quant-rot-zstd: {kind} joints must be increasing in {first}..{num_joints - 1}.")
+        scale_step = float(reader.read_array(1, np.float64, "scale step")[0])
+        if not (np.isfinite(scale_step) and 0 < scale_step <= 1.0):
+            raise BitstreamError(f"quant-rot-zstd: expected a scale step in (0, 1], found {scale_step}.")
+        values = _unpack_int_tracks(reader.read_blob("joint tracks"), num_frames, 3 * sum(counts))
+        translations = np.broadcast_to(skeleton.offsets, (num_frames, num_joints, 3)).copy()
+        translations[:, moving] = values[:, : 3 * len(moving)].reshape(num_frames, -1, 3) * step
+        scales = None
+        if len(scaled):
+            scales = np.ones((num_frames, num_joints, 3))
+            scales[:, scaled] = values[:, 3 * len(moving) :].reshape(num_frames, -1, 3) * scale_step
+            if np.any(scales <= 0):
+                raise BitstreamError("quant-rot-zstd: a decoded scale is <= 0.")
+        return translations, scales
 
     def describe_payload(self, header: Header, payload: memoryview):
         reader = ByteReader(payload)
