@@ -65,3 +65,46 @@ def test_a_hostile_header_is_a_bitstream_error(mutate, match):
     _plan(game_rig_motion(30)).write(writer)
     with pytest.raises(BitstreamError, match=match):
         read_tracks(ByteReader(mutate(writer.getvalue())), 22)
+
+
+@pytest.mark.parametrize("eps", [0.1, 1.0])
+def test_a_game_rig_is_within_eps_on_every_joint_and_end_site(eps):
+    """The guarantee on a rig whose pelvis moves 1.2 m/s relative to a ground root, with end sites on every chain."""
+    from mocapbench.codecs import create
+
+    motion = game_rig_motion(150, seed=6)
+    codec = create("mcb-rot", eps_cm=eps)
+    data = codec.encode(motion)
+    decoded = codec.decode(data)
+    joints = np.sqrt(np.sum((decoded.positions - motion.positions()) ** 2, axis=-1))
+    ends = np.sqrt(np.sum((decoded.motion.end_site_positions() - motion.end_site_positions()) ** 2, axis=-1))
+    assert joints.max() <= eps and ends.max() <= eps
+    assert ends.max() > 0.3 * eps  # the end sites are budgeted, not far inside
+    assert list(decoded.motion.moving_joints()) == [1]
+    moved = np.sqrt(np.sum((decoded.motion.translations[:, 1] - motion.translations[:, 1]) ** 2, axis=-1))
+    assert moved.max() <= 0.1 * eps + 1e-9  # the tracks' share of eps
+    part = codec.decode_frames(data, 61, 64)
+    np.testing.assert_allclose(part.positions, decoded.positions[61:64], atol=1e-9)
+    np.testing.assert_allclose(part.motion.translations, decoded.motion.translations[61:64], atol=1e-12)
+
+
+def test_a_long_game_rig_capture_is_coded_window_by_window(monkeypatch):
+    from mocapbench.codecs import create
+    from mocapbench.codecs.mcb_rot import windowed
+
+    monkeypatch.setattr(windowed, "WINDOW_FRAMES", 128)
+    motion = game_rig_motion(300, seed=7)
+    codec = create("mcb-rot", eps_cm=0.5)
+    data = codec.encode(motion)
+    decoded = codec.decode(data)
+    assert np.sqrt(np.sum((decoded.positions - motion.positions()) ** 2, axis=-1)).max() <= 0.5
+    part = codec.decode_frames(data, 120, 140)  # across a window boundary
+    np.testing.assert_allclose(part.positions, decoded.positions[120:140], atol=1e-9)
+    np.testing.assert_allclose(part.motion.translations, decoded.motion.translations[120:140], atol=1e-12)
+
+
+def test_dropping_the_tracks_would_miss_by_metres():
+    """What the checks protect against: the same rotations without the pelvis track put every joint metres away."""
+    motion = game_rig_motion(30)
+    still = type(motion)(motion.skeleton, motion.fps, motion.root_positions, motion.rotations)
+    assert np.sqrt(np.sum((still.positions() - motion.positions())[:, 1:] ** 2, axis=-1)).min() > 100

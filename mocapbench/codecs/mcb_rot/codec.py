@@ -1,4 +1,4 @@
-"""``mcb-rot``: local joint rotations + root translation, with every joint guaranteed within ε of the original.
+"""``mcb-rot``: local joint rotations + root translation, with every joint and end site guaranteed within ε.
 
 ``mcb-linf`` bounds joint positions but codes positions, which cannot drive a rig. This codec codes what an engine
 plays back (the local rotation of every joint and the root translation, with the skeleton in the stream), decodes to
@@ -78,6 +78,15 @@ them the chunks, holding the frames. Clips up to a window keep their bytes. The 
 eps 0.1 / 1 cm on the 63 CMU clips joined on one skeleton (44,842 frames, 6 windows; the same L-inf, and 25 % less
 encoding CPU than the whole capture in one window).
 
+Game rigs (:mod:`.tracks`): a joint that moves relative to its parent (a pelvis under a ground-level root) has a
+translation track on a uniform grid whose error along the worst chain (``track_share`` of eps) comes off the bound,
+each translated joint's longest translation is its bone in the budgets, and forward kinematics, in the closed loop
+and in the decoder, steps from the parent by the decoded translation of the frame; a motion whose joints do not move
+writes no track. The bound covers the end sites too (the head, finger and toe tips a viewer draws): each is a virtual
+child of its joint in the budgets and a checked point of the closed loop, so a leaf with an end site is budgeted by
+its lever instead of ``free_angle_deg``. Scale tracks are refused in one line naming the joint (the budgets assume
+bones of fixed length).
+
 Departures from the issue's sketch: no trained prior (the stream needs no model, ``model_bytes`` is 0). Leaves
 (joints whose rotation moves no joint) get the fixed budget ``free_angle_deg`` unless ``shell_cm`` > 0.
 """
@@ -96,12 +105,13 @@ from mocapbench.codecs.mcb_rot import windowed
 from mocapbench.codecs.mcb_rot.decoder import decode_range
 from mocapbench.codecs.mcb_rot import quaternions as quat
 from mocapbench.codecs.mcb_rot.axes import axes_from_codes, principal_axes, to_axes
-from mocapbench.codecs.mcb_rot.budgets import joint_budgets, offset_discrepancy_cm
+from mocapbench.codecs.mcb_rot.budgets import offset_discrepancy_cm
 from mocapbench.codecs.mcb_rot.checks import PointTargets
 from mocapbench.codecs.mcb_rot.compensate import Compensator, quantize
 from mocapbench.codecs.mcb_rot.refine import refine
+from mocapbench.codecs.mcb_rot.tracks import plan_tracks
 from mocapbench.codecs.mcb_rot.rate import base_bytes, base_bytes_many, corrections_bytes
-from mocapbench.codecs.mcb_rot.classes import NUM_BANDS
+from mocapbench.codecs.mcb_rot.classes import NUM_BANDS, fit_single
 from mocapbench.codecs.mcb_rot.segments import SegmentLayout, forward, segment_starts
 from mocapbench.codecs.segments import CUT_MIN_JUMP_CM, CUT_RATIO, find_cuts
 from mocapbench.codecs.mcb_rot.stream import (
@@ -112,6 +122,7 @@ from mocapbench.codecs.mcb_rot.stream import (
     _f32,
     read_info,
     skeleton_step_exponent,
+    stream_budgets,
     write_payload,
 )
 from mocapbench.codecs.registry import register_codec
@@ -152,6 +163,7 @@ class McbRotCodec(Codec):
 
     name = "mcb-rot"
     codes_rotations = True
+    carries_tracks = ("translations",)  # scale tracks are refused: the budgets assume bones of fixed length
     family = "mocapbench"
     random_access = True
     smoke_params = {"eps_cm": 0.5}
@@ -159,7 +171,7 @@ class McbRotCodec(Codec):
 
     @dataclass(frozen=True)
     class Config(CodecConfig):
-        eps_cm: float = param(1.0, low=1e-3, high=100.0, unit="cm", doc="guaranteed L-inf bound on every joint")
+        eps_cm: float = param(1.0, low=1e-3, high=100.0, unit="cm", doc="guaranteed L-inf bound on every joint and end site")
         segment_frames: int = param(128, low=1, high=4096, unit="frames", doc="DCT segment length (the latency)")
         chunk_frames: int = param(
             128, low=1, high=1 << 20, unit="frames", doc="random-access unit: segments are coded in chunks this long"
@@ -194,6 +206,9 @@ class McbRotCodec(Codec):
             0.0, low=0.0, high=100.0, unit="cm",
             doc="the bound also holds on ACL's virtual vertices at this distance from every joint (0: joints only)",
         )
+        track_share: float = param(
+            0.1, low=0.01, high=0.5, doc="share of eps given to a game rig's translation tracks (their grid's error)"
+        )
 
     @property
     def latency_frames(self) -> int:
@@ -225,13 +240,17 @@ class McbRotCodec(Codec):
         skeleton_blob = pack_skeleton_runtime(motion.skeleton, skeleton_step_exponent(config.eps_cm, motion.skeleton))
         stored = unpack_skeleton_runtime(ByteReader(skeleton_blob))
         discrepancy = offset_discrepancy_cm(motion.skeleton, stored)
-        bound = config.eps_cm * (1.0 - 2 * _SAFETY_MARGIN) - 2.0 * discrepancy
-        if bound <= 0.5 * config.eps_cm:  # defensive: skeleton_step_exponent keeps 2 x discrepancy below eps / 3
+        # A game rig's translation tracks, on a grid whose error (along the worst chain) comes off the bound.
+        tracks = plan_tracks(motion, config.track_share * config.eps_cm, lambda values: fit_single(values, 0.5))
+        track_error = 0.0 if tracks is None else tracks.error_cm(stored)
+        bound = config.eps_cm * (1.0 - 2 * _SAFETY_MARGIN) - 2.0 * discrepancy - track_error
+        if bound <= 0.25 * config.eps_cm:  # defensive: skeleton_step_exponent keeps 2 x discrepancy below eps / 3
             raise ValueError(
                 f"mcb-rot: eps {config.eps_cm} cm is too small for this skeleton's stored offsets "
                 f"(their grid moves joints by up to {discrepancy:.3g} cm)."
             )
         target = motion.positions()
+        ends = motion.end_site_positions() if len(motion.skeleton.end_site_parents) else None
         cuts = find_cuts(target, ratio=config.cut_ratio, min_jump_cm=config.cut_min_cm) if config.cut_ratio > 0 else np.zeros(0, np.int64)
         starts = segment_starts(motion.num_frames, cuts, config.segment_frames)
         layout = SegmentLayout(motion.num_frames, starts, config.chunk_frames)
@@ -243,13 +262,14 @@ class McbRotCodec(Codec):
         spectra = forward(signal, layout)
         settings = Settings.create(config.eps_cm, bound, 1.0, config.frequency_slope, config.rounding,
                                    config.root_share, np.deg2rad(config.free_angle_deg), config.allocation_power,
-                                   config.segment_frames, config.chunk_frames, config.shell_cm)
-        budgets = joint_budgets(stored, settings.bound_cm, settings.root_share, settings.free_angle_rad,
-                                settings.allocation_power, settings.shell_cm)
+                                   config.segment_frames, config.chunk_frames, config.shell_cm,
+                                   tracks=tracks is not None, ends=True)
+        budgets = stream_budgets(settings, stored, tracks)
         channels = 3 + 3 * motion.num_joints
         info = StreamInfo(settings, stored, budgets, layout, cuts, overrides, axis_codes,
-                          np.zeros(channels, np.int64), np.zeros(NUM_BANDS, np.int64))
-        points = PointTargets(target, motion.rotations, stored, settings.shell_cm)
+                          np.zeros(channels, np.int64), np.zeros(NUM_BANDS, np.int64), tracks=tracks)
+        steps = None if tracks is None else tracks.steps_of(stored, tracks.q)
+        points = PointTargets(target, motion.rotations, stored, settings.shell_cm, ends=ends, translations=steps)
         encoder = _Encoder(config, motion, info, skeleton_blob, spectra, points)
         if config.step_rel > 0:
             chosen = encoder.attempt(config.step_rel)
@@ -264,6 +284,12 @@ class McbRotCodec(Codec):
         worst = float(np.sqrt(np.sum((decoded - target) ** 2, axis=-1)).max())
         if not worst <= config.eps_cm:
             raise RuntimeError(f"mcb-rot: decoded L-inf {worst} cm exceeds eps {config.eps_cm} cm; not writing.")
+        if ends is not None:
+            end_worst = float(np.sqrt(np.sum((decoded_motion.end_site_positions() - ends) ** 2, axis=-1)).max())
+            if not end_worst <= config.eps_cm:
+                raise RuntimeError(f"mcb-rot: decoded end-site L-inf {end_worst} cm exceeds eps {config.eps_cm} cm; "
+                                   "not writing.")
+            worst = max(worst, end_worst)
         if config.shell_cm > 0:
             shell = float(motion_shell_errors(motion, decoded_motion, config.shell_cm).max())
             if not shell <= config.eps_cm:
@@ -287,8 +313,10 @@ class McbRotCodec(Codec):
     def _decode_window(self, header: Header, payload: memoryview):
         """Positions (F, J, 3) cm and the motion of a one-window payload."""
         info = read_info(header, payload)
-        positions, roots, quats = decode_range(info, payload, 0, header.num_frames)
-        return positions, Motion.from_decoder(info.skeleton, header.fps, roots, quats)
+        count = header.num_frames
+        out = _outputs(count, header.num_joints, info)
+        positions, roots, quats = decode_range(info, payload, 0, count, out)
+        return positions, Motion.from_decoder(info.skeleton, header.fps, roots, quats, *out[3:])
 
     def _stream_info(self, header: Header, payload: memoryview) -> StreamInfo:
         """The parsed payload header, kept for the last stream seen: an engine sampling one clip at many times
@@ -322,8 +350,9 @@ class McbRotCodec(Codec):
                     positions, motion = self._frames_of_windows(header, payload, start, stop)
                 else:
                     info = self._stream_info(header, payload)
-                    positions, roots, quats = decode_range(info, payload, start, stop)
-                    motion = Motion.from_decoder(info.skeleton, header.fps, roots, quats)
+                    out = _outputs(stop - start, header.num_joints, info)
+                    positions, roots, quats = decode_range(info, payload, start, stop, out)
+                    motion = Motion.from_decoder(info.skeleton, header.fps, roots, quats, *out[3:])
         except BitstreamError:
             raise
         except (ValueError, IndexError, KeyError, OverflowError, EOFError, TypeError) as error:
@@ -345,14 +374,24 @@ class McbRotCodec(Codec):
         positions = np.empty((count, header.num_joints, 3))
         roots = np.empty((count, 3))
         quats = np.empty((count, header.num_joints, 4))
+        translations = None  # allocated at the first window with tracks (a window without any: the offsets)
         skeleton = None
         for first, end, part in windowed.windows_of_range(parts, start, stop):
             info = self._stream_info(windowed.window_header(header, first, end), part)
             skeleton = info.skeleton if skeleton is None else skeleton
             low, high = max(start, first), min(stop, end)
             out = slice(low - start, high - start)
-            decode_range(info, part, low - first, high - first, (positions[out], roots[out], quats[out]))
-        return positions, Motion.from_decoder(skeleton, header.fps, roots, quats)
+            if info.tracks is not None and translations is None:
+                translations = np.empty((count, header.num_joints, 3))
+                translations[:] = skeleton.offsets
+            window_out = (positions[out], roots[out], quats[out])
+            if translations is not None:
+                window_out += (translations[out],)
+                translations[out] = skeleton.offsets  # a window without tracks keeps the offsets
+            decode_range(info, part, low - first, high - first, window_out)
+        if translations is not None:
+            translations[:, 0] = roots
+        return positions, Motion.from_decoder(skeleton, header.fps, roots, quats, translations)
 
     def describe_payload(self, header: Header, payload: memoryview):
         if windowed.is_windowed(payload):
@@ -371,6 +410,15 @@ class McbRotCodec(Codec):
                 "segments": info.layout.num_segments, "cuts": len(info.cuts),
                 "re-referenced joint segments": len(info.overrides),
                 "joints on principal axes": int((info.axis_codes != 0).any(axis=1).sum())}
+
+
+def _outputs(count: int, num_joints: int, info: StreamInfo) -> tuple:
+    """The decode's outputs of ``count`` frames: positions, roots, rotations and, when the stream has translation
+    tracks, every joint's translation (its offset where it has no track)."""
+    out = (np.empty((count, num_joints, 3)), np.empty((count, 3)), np.empty((count, num_joints, 4)))
+    if info.tracks is not None:
+        out += (np.empty((count, num_joints, 3)),)
+    return out
 
 
 def _search(attempt, flat_too: bool = False, batch=None, prefetch: tuple = ((), ())) -> "_Attempt":

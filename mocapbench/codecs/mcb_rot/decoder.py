@@ -78,19 +78,26 @@ def decode_range(
     count = stop - start
     if out is None:
         out = np.empty((count, num_joints, 3)), np.empty((count, 3)), np.empty((count, num_joints, 4))
-    positions, roots, quats = out
+    positions, roots, quats = out[:3]
+    translations = out[3] if len(out) > 3 else None  # (n, J, 3): the joints' steps, filled when the stream has tracks
+    moving = None if info.tracks is None else info.tracks.moving(num_joints)
     scratch = thread_scratch()
     first_segment = int(np.searchsorted(layout.starts, start, side="right")) - 1  # the segment holding ``start``
     for chunks in _blocks(info, layout.chunks_of_frames(start, stop)):
         # The block's chunks are entropy decoded whole; only its segments holding frames of start:stop are
         # synthesized (a chunk of several segments, when one frame is asked for).
         first = max(int(layout.starts[max(int(layout.chunk_starts[chunks[0]]), first_segment)]), start)
-        block_roots, block_quats = decode_block(info, payload, chunks, scratch, (start, stop))
+        block_roots, block_quats, block_steps = decode_block(info, payload, chunks, scratch, (start, stop))
         low, high = max(first, start), min(first + len(block_roots), stop)
         inside, out = slice(low - first, high - first), slice(low - start, high - start)
         roots[out] = block_roots[inside]
+        steps = None if block_steps is None else block_steps[inside]
+        if steps is not None and translations is not None:
+            translations[out] = steps
+            translations[out, 0] = block_roots[inside]
         # The rotations (n, J, 4) are written by the forward kinematics kernel, out of the component-major block.
-        kinematics.positions(block_quats[inside], block_roots[inside], info.skeleton, positions[out], quats[out])
+        kinematics.positions(block_quats[inside], block_roots[inside], info.skeleton, positions[out], quats[out],
+                             translations=steps, moving=moving)
     scratch.trim()
     return positions, roots, quats
 
@@ -114,9 +121,10 @@ def _blocks(info: StreamInfo, chunks: np.ndarray) -> list[np.ndarray]:
 def decode_block(
     info: StreamInfo, payload: memoryview, chunks: np.ndarray, scratch: Scratch | None = None,
     frames: tuple[int, int] | None = None,
-) -> tuple[np.ndarray, np.ndarray]:
-    """Roots (n, 3) cm and rotations (n, J, 4) (a view of a component-major array) of the consecutive ``chunks``,
-    corrections applied. With ``scratch`` the rotations are a scratch view (valid until its next use).
+) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """Roots (n, 3) cm, rotations (n, J, 4) (a view of a component-major array) of the consecutive ``chunks``,
+    corrections applied, and every joint's step from its parent (n, J, 3) cm when the stream has translation tracks
+    (else None). With ``scratch`` the rotations are a scratch view (valid until its next use).
 
     With ``frames`` (start, stop: frames of the stream), only the chunks' segments holding some of those frames
     are synthesized (the entropy decoding is the chunks' whole, the inverse DCT per segment), and only the frames
@@ -125,8 +133,8 @@ def decode_block(
     """
     layout = info.layout
     segments = np.arange(layout.chunk_starts[chunks[0]], layout.chunk_starts[chunks[-1] + 1])
-    ac, flat, values = read_chunks(info, payload, chunks, scratch)
-    skip = 0
+    ac, flat, values, track_q = read_chunks(info, payload, chunks, scratch)
+    skip, returned = 0, 0  # frames of the block before those returned (counted from its first frame)
     if frames is None:
         signal = segment_signal(info, segments, ac, scratch)
     else:
@@ -135,6 +143,7 @@ def decode_block(
         high = int(np.searchsorted(layout.starts[segments], frames[1], side="left"))  # past the last starting before stop
         begin = int(layout.starts[segments[low]])
         skip = max(frames[0] - begin, 0)  # frames of the first segment before start
+        returned = begin + skip - int(layout.starts[segments[0]])
         held = min(frames[1], int(ends[high - 1])) - begin - skip  # frames returned
         if low > 0 or high < len(segments) or skip or held < int(ends[-1] - begin):
             slots = len(info.correction_steps)
@@ -144,7 +153,10 @@ def decode_block(
         signal = segment_signal(info, segments, ac, scratch)[:, skip : skip + held]
     roots, quats = assemble(info, segments, signal, scratch, skip)
     apply_corrections(info, roots, quats, flat, values)
-    return roots, quats
+    steps = None
+    if track_q is not None:
+        steps = info.tracks.steps_of(info.skeleton, track_q[returned : returned + len(roots)])
+    return roots, quats, steps
 
 
 def _count_groups(info: StreamInfo, num_segments: int) -> tuple[np.ndarray, list[tuple[int, int]]]:
@@ -168,6 +180,8 @@ def read_chunks(
         Corrections as ``frame * (J + 1) + slot``, frames counted from the first frame of the chunks.
     values : ndarray, shape (N, 3), int
         The corrections' quantized values.
+    track_q : ndarray, shape (n, T, 3), int, or None
+        The quantized translation tracks of the chunks' frames (format 6 with tracks; else None).
 
     Raises
     ------
@@ -253,7 +267,7 @@ def read_chunks(
         raise BitstreamError(f"mcb-rot: chunks {chunks[0]}-{chunks[-1]}: corrections run past their chunk's end.")
     chunk_offset = (np.cumsum(chunk_frames) - chunk_frames) * slots
     flat = local + np.repeat(chunk_offset, corrections)
-    return ac, flat, values.reshape(-1, 3)
+    return ac, flat, values.reshape(-1, 3), None
 
 
 def _read_units(
@@ -275,7 +289,7 @@ def _read_units(
     ac = np.empty(shape) if scratch is None else scratch.take("ac", shape)
     ac.fill(0.0)
     side = _SIDE + np.array([info.gap_class, info.value_class])
-    flats, values, frame_at = [], [], 0
+    flats, values, frame_at, track_q = [], [], 0, []
     unit_tables = runtime_tables()
     for chunk in chunks.tolist():
         reader = ByteReader(payload[: info.chunk_offsets[chunk + 1]], int(info.chunk_offsets[chunk]))
@@ -290,6 +304,9 @@ def _read_units(
             raise BitstreamError(f"mcb-rot: chunk {chunk}: {len(classes)} values, the header says at most "
                                  f"{info.unit_values}.")
         decoded = decode_unit(reader, classes, unit_tables, f"mcb-rot: chunk {chunk}")
+        if info.tracks is not None:  # the chunk's translation tracks (:mod:`.tracks`): two running sums
+            unit = decode_unit(reader, info.tracks.unit_classes(frames), unit_tables, f"mcb-rot: chunk {chunk} tracks")
+            track_q.append(info.tracks.q_of_values(unit, frames))
         reader.expect_end(f"chunk {chunk}")
         held = len(classes) - 4 * count
         ac_values = decoded[:held]
@@ -303,7 +320,7 @@ def _read_units(
         values.append(decoded[held + count :].reshape(-1, 3))
         ac[mine[0] : mine[-1] + 1][mask[mine[0] : mine[-1] + 1]] = ac_values
         frame_at += frames
-    return ac, np.concatenate(flats), np.concatenate(values)
+    return ac, np.concatenate(flats), np.concatenate(values), np.concatenate(track_q) if track_q else None
 
 
 def _coefficient_keys(info: StreamInfo, lengths: np.ndarray, segment_key: np.ndarray, mask: np.ndarray,

@@ -57,6 +57,7 @@ from mocapbench.codecs.mcb_rot.segments import SegmentLayout, inverse, segment_s
 from mocapbench.codecs.segments import read_cuts, write_cuts
 from mocapbench.codecs.skeleton_blob import STEP_EXPONENTS, unpack_skeleton_compact
 from mocapbench.codecs.mcb_rot.skeleton6 import unpack_skeleton_runtime
+from mocapbench.codecs.mcb_rot.tracks import Tracks, read_tracks
 from mocapbench.entropy.ans import ClassTables, decode_classed, encode_classed
 from mocapbench.entropy.rans6 import RansTables, decode_unit, encode_unit, quantize_counts
 from mocapbench.entropy.bitio import ByteReader, ByteWriter
@@ -105,6 +106,9 @@ _DEFAULTS = (
 _DEFAULTS_4 = _DEFAULTS
 _DEFAULTS_5 = tuple((name, 256 if name == "chunk_frames" else value, kind) for name, value, kind in _DEFAULTS)
 _MULTIPLIER_F32, _FLAT, _DEFAULT_BIT = 1, 2, 2  # flags: 1 multiplier as f32 (else a grid code), 2 slope 0; bit 2.. a default
+# Format 6 flags after the defaults' bits: the stream carries translation tracks (:mod:`.tracks`; their header after
+# the classes, a unit per chunk after its rotations), and its budgets cover the end sites (:mod:`.budgets`).
+_TRACKS, _ENDS = 1 << 10, 1 << 11
 _GRID_ZERO = 64  # multiplier code k stands for 2^((k - 64) / 2)
 
 
@@ -131,13 +135,16 @@ class Settings:
     segment_frames: int
     chunk_frames: int
     shell_cm: float = 0.0  # the bound also holds on the virtual vertices at this distance (0: joints only)
+    tracks: bool = False  # format 6: the stream carries translation tracks (flags bit 10)
+    ends: bool = False  # format 6: the budgets and the bound cover the end sites (flags bit 11)
 
     @classmethod
     def create(cls, eps_cm, bound_cm, multiplier, slope, rounding, root_share, free_angle_rad, power, segment, chunk,
-               shell_cm=0.0):
+               shell_cm=0.0, tracks=False, ends=False):
         """Settings with every field rounded as it will be read back (the bound down, so it never grows)."""
         return cls(_f32(eps_cm), _f32_below(bound_cm), _f32(multiplier), _f32(slope), _f32(rounding), _f32(root_share),
-                   _f32(free_angle_rad), _f32(power), int(segment), int(chunk), _f32(shell_cm))
+                   _f32(free_angle_rad), _f32(power), int(segment), int(chunk), _f32(shell_cm), bool(tracks),
+                   bool(ends))
 
     def write(self, writer: ByteWriter) -> None:
         """Format 6 (as 5): u8 format | f32 eps | f32 bound | varint flags | multiplier (u8 grid code or f32) | the
@@ -147,6 +154,7 @@ class Settings:
         writer.write_f32(self.bound_cm)
         code = _multiplier_code(self.multiplier)
         flags = (code is None) * _MULTIPLIER_F32 | (self.slope == 0.0) * _FLAT
+        flags |= self.tracks * _TRACKS | self.ends * _ENDS
         differing = []
         for bit, (name, default, kind) in enumerate(_DEFAULTS, start=_DEFAULT_BIT):
             value = getattr(self, name)
@@ -169,8 +177,10 @@ class Settings:
         if version >= 4:
             bound = reader.read_f32("bound")
             flags = reader.read_varint("settings flags", max_bytes=2)
-            if flags >> (_DEFAULT_BIT + len(defaults)):
+            known = _DEFAULT_BIT + len(defaults) + (2 if version >= 6 else 0)  # format 6: bits 10, 11
+            if flags >> known:
                 raise BitstreamError(f"mcb-rot: unknown settings flags {flags:#x}.")
+            tracks, ends = bool(flags & _TRACKS) and version >= 6, bool(flags & _ENDS) and version >= 6
             if flags & _MULTIPLIER_F32:
                 multiplier = reader.read_f32("multiplier")
             else:
@@ -190,6 +200,7 @@ class Settings:
             segment_frames = reader.read_varint("segment frames")
             chunk_frames = reader.read_varint("chunk frames")
             shell = reader.read_f32("shell distance") if version >= 3 else 0.0
+            tracks = ends = False
         if not (
             0 < bound <= 100 and 0 < eps <= 101 and 0 < multiplier <= 1e6 and 0 <= slope <= 64
             and 0 <= rounding <= 0.5 and 0 < root_share < 1 and 0 < free <= np.pi and 0 <= power <= 64
@@ -200,7 +211,8 @@ class Settings:
                 f"rounding {rounding}, root share {root_share}, free angle {free}, allocation power {power}, "
                 f"segment frames {segment_frames}, chunk frames {chunk_frames}, shell distance {shell}."
             )
-        return cls(eps, bound, multiplier, slope, rounding, root_share, free, power, segment_frames, chunk_frames, shell)
+        return cls(eps, bound, multiplier, slope, rounding, root_share, free, power, segment_frames, chunk_frames, shell,
+                   tracks, ends)
 
 
 @dataclass(frozen=True, eq=False)
@@ -225,6 +237,7 @@ class StreamInfo:
     counts: np.ndarray | None = None  # (S, C) significance counts (format 4; earlier formats have them in the chunks)
     version: int = FORMAT  # payload format the stream was read from (the encoder writes FORMAT)
     unit_values: int = 0  # format 6: most values in one chunk's rANS unit (a native decoder sizes its cache by it)
+    tracks: Tracks | None = None  # format 6, flags bit 10: the translation tracks' header (and q at the encoder)
     _cache: dict = field(default_factory=dict, repr=False)
 
     def replace(self, **changes) -> "StreamInfo":
@@ -539,6 +552,10 @@ def write_payload(info: StreamInfo, skeleton_blob: bytes, coefficients: dict, co
                                       np.full(3 * len(gaps), _SIDE + info.value_class, np.uint8)]),
             runtime_tables(),
         )
+        if info.tracks is not None:  # the chunk's frames of every translation track, one unit (:mod:`.tracks`)
+            first, length = int(chunk_first_frame[chunk]), int(layout.lengths[segments].sum())
+            encode_unit(writer, info.tracks.chunk_values(first, first + length), info.tracks.unit_classes(length),
+                        runtime_tables())
         chunks.append(writer.getvalue())
 
     writer = ByteWriter()
@@ -557,6 +574,8 @@ def write_payload(info: StreamInfo, skeleton_blob: bytes, coefficients: dict, co
     write_small_ints(writer, tilt[1:] + model.NUM_CLASSES)  # band 0 (the DC) has no AC coefficients
     writer.write_bytes(bytes([info.dc_tilt + model.NUM_CLASSES, info.count_tilt + model.NUM_CLASSES,
                               info.gap_class, info.value_class]))
+    if info.tracks is not None:
+        info.tracks.write(writer)
     writer.write_varint(unit_values)
     side = layout.num_segments
     encode_unit(writer, np.concatenate([dc_diff, count_diff]),
@@ -653,6 +672,7 @@ def read_info(header: Header, payload: memoryview) -> StreamInfo:
     if max(dc_tilt, count_tilt, gap_class, value_class) >= model.NUM_CLASSES:
         raise BitstreamError(f"mcb-rot: classes must be < {model.NUM_CLASSES}.")
     coder_tables = tables(settings.rounding)
+    track_header = read_tracks(reader, num_joints) if settings.tracks else None
     counts, unit_values = None, 0
     if version >= 6:
         unit_values = reader.read_varint("largest unit")
@@ -680,7 +700,23 @@ def read_info(header: Header, payload: memoryview) -> StreamInfo:
     offsets = reader.offset + np.concatenate([[0], np.cumsum(sizes)])
     if offsets[-1] != len(payload):
         raise BitstreamError(f"mcb-rot: the chunks end at byte {offsets[-1]}, the payload has {len(payload)}.")
-    budgets = joint_budgets(skeleton, settings.bound_cm, settings.root_share, settings.free_angle_rad,
-                            settings.allocation_power, settings.shell_cm)
+    budgets = stream_budgets(settings, skeleton, track_header)
     return StreamInfo(settings, skeleton, budgets, layout, cuts, overrides, axis_codes, scale, tilt, dc_tilt,
-                      count_tilt, gap_class, value_class, dc, offsets, counts, version, unit_values)
+                      count_tilt, gap_class, value_class, dc, offsets, counts, version, unit_values, track_header)
+
+
+def end_site_reach(skeleton: Skeleton) -> np.ndarray:
+    """(J,) cm each joint's longest end-site offset (0 where it has none)."""
+    reach = np.zeros(skeleton.num_joints)
+    if len(skeleton.end_site_parents):
+        np.maximum.at(reach, skeleton.end_site_parents, np.sqrt(np.sum(skeleton.end_site_offsets**2, axis=1)))
+    return reach
+
+
+def stream_budgets(settings: Settings, skeleton: Skeleton, tracks: Tracks | None) -> Budgets:
+    """The budgets of a stream (encoder and decoder alike): its settings' bound and shares, with the end sites as
+    virtual children when the stream covers them, and each translated joint's reach as its bone."""
+    return joint_budgets(skeleton, settings.bound_cm, settings.root_share, settings.free_angle_rad,
+                         settings.allocation_power, settings.shell_cm,
+                         ends_cm=end_site_reach(skeleton) if settings.ends else None,
+                         bones_cm=None if tracks is None else tracks.bones_cm(skeleton))
