@@ -268,11 +268,35 @@ def test_channel_count_disagrees_with_names(tmp_path):
         read_bvh(path)
 
 
-def test_a_moving_position_channel_below_the_root_is_refused_naming_the_joint(tmp_path):
-    # B's OFFSET x is 0; its new Xposition channel takes the old Zrotation column: 90 on line 25.
+def test_a_moving_position_channel_below_the_root_is_the_joints_translation(tmp_path):
+    # B's OFFSET x is 0; its new Xposition channel takes the old Zrotation column: 0 on frame 0, 90 on frame 1.
     path = variant(tmp_path, "CHANNELS 3 Zrotation Yrotation Xrotation", "CHANNELS 3 Xposition Yrotation Xrotation")
-    with pytest.raises(MotionFormatError, match=r"line 25: joint 'B' moves: its Xposition channel is 90 where its OFFSET"):
-        read_bvh(path)
+    motion = read_bvh(path)
+    np.testing.assert_array_equal(motion.moving_joints(), [1])
+    np.testing.assert_allclose(motion.translations[:, 1], [[0, 10, 0], [90, 10, 0]])  # Y, Z from the OFFSET
+    # Frame 1: B at (90, 10, 0) turned Rx(90): C's offset (5, 0, 0) stays along x, the end site's (0, 2, 0) -> +z.
+    np.testing.assert_allclose(motion.positions(), [[[1, 2, 3], [-9, 2, 3], [-9, 7, 3]],
+                                                    [[0, 0, 0], [90, 10, 0], [95, 10, 0]]], atol=1e-9)
+    np.testing.assert_allclose(motion.end_site_positions()[:, 0], [[-11, 7, 3], [95, 10, 2]], atol=1e-9)
+    again = read_bvh(write_bvh(motion, tmp_path / "again.bvh"))
+    assert again.skeleton.channel_orders == motion.skeleton.channel_orders
+    np.testing.assert_allclose(again.translations, motion.translations, atol=1e-6)
+    np.testing.assert_allclose(again.positions(), motion.positions(), atol=1e-5)
+
+
+def test_a_motion_bvh_cannot_hold_is_refused_naming_joint_and_frame(tmp_path):
+    motion = read_bvh(variant(tmp_path, "CHANNELS 3 Zrotation Yrotation Xrotation",
+                              "CHANNELS 3 Xposition Yrotation Xrotation"))
+    with pytest.raises(MotionFormatError, match=r"root.bvh: joint 'B' moves \(translation \[90.0, 10.0, 0.0\] cm at "
+                                                r"frame 1, .*position_channels='root' cannot hold it"):
+        write_bvh(motion, tmp_path / "root.bvh", position_channels="root")
+    scales = np.ones((2, 3, 3))
+    scales[1, 2] = [1, 1, 0.5]
+    scaled = Motion(motion.skeleton, motion.fps, motion.root_positions, motion.rotations, scales=scales)
+    with pytest.raises(MotionFormatError, match=r"scaled.bvh: joint 'C' has scale \[1.0, 1.0, 0.5\] at frame 1; "
+                                                "BVH has no scale channel"):
+        write_bvh(scaled, tmp_path / "scaled.bvh")
+    assert not (tmp_path / "scaled.bvh").exists() and not (tmp_path / "root.bvh").exists()
 
 
 def test_position_channels_that_stay_at_the_offset_are_folded_away(tmp_path):
@@ -283,6 +307,7 @@ def test_position_channels_that_stay_at_the_offset_are_folded_away(tmp_path):
     path.write_text(text)
     folded = read_bvh(path)
     reference = read_bvh(CHAIN)
+    assert folded.translations is None
     np.testing.assert_allclose(folded.positions(), reference.positions(), atol=1e-9)
     assert folded.skeleton.channel_orders == reference.skeleton.channel_orders
 

@@ -9,13 +9,12 @@ Conventions of the reading (the common one, e.g. the CMU/cgspeed files and Blend
   the file's order (missing axes appended) so that :func:`write_bvh` writes it back the same way.
 * Position channels on the root, in any order, are absolute root positions. An axis without a channel takes
   the root ``OFFSET``; with no position channel at all the root stays at its OFFSET.
-* Position channels on other joints (MotionBuilder and many game tools write ``CHANNELS 6`` on every joint)
-  are read and *folded away* when they stay equal to the joint's OFFSET in every frame (within
-  :data:`POSITION_TOLERANCE` file units, relative to the offset's size): the joint's bone has a fixed length, which
-  is all a :class:`~mocapbench.motion.Motion` (root translation only) can hold. A non-root joint whose position
-  channel moves is refused with one :class:`~mocapbench.motion.MotionFormatError` naming the joint, the line
-  and the value: mocapbench's codecs carry no translation track below the root, so reading it would drop
-  the motion silently.
+* Position channels on other joints (MotionBuilder and game tools write ``CHANNELS 6`` on every joint; a game rig
+  moves its pelvis under a ground-level root) are the joint's local translation in its parent's frame, read into
+  :attr:`Motion.translations <mocapbench.motion.Motion.translations>` (an axis without a channel takes the OFFSET).
+  A joint whose channels stay equal to its OFFSET in every frame (within :data:`POSITION_TOLERANCE` file units,
+  relative to the offset's size: files print 6 significant digits) is *folded*: it sits at its OFFSET, and a file
+  in which no joint moves has ``translations`` ``None``, as a file with position channels on the root only.
 * ``End Site`` blocks become ``Skeleton.end_site_parents`` / ``end_site_offsets``.
 * ``length_unit_cm`` is the length of one file unit in cm: offsets and root positions are multiplied by it
   on reading and divided by it on writing (the CMU files use ASF units: pass
@@ -53,7 +52,8 @@ __all__ = ["read_bvh", "write_bvh", "MAX_JOINTS", "POSITION_TOLERANCE"]
 
 #: Most joints a BVH file may declare (the container's limit; real rigs have 15-150).
 MAX_JOINTS = 4096
-#: A non-root position channel within this many file units of its OFFSET (times max(1, |offset|)) is folded away.
+#: A non-root joint whose position channels stay within this many file units of its OFFSET (times
+#: max(1, |offset|)) in every frame is folded to its OFFSET.
 POSITION_TOLERANCE = 1e-4
 # Frame Time range, seconds: the frame rates a stream may carry (mocapbench.codecs.container.MIN_FPS/MAX_FPS).
 MIN_FRAME_TIME_S = 1e-5
@@ -347,7 +347,7 @@ class _MotionBlock:
         self.rotations[..., 3] = 1.0
         self.by_order: dict[str, tuple[list[int], list[int]]] = {}  # axes -> (joints, columns in axis order)
         self.root_columns: list[tuple[int, int]] = []  # (column, axis)
-        self.fixed: list[tuple[int, int, int, float]] = []  # (column, joint, axis, offset) to fold away
+        self.translation_columns: list[tuple[int, int, int]] = []  # (column, joint, axis) of non-root positions
         column = 0
         for index, joint in enumerate(joints):
             axes, columns = "", []
@@ -356,7 +356,7 @@ class _MotionBlock:
                     if index == 0:
                         self.root_columns.append((column, "XYZ".index(axis)))
                     else:
-                        self.fixed.append((column, index, "XYZ".index(axis), joint.offset["XYZ".index(axis)]))
+                        self.translation_columns.append((column, index, "XYZ".index(axis)))
                 else:
                     axes += axis
                     columns.append(column)
@@ -366,26 +366,45 @@ class _MotionBlock:
                 members.append(index)
                 cols.extend(columns)
         self.num_channels = column
+        # Joints with position channels below the root: their translations, file units, OFFSET where no channel.
+        self.translated = sorted({joint for _, joint, _ in self.translation_columns})
+        self.translations = None
+        if self.translated:
+            offsets = np.array([joints[j].offset for j in self.translated], dtype=np.float64)
+            self.translations = np.tile(offsets, (capacity, 1, 1))
+        self.translation_slot = {joint: slot for slot, joint in enumerate(self.translated)}
 
     def store(self, values: np.ndarray, row: int, line_numbers: np.ndarray) -> None:
         """Put the ``(n, C)`` block ``values`` (file lines ``line_numbers``) at frames ``row .. row + n``."""
         n = len(values)
-        for column, joint, axis, offset in self.fixed:
-            moved = np.abs(values[:, column] - offset) > POSITION_TOLERANCE * max(1.0, abs(offset))
-            if moved.any():
-                frame = int(np.flatnonzero(moved)[0])
-                name = self.joints[joint].name
-                raise self.reader.error(
-                    int(line_numbers[frame]),
-                    f"joint {name!r} moves: its {'XYZ'[axis]}position channel is {values[frame, column]:g} where its "
-                    f"OFFSET says {offset:g}; mocapbench carries translation on the root only, so this file cannot "
-                    f"be read without losing that motion.",
-                )
+        for column, joint, axis in self.translation_columns:
+            self.translations[row : row + n, self.translation_slot[joint], axis] = values[:, column]
         for column, axis in self.root_columns:
             self.root[row : row + n, axis] = values[:, column]
         for axes, (members, columns) in self.by_order.items():
             angles = values[:, np.array(columns)].reshape(n, len(members), len(axes))
             self.rotations[row : row + n, members] = Rotation.from_euler(axes, angles, degrees=True).as_quat()
+
+    def joint_translations(self, start: int, root: np.ndarray, length_unit_cm: float) -> np.ndarray | None:
+        """The (F, J, 3) cm translation track of frames ``start:`` with still joints folded to their OFFSET, or
+        ``None`` when no joint below the root moves (see :data:`POSITION_TOLERANCE`)."""
+        if self.translations is None:
+            return None
+        moving = []
+        for slot, joint in enumerate(self.translated):
+            offset = np.array(self.joints[joint].offset)
+            deviation = np.abs(self.translations[start:, slot] - offset).max(axis=0)
+            if np.any(deviation > POSITION_TOLERANCE * np.maximum(1.0, np.abs(offset))):
+                moving.append(slot)
+        if not moving:
+            return None
+        offsets = np.array([joint.offset for joint in self.joints], dtype=np.float64)
+        track = np.empty((len(root), len(self.joints), 3))
+        track[:] = offsets * length_unit_cm
+        track[:, 0] = root
+        for slot in moving:
+            track[:, self.translated[slot]] = self.translations[start:, slot] * length_unit_cm
+        return track
 
 
 def _parse_block(reader: _Reader, chunk: bytes, first_line: int, num_channels: int):
@@ -471,7 +490,8 @@ def read_bvh(
     Returns
     -------
     Motion
-        Root positions (F, 3) in cm, local rotations (F, J, 4) as scalar-last quaternions; J joints (end
+        Root positions (F, 3) in cm, local rotations (F, J, 4) as scalar-last quaternions, ``translations``
+        (F, J, 3) cm when a joint below the root moves (else ``None``); J joints (end
         sites in ``skeleton.end_site_*``), fps from ``Frame Time`` (snapped to an integer rate when the
         printed frame time is that rate rounded).
 
@@ -479,8 +499,8 @@ def read_bvh(
     ------
     MotionFormatError
         A missing (:class:`~mocapbench.io.MotionFileNotFoundError`), empty or malformed file, a frame time
-        outside [1e-5, 1000] s, more than :data:`MAX_JOINTS` joints, or a non-root joint whose position channels
-        move; the message names the file, the line and what was expected. ``ValueError`` for a bad
+        outside [1e-5, 1000] s, more than :data:`MAX_JOINTS` joints; the message names the file, the line and
+        what was expected. ``ValueError`` for a bad
         ``length_unit_cm``.
     """
     if not (math.isfinite(length_unit_cm) and length_unit_cm > 0):
@@ -514,11 +534,15 @@ def _read(path: Path, handle: BinaryIO, length_unit_cm: float, drop_first_frame:
     # A frame is C numbers, C - 1 separators and a newline: a file of B bytes holds at most (B + 1) / 2C frames, so
     # a 'Frames:' that claims more allocates only what the bytes can hold (and fails below naming the real count).
     capacity = min(num_frames, (data_bytes + 1) // (2 * num_channels))
-    if capacity * len(joints) * 32 > 8 * data_bytes + (64 << 20):
+    translated = len({j for j, joint in enumerate(joints) if j and any(k == "position" for k, _ in joint.channels)})
+    # Rotations (32 bytes), a translation track in the file and in cm (2 x 24) where a joint below the root has
+    # position channels: frames x joints checked against the bytes the file holds before anything is allocated.
+    frame_joint_bytes = 32 + (48 if translated else 0)
+    if capacity * len(joints) * frame_joint_bytes > 8 * data_bytes + (64 << 20):
         raise reader.error(
             frames_line,
             f"{len(joints)} joints but only {num_channels} channels: {capacity} frames would take "
-            f"{capacity * len(joints) * 32:,} bytes of rotations for a {reader.size:,}-byte file.",
+            f"{capacity * len(joints) * frame_joint_bytes:,} bytes of tracks for a {reader.size:,}-byte file.",
         )
     block = _MotionBlock(reader, joints, max(capacity, 1))
     row, line, data_lines, last_data_line = 0, first_data_line, 0, 0
@@ -566,9 +590,10 @@ def _read(path: Path, handle: BinaryIO, length_unit_cm: float, drop_first_frame:
     )
     root = block.root[start:]
     root *= length_unit_cm
+    translations = block.joint_translations(start, root, length_unit_cm)
     rotations = OwnedQuaternions(block.rotations[start:])  # normalized in place by Motion: no second copy
     del block
-    return Motion(skeleton, fps, root, rotations, name=path.stem if name is None else name)
+    return Motion(skeleton, fps, root, rotations, name=path.stem if name is None else name, translations=translations)
 
 
 def _channel_order(joint: _Joint) -> str:
@@ -584,11 +609,12 @@ def write_bvh(
     length_unit_cm: float = 1.0,
     overwrite: bool = False,
     decimals: int = 6,
-    position_channels: str = "root",
+    position_channels: str = "moving",
 ) -> Path:
     """Write ``motion`` as a BVH file.
 
-    The root gets ``Xposition Yposition Zposition`` plus its rotation channels, every other joint three
+    The root gets ``Xposition Yposition Zposition`` plus its rotation channels, and so does every joint that moves
+    (:meth:`Motion.moving_joints <mocapbench.motion.Motion.moving_joints>`); every other joint three
     rotation channels in ``skeleton.channel_orders[j]`` (e.g. ``"ZYX"`` -> ``Zrotation Yrotation
     Xrotation``), angles in degrees. Joints are written depth first with children in index order, so
     :func:`read_bvh` returns them in the same order whenever ``skeleton`` is in that order (every
@@ -608,8 +634,9 @@ def write_bvh(
         Decimals of every number, 1..15. Default 6: 1e-6 file units and 1e-6 degrees, so a read-back motion
         has the same joint positions within about 1e-4 cm for a 2 m tall skeleton in cm.
     position_channels : str, keyword-only
-        ``"root"`` (default): position channels on the root only. ``"all"``: ``CHANNELS 6 Xposition Yposition
-        Zposition`` + rotations on every joint, the non-root ones holding the joint's OFFSET in every frame (what
+        ``"moving"`` (default): position channels on the root and on the joints that move. ``"root"``: on the root
+        only (a motion whose joints move is refused, naming the first). ``"all"``: ``CHANNELS 6 Xposition
+        Yposition Zposition`` + rotations on every joint, a still joint holding its OFFSET in every frame (what
         MotionBuilder exports).
 
     Returns
@@ -623,13 +650,17 @@ def write_bvh(
         ``path`` exists (or is a link, dangling or not) and ``overwrite`` is False.
     OSError
         The folder of ``path`` does not exist, or ``path`` is a folder.
+    MotionFormatError
+        The motion scales a joint (BVH has no scale channel), or ``position_channels="root"`` for a motion whose
+        joints move: one line naming the file, the joint and the frame.
     """
     if not (math.isfinite(length_unit_cm) and length_unit_cm > 0):
         raise ValueError(f"`length_unit_cm` must be a finite number > 0, got {length_unit_cm}.")
     if not 1 <= decimals <= 15:
         raise ValueError(f"`decimals` must be in [1, 15], got {decimals}.")
-    if position_channels not in ("root", "all"):
-        raise ValueError(f"`position_channels` must be 'root' or 'all', got {position_channels!r}.")
+    if position_channels not in ("moving", "root", "all"):
+        raise ValueError(f"`position_channels` must be 'moving', 'root' or 'all', got {position_channels!r}.")
+    with_position = _joints_with_position_channels(motion, position_channels, Path(path))
     path = check_output(path, force=overwrite)
     skeleton = motion.skeleton
     order = _depth_first_order(skeleton.parents)
@@ -656,15 +687,13 @@ def write_bvh(
         keyword = "ROOT" if joint == 0 else "JOINT"
         offset = " ".join(number.format(v) for v in skeleton.offsets[joint] / length_unit_cm)
         rotation_channels = " ".join(f"{axis}rotation" for axis in skeleton.channel_orders[joint])
-        with_position = joint == 0 or position_channels == "all"
-        channels = f"6 Xposition Yposition Zposition {rotation_channels}" if with_position else f"3 {rotation_channels}"
+        channels = f"6 Xposition Yposition Zposition {rotation_channels}" if with_position[joint] else f"3 {rotation_channels}"
         lines.extend([f"{indent}{keyword} {skeleton.names[joint]}", f"{indent}{{", f"{indent}\tOFFSET {offset}"])
         lines.append(f"{indent}\tCHANNELS {channels}")
         stack.append(("close", joint, depth))
         stack.extend(("open", child, depth + 1) for child in reversed(children[joint]))
     lines.extend(["MOTION", f"Frames: {motion.num_frames}", f"Frame Time: {1.0 / motion.fps:.10g}"])
 
-    columns = [motion.root_positions / length_unit_cm]
     euler = np.empty((motion.num_frames, motion.num_joints, 3))
     for axes in sorted(set(skeleton.channel_orders)):
         members = [j for j in range(motion.num_joints) if skeleton.channel_orders[j] == axes]
@@ -672,13 +701,14 @@ def write_bvh(
             # At gimbal lock scipy sets the third angle to 0 and warns; the angles still give the same rotation.
             warnings.filterwarnings("ignore", message="Gimbal lock detected", category=UserWarning)
             euler[:, members] = Rotation.from_quat(motion.rotations[:, members]).as_euler(axes, degrees=True)
-    if position_channels == "all":
-        positions = np.broadcast_to(skeleton.offsets[order] / length_unit_cm, euler.shape).copy()
-        positions[:, 0] = motion.root_positions / length_unit_cm
-        values = np.concatenate([positions, euler[:, order]], axis=2).reshape(motion.num_frames, -1)
-    else:
-        columns.append(euler[:, order].reshape(motion.num_frames, -1))
-        values = np.concatenate(columns, axis=1)
+    # Per joint in file order: its translation (file units) where it has position channels, then its angles.
+    translations = motion.local_translations()
+    columns = []
+    for joint in order:
+        if with_position[joint]:
+            columns.append(translations[:, joint] / length_unit_cm)
+        columns.append(euler[:, joint])
+    values = np.concatenate(columns, axis=1)
     row = " ".join([number] * values.shape[1])
     with open_output(path, "w", force=overwrite) as handle:
         handle.write("\n".join(lines) + "\n")
@@ -686,6 +716,33 @@ def write_bvh(
             chunk = values[start : start + _WRITE_CHUNK_FRAMES].tolist()
             handle.write("".join(row.format(*frame) + "\n" for frame in chunk))
     return path
+
+
+def _joints_with_position_channels(motion: Motion, position_channels: str, path: Path) -> np.ndarray:
+    """Which joints :func:`write_bvh` gives position channels, (J,) bool; refuses what BVH cannot hold."""
+    scaled = motion.scaled_joints()
+    if scaled.size:
+        joint = int(scaled[0])
+        frame = int(np.flatnonzero(np.any(motion.scales[:, joint] != 1.0, axis=1))[0])
+        raise MotionFormatError(
+            f"{path}: joint {motion.skeleton.names[joint]!r} has scale {motion.scales[frame, joint].tolist()} at frame "
+            f"{frame}; BVH has no scale channel (write glTF/GLB, which holds scale tracks)."
+        )
+    with_position = np.zeros(motion.num_joints, dtype=bool)
+    with_position[0] = True
+    if position_channels == "all":
+        with_position[:] = True
+    moving = motion.moving_joints()
+    if position_channels == "root" and moving.size:
+        joint = int(moving[0])
+        frame = int(np.flatnonzero(np.any(motion.translations[:, joint] != motion.skeleton.offsets[joint], axis=1))[0])
+        raise MotionFormatError(
+            f"{path}: joint {motion.skeleton.names[joint]!r} moves (translation "
+            f"{motion.translations[frame, joint].tolist()} cm at frame {frame}, OFFSET "
+            f"{motion.skeleton.offsets[joint].tolist()}); position_channels='root' cannot hold it, use 'moving'."
+        )
+    with_position[moving] = True
+    return with_position
 
 
 def _depth_first_order(parents: np.ndarray) -> list[int]:
