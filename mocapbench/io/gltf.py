@@ -5,9 +5,11 @@ them, samples the channels at a fixed rate (LINEAR = lerp/slerp, STEP, CUBICSPLI
 specification defines them) and returns a :class:`~mocapbench.motion.Motion` in cm:
 
 * the joint tree is the skin's joints under their nearest joint ancestor; a node between two joints that is not
-  a joint, more than one root joint, a joint with a non-unit scale, or an animated translation on a non-root joint
-  that moves (more than 1e-3 cm from its first value) is refused in one line naming the node (a Motion carries
-  the root translation only);
+  a joint, or more than one root joint, is refused in one line naming the node; a childless node under a joint
+  that is not a joint and carries no mesh, skin or camera is an end site (the writer's end sites read back);
+* ``translation`` and ``scale`` channels (and static scales) on any joint are read: a joint that moves gets a
+  translation track, a joint that scales a scale track (:mod:`mocapbench.io.node_motion` folds the still ones);
+  a scale <= 0 is refused naming the joint and the key or frame;
 * the static transform of the nodes above the root joint (an "Armature" node turning Z-up to Y-up, or scaling
   cm to m) is baked into the root: it may rotate, translate and scale uniformly;
 * the result has identity rest rotations, as BVH: local rotations are re-expressed relative to the nodes' static
@@ -18,8 +20,10 @@ specification defines them) and returns a :class:`~mocapbench.motion.Motion` in 
 
 Writing (:func:`write_gltf`) produces what a glTF viewer plays: one node per joint (no static rotation, so the
 nodes' own pose is the rest pose; translation the offset, the root's the first root position), a skin over them,
-a line mesh of the bones skinned to them (so a viewer shows a stick figure), and one animation with a LINEAR
-rotation sampler per joint and a translation sampler on the root, one key per frame. Lengths in metres, Y-up (a Z-up motion is turned by -90
+a childless node per end site under its joint (outside the skin), a line mesh of the bones and end sites skinned
+to the joints (so a viewer shows a stick figure), and one animation with a LINEAR rotation sampler per joint, a
+translation sampler on the root and on every joint that moves, a scale sampler on every joint that scales, one
+key per frame. Lengths in metres, Y-up (a Z-up motion is turned by -90
 degrees about X first). ``.glb`` is binary glTF; ``.gltf`` embeds its buffer as a base64 data URI (one file).
 
 Not read: morph-target weights (ignored), sparse accessors, KHR extensions that change the data (refused), more
@@ -32,6 +36,7 @@ import base64
 import json
 import math
 import struct
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -294,13 +299,14 @@ def read_gltf(
     -------
     Motion
         F = ``floor((t_last - t_first) * fps + 0.01) + 1`` frames starting at the first key, J = the skin's joints
-        (depth-first), lengths in cm, identity rest rotations, ``source_unit_cm`` = ``length_unit_cm``,
-        ``up_axis`` = ``"y"``.
+        (depth-first), lengths in cm, identity rest rotations, ``translations`` for joints that move, ``scales``
+        where a joint scales, end sites from the joints' leaf child nodes, ``source_unit_cm`` =
+        ``length_unit_cm``, ``up_axis`` = ``"y"``.
 
     Raises
     ------
     MotionFormatError
-        One line naming the file and what is wrong (no skin, no animation, a moving non-root joint, ...).
+        One line naming the file and what is wrong (no skin, no animation, a scale <= 0, ...).
     """
     if not (math.isfinite(length_unit_cm) and length_unit_cm > 0):
         raise ValueError(f"`length_unit_cm` must be a finite number > 0, got {length_unit_cm}.")
@@ -308,6 +314,42 @@ def read_gltf(
         raise ValueError(f"`fps` must be a finite number > 0, got {fps}.")
     path = Path(path)
     reader = _Reader(path)
+    tree = _joint_tree(reader, skin)
+    tracks = _joint_tracks(reader, animation, tree)
+    times = [t for t, _, _ in tracks.values()]
+    start, stop = min(t[0] for t in times), max(t[-1] for t in times)
+    rate = fps or _frames_per_second(times)
+    # Key times are float32: a span a hair short of a whole number of frames still counts that frame.
+    num_frames = int(math.floor((stop - start) * rate + 0.01)) + 1
+    if num_frames > _MAX_FRAMES:
+        raise reader.error(f"{num_frames} frames at {rate} fps exceed the limit of {_MAX_FRAMES}")
+    check_motion_size(num_frames, len(tree.order), reader.error, f"at {rate:g} fps")
+    translations, rotations, scales = _sampled_tracks(reader, tree, tracks, start + np.arange(num_frames) / rate)
+    nodes = reader.gltf.nodes
+    return motion_from_nodes(
+        [nodes[node].name or f"node{node}" for node in tree.order], tree.parents, translations, rotations,
+        np.array([quat for _, quat, _ in tree.statics]), tree.above, length_unit_cm=length_unit_cm, fps=rate,
+        name=path.stem if name is None else name, up_axis="y", error=reader.error,
+        rest_translations=np.array([translation for translation, _, _ in tree.statics]), scales=scales,
+        end_site_parents=tree.end_site_parents, end_site_offsets=tree.end_site_offsets,
+    )
+
+
+@dataclass(frozen=True)
+class _JointTree:
+    """A skin's joints as a tree: depth-first node indices, parents, the static transforms, end sites."""
+
+    order: list[int]  # node index of each joint, depth first
+    parents: np.ndarray  # (J,) joint index of each joint's parent, -1 for the root
+    ancestors: list[int]  # nodes above the root joint
+    above: np.ndarray  # (4, 4) static transform of the nodes above the root joint
+    statics: list[tuple[np.ndarray, np.ndarray, np.ndarray]]  # each joint's static translation, quaternion, scale
+    end_site_parents: np.ndarray  # (E,) joint index
+    end_site_offsets: np.ndarray  # (E, 3) file units, in the joint's node frame
+
+
+def _joint_tree(reader: _Reader, skin: int) -> _JointTree:
+    """The joint tree of ``skins[skin]``: one root joint, joints directly under joints, leaf children as end sites."""
     gltf = reader.gltf
     nodes = gltf.nodes or []
     if not gltf.skins:
@@ -326,9 +368,8 @@ def read_gltf(
     if len(roots) != 1:
         names = [nodes[j].name for j in roots]
         raise reader.error(f"skins[{skin}] has {len(roots)} root joints {names}; expected one joint tree")
-    root = roots[0]
     # Joints in depth-first order following each node's children list.
-    order, stack = [], [root]
+    order, stack = [], [roots[0]]
     while stack:
         node = stack.pop()
         order.append(node)
@@ -341,23 +382,33 @@ def read_gltf(
             f"of skins[{skin}]; expected joints directly under joints"
         )
     position = {node: i for i, node in enumerate(order)}
-    parents = np.array([-1] + [position[parent_of[node]] for node in order[1:]])
-
     # Static transform above the root: a similarity (rotation, uniform scale, translation).
-    above = np.eye(4)
-    ancestor = parent_of.get(root)
-    ancestors = []
+    above, ancestors = np.eye(4), []
+    ancestor = parent_of.get(roots[0])
     while ancestor is not None:
         ancestors.append(ancestor)
         above = _trs_matrix(nodes[ancestor]) @ above
         ancestor = parent_of.get(ancestor)
+    # End sites: childless nodes under a joint that are not joints and carry nothing (no mesh, skin or camera).
+    ends = [(position[parent_of[n]], n) for n in range(len(nodes)) if parent_of.get(n) in joint_set
+            and n not in joint_set and not nodes[n].children and nodes[n].mesh is None and nodes[n].skin is None
+            and nodes[n].camera is None]
+    ends.sort()
+    return _JointTree(
+        order=order,
+        parents=np.array([-1] + [position[parent_of[node]] for node in order[1:]]),
+        ancestors=ancestors,
+        above=above,
+        statics=[_static_trs(reader, node) for node in order],
+        end_site_parents=np.array([joint for joint, _ in ends], dtype=np.int64),
+        end_site_offsets=np.array([_static_trs(reader, node)[0] for _, node in ends]).reshape(-1, 3),
+    )
 
-    statics = [_static_trs(reader, node) for node in order]
-    for node, (_, _, scale) in zip(order, statics):
-        if np.abs(scale - 1.0).max() > 1e-4:
-            raise reader.error(f"joint node {node} ({nodes[node].name!r}) has scale {scale.tolist()}; expected 1")
 
-    # Channels of the chosen animation on the joints.
+def _joint_tracks(reader: _Reader, animation: int, tree: _JointTree) -> dict[tuple[int, str], tuple]:
+    """``(node, "rotation" | "translation" | "scale") -> (key times, values, interpolation)`` of the animation."""
+    gltf, nodes = reader.gltf, reader.gltf.nodes
+    joint_set = set(tree.order)
     if not gltf.animations:
         raise reader.error("has no animation; nothing to read")
     anim = reader.item("animations", animation, "animation=")
@@ -365,7 +416,7 @@ def read_gltf(
     for c, channel in enumerate(anim.channels or []):
         target = channel.target
         node, kind = getattr(target, "node", None), getattr(target, "path", None)
-        if node in ancestors:
+        if node in tree.ancestors:
             raise reader.error(
                 f"animations[{animation}] animates node {node} ({nodes[node].name!r}) above the root joint"
             )
@@ -389,40 +440,44 @@ def read_gltf(
             raise reader.error(f"{what}: key times must increase strictly")
         if kind == "scale":
             keys = values.reshape(len(times), per_key, 3)[:, per_key // 2]
-            if np.abs(keys - 1.0).max() > 1e-4:
-                raise reader.error(f"{what}: animated scale {keys[np.abs(keys - 1).max(axis=1).argmax()].tolist()}; "
-                                   "a Motion has no scale")
-            continue
+            if np.any(keys <= 0):
+                key = int(np.flatnonzero(np.any(keys <= 0, axis=1))[0])
+                raise reader.error(f"{what}: key {key} (at {times[key]:.6g} s) has scale {keys[key].tolist()}; "
+                                   "a scale must be > 0")
         tracks[(node, kind)] = (times, values, interpolation)
-    if not tracks:
+    if not any(kind != "scale" for _, kind in tracks):
         raise reader.error(
-            f"animations[{animation}] has no rotation or translation channel on the joints of skins[{skin}]"
+            f"animations[{animation}] has no rotation or translation channel on the joints of the skin"
         )
-    start = min(t[0] for t, _, _ in tracks.values())
-    stop = max(t[-1] for t, _, _ in tracks.values())
-    rate = fps or _frames_per_second([t for t, _, _ in tracks.values()])
-    # Key times are float32: a span a hair short of a whole number of frames still counts that frame.
-    num_frames = int(math.floor((stop - start) * rate + 0.01)) + 1
-    if num_frames > _MAX_FRAMES:
-        raise reader.error(f"{num_frames} frames at {rate} fps exceed the limit of {_MAX_FRAMES}")
-    check_motion_size(num_frames, len(order), reader.error, f"at {rate:g} fps")
-    at = start + np.arange(num_frames) / rate
+    return tracks
 
-    num_joints = len(order)
-    local = np.empty((num_frames, num_joints, 4))
+
+def _sampled_tracks(reader: _Reader, tree: _JointTree, tracks: dict, at: np.ndarray):
+    """Every joint's translation (F, J, 3), rotation (F, J, 4) and scale (F, J, 3, or None) at times ``at``.
+
+    A joint without a channel keeps its static value; scales are ``None`` when no joint has a scale other than 1.
+    """
+    num_frames, num_joints = len(at), len(tree.order)
+    rotations = np.empty((num_frames, num_joints, 4))
     translations = np.empty((num_frames, num_joints, 3))
-    for i, node in enumerate(order):
-        translation, quat, _ = statics[i]
+    scales = np.empty((num_frames, num_joints, 3))
+    for i, node in enumerate(tree.order):
+        translation, quat, scale = tree.statics[i]
         track = tracks.get((node, "rotation"))
-        local[:, i] = _sample(track[0], track[1], track[2], at, True) if track else quat
+        rotations[:, i] = _sample(track[0], track[1], track[2], at, True) if track else quat
         track = tracks.get((node, "translation"))
         translations[:, i] = _sample(track[0], track[1], track[2], at, False) if track else translation
-    names = [nodes[node].name or f"node{node}" for node in order]
-    rest_rotations = np.array([quat for _, quat, _ in statics])
-    return motion_from_nodes(
-        names, parents, translations, local, rest_rotations, above, length_unit_cm=length_unit_cm, fps=rate,
-        name=path.stem if name is None else name, up_axis="y", error=reader.error,
-    )
+        track = tracks.get((node, "scale"))
+        scales[:, i] = _sample(track[0], track[1], track[2], at, False) if track else scale
+    if np.all(scales == 1.0):
+        return translations, rotations, None
+    bad = np.any(scales <= 0, axis=2)
+    if bad.any():  # a cubic spline may overshoot below 0 between positive keys
+        frame, joint = (int(i) for i in np.argwhere(bad)[0])
+        name = reader.gltf.nodes[tree.order[joint]].name
+        raise reader.error(f"joint node {tree.order[joint]} ({name!r}) has scale {scales[frame, joint].tolist()} at "
+                           f"frame {frame}; a scale must be > 0")
+    return translations, rotations, scales
 
 
 def _pack(chunks: list[bytes], array: np.ndarray) -> tuple[int, int]:
@@ -489,22 +544,30 @@ def write_gltf(motion: Motion, path: str | Path, *, length_unit_cm: float = 100.
         return len(accessors) - 1
 
     rest = skeleton.rest_positions() * scale
+    end_parents = skeleton.end_site_parents
     nodes = []
     for j in range(num_joints):
         translation = (motion.root_positions[0] if j == 0 else skeleton.offsets[j]) * scale
         # No static rotation: the nodes' own pose is the rest pose (a T-pose for most rigs); the animation moves them.
-        nodes.append(g.Node(name=skeleton.names[j], translation=translation.tolist(),
-                            children=skeleton.children(j) or None))
+        children = skeleton.children(j) + [num_joints + int(e) for e in np.flatnonzero(end_parents == j)]
+        nodes.append(g.Node(name=skeleton.names[j], translation=translation.tolist(), children=children or None))
+    # End sites (toe, finger and head tips a viewer draws): childless nodes under their joint, outside the skin.
+    for e, (joint, offset) in enumerate(zip(end_parents, skeleton.end_site_offsets)):
+        nodes.append(g.Node(name=f"{skeleton.names[joint]}_end{e}", translation=(offset * scale).tolist()))
+    end_rest = rest[end_parents] + skeleton.end_site_offsets * scale
     inverse_bind = np.tile(np.eye(4, dtype=np.float32), (num_joints, 1, 1))
     inverse_bind[:, 3, :3] = -rest  # column-major: the translation sits in the last column's first 3 entries
     skin = g.Skin(joints=list(range(num_joints)), skeleton=0,
                   inverseBindMatrices=add(inverse_bind.reshape(num_joints, 16).astype(np.float32), "MAT4", 5126))
     meshes = []
     scene_nodes = [0]
-    if num_joints > 1:
+    if num_joints > 1 or len(end_parents):
+        # One line per bone (parent to joint) and per end site (joint to tip, both ends skinned to the joint).
         bones = np.arange(1, num_joints)
-        ends = np.stack([skeleton.parents[bones], bones], axis=1).reshape(-1)
-        positions = rest[ends].astype(np.float32)
+        ends = np.concatenate([np.stack([skeleton.parents[bones], bones], axis=1).reshape(-1),
+                               np.repeat(end_parents, 2)])
+        positions = np.concatenate([rest[np.stack([skeleton.parents[bones], bones], axis=1).reshape(-1)],
+                                    np.stack([rest[end_parents], end_rest], axis=1).reshape(-1, 3)]).astype(np.float32)
         weights = np.zeros((len(ends), 4), np.float32)
         weights[:, 0] = 1.0
         joints_attr = np.zeros((len(ends), 4), np.uint16)
@@ -525,10 +588,15 @@ def write_gltf(motion: Motion, path: str | Path, *, length_unit_cm: float = 100.
                                            interpolation="LINEAR"))
         channels.append(g.AnimationChannel(sampler=len(samplers) - 1,
                                            target=g.AnimationChannelTarget(node=j, path="rotation")))
-    root_track = add((motion.root_positions * scale).astype(np.float32), "VEC3", 5126)
-    samplers.append(g.AnimationSampler(input=times, output=root_track, interpolation="LINEAR"))
-    channels.append(g.AnimationChannel(sampler=len(samplers) - 1,
-                                       target=g.AnimationChannelTarget(node=0, path="translation")))
+    # Translation samplers on the root and the joints that move, scale samplers on the joints that scale.
+    local_translations = motion.local_translations()
+    for kind, joints, track in (("translation", [0, *motion.moving_joints()], local_translations * scale),
+                                ("scale", list(motion.scaled_joints()), motion.scales)):
+        for j in joints:
+            samplers.append(g.AnimationSampler(input=times, output=add(track[:, j].astype(np.float32), "VEC3", 5126),
+                                               interpolation="LINEAR"))
+            channels.append(g.AnimationChannel(sampler=len(samplers) - 1,
+                                               target=g.AnimationChannelTarget(node=int(j), path=kind)))
 
     blob = b"".join(chunks)
     gltf = g.GLTF2(
