@@ -15,6 +15,7 @@ from mocapbench.io import read_bvh
 from mocapbench.io.gltf import read_gltf, write_gltf
 from mocapbench.motion import MotionFormatError
 from mocapbench.synthetic import rig_motion, user_case, write_case_bvh
+from mocapbench.synthetic_game import game_rig_motion
 
 _DTYPES = {5126: np.float32, 5123: np.uint16, 5125: np.uint32}
 _WIDTHS = {"SCALAR": 1, "VEC3": 3, "VEC4": 4, "MAT4": 16}
@@ -43,6 +44,12 @@ def _trs(translation, rotation, scale) -> np.ndarray:
 
 def _independent_joint_positions(path) -> np.ndarray:
     """World positions (F, J, 3) of the skin's joints at every key, from pygltflib's parse and 4x4 matrices only."""
+    return _independent_world_positions(path)[0]
+
+
+def _independent_world_positions(path) -> tuple[np.ndarray, np.ndarray]:
+    """World positions at every key of the skin's joints (F, J, 3) and of the childless, mesh-less non-joint nodes
+    under them, the end sites (F, E, 3, in node order), from pygltflib's parse and 4x4 matrices (T R S) only."""
     gltf = pygltflib.GLTF2.load(str(path))
     blob = _blob(gltf)
     animation = gltf.animations[0]
@@ -57,7 +64,10 @@ def _independent_joint_positions(path) -> np.ndarray:
         num_keys = len(values)
     parents = {child: index for index, node in enumerate(gltf.nodes) for child in node.children or []}
     joints = gltf.skins[0].joints
+    ends = [n for n, node in enumerate(gltf.nodes) if parents.get(n) in joints and n not in joints
+            and not node.children and node.mesh is None]
     positions = np.zeros((num_keys, len(joints), 3))
+    end_positions = np.zeros((num_keys, len(ends), 3))
     for frame in range(num_keys):
         cache = {}
 
@@ -66,13 +76,16 @@ def _independent_joint_positions(path) -> np.ndarray:
                 node = gltf.nodes[index]
                 t = keyed.get((index, "translation"), [node.translation or [0, 0, 0]] * num_keys)[frame]
                 r = keyed.get((index, "rotation"), [node.rotation or [0, 0, 0, 1]] * num_keys)[frame]
-                local = _trs(t, r, node.scale or [1, 1, 1])
+                s = keyed.get((index, "scale"), [node.scale or [1, 1, 1]] * num_keys)[frame]
+                local = _trs(t, r, s)
                 cache[index] = local if index not in parents else world(parents[index]) @ local
             return cache[index]
 
         for j, node in enumerate(joints):
             positions[frame, j] = world(node)[:3, 3]
-    return positions
+        for e, node in enumerate(ends):
+            end_positions[frame, e] = world(node)[:3, 3]
+    return positions, end_positions
 
 
 @pytest.mark.parametrize("suffix", [".glb", ".gltf"])
@@ -185,6 +198,20 @@ def _moving_translation(gltf):
     gltf.set_binary_blob(bytes(blob))
 
 
+def _scale_track(gltf, value):
+    """A scale channel on node 3 whose key 3 has ``value`` along Y."""
+    blob = bytearray(gltf.binary_blob())
+    scales = np.ones((8, 3))
+    scales[3, 1] = value
+    animation = gltf.animations[0]
+    animation.samplers.append(pygltflib.AnimationSampler(input=animation.samplers[0].input,
+                                                         output=_append(gltf, blob, scales, "VEC3")))
+    animation.channels.append(pygltflib.AnimationChannel(
+        sampler=len(animation.samplers) - 1, target=pygltflib.AnimationChannelTarget(node=3, path="scale")))
+    gltf.buffers[0].byteLength = len(blob)
+    gltf.set_binary_blob(bytes(blob))
+
+
 def _two_roots(gltf):
     gltf.nodes[0].children = [c for c in gltf.nodes[0].children if c != 1]
     gltf.scenes[0].nodes.append(1)
@@ -195,9 +222,12 @@ def _two_roots(gltf):
     [
         (lambda g: setattr(g, "skins", []), "has no skin"),
         (lambda g: setattr(g, "animations", []), "has no animation"),
-        (_moving_translation, "joint '.*' has an animated translation that moves 20 cm"),
         (_two_roots, "has 2 root joints"),
-        (lambda g: setattr(g.nodes[2], "scale", [2.0, 2.0, 2.0]), r"has scale \[2.0, 2.0, 2.0\]; expected 1"),
+        (lambda g: _scale_track(g, 0.0), r"\('.*' scale\): key 3 \(at 0.025 s\) has scale \[1.0, 0.0, 1.0\]; a scale must "
+                                          "be > 0"),
+        (lambda g: _scale_track(g, -2.0), r"key 3 \(at 0.025 s\) has scale \[1.0, -2.0, 1.0\]"),
+        (lambda g: _scale_track(g, np.nan), r"\('.*' scale\) output\) holds a non-finite value at item 3: "
+                                             r"\[1.0, nan, 1.0\]"),
         (lambda g: setattr(g.accessors[g.animations[0].samplers[0].output], "count", 10**6), "needs bytes"),
         (lambda g: setattr(g.animations[0].samplers[0], "interpolation", "BEZIER"), "unknown interpolation 'BEZIER'"),
     ],
@@ -262,3 +292,59 @@ def test_frame_count_and_rate_survive_float32_key_times(tmp_path, num_frames, fp
     back = read_gltf(write_gltf(motion, tmp_path / "m.glb"))
     assert back.num_frames == num_frames
     assert back.fps == pytest.approx(fps, rel=1e-6)
+
+
+@pytest.mark.parametrize("suffix", [".glb", ".gltf"])
+def test_a_game_rig_keeps_its_tracks_and_end_sites(tmp_path, suffix):
+    """A ground root, a translated pelvis, a stretching spine and a scaled chest: the written file, evaluated by the
+    independent reader, has the motion's joint and end-site positions, and our reader gives the tracks back."""
+    motion = game_rig_motion(num_frames=40, stretch_cm=3.0, scale=1.4, seed=2)
+    path = write_gltf(motion, tmp_path / f"game{suffix}")
+    joints, ends = _independent_world_positions(path)
+    assert ends.shape == (40, len(motion.skeleton.end_site_parents), 3)
+    assert np.abs(joints * 100 - motion.positions()).max() < 2e-4  # cm: float32 keys in metres
+    assert np.abs(ends * 100 - motion.end_site_positions()).max() < 2e-4
+    back = read_gltf(path)
+    np.testing.assert_array_equal(back.moving_joints(), motion.moving_joints())
+    np.testing.assert_array_equal(back.scaled_joints(), motion.scaled_joints())
+    np.testing.assert_array_equal(back.skeleton.end_site_parents, motion.skeleton.end_site_parents)
+    assert np.abs(back.positions() - motion.positions()).max() < 1e-3
+    assert np.abs(back.end_site_positions() - motion.end_site_positions()).max() < 1e-3
+
+
+def test_a_moving_translation_channel_is_the_joints_translation(tmp_path):
+    path = _broken(tmp_path, _moving_translation)
+    back = read_gltf(path)
+    np.testing.assert_array_equal(back.moving_joints(), [3])
+    np.testing.assert_allclose(back.positions(), _independent_joint_positions(path) * 100, atol=5e-4)
+
+
+def test_scales_on_joints_with_rest_rotations(tmp_path):
+    """A uniform scale on a joint whose rest frame is turned reads as that scale; a non-uniform one along turned
+    axes (a shear in the rest frame) is refused naming the joint and the frame."""
+    motion = rig_motion(num_joints=15, num_frames=8, fps=30.0, seed=4)
+    for uniform in (True, False):
+        gltf = pygltflib.GLTF2.load(str(write_gltf(motion, tmp_path / "plain.glb", force=True)))
+        gltf.nodes[3].rotation = Rotation.from_euler("xyz", [30, 40, 50], degrees=True).as_quat().tolist()
+        blob = bytearray(gltf.binary_blob())
+        scales = np.ones((8, 3))
+        scales[2:] = [1.5, 1.5, 1.5] if uniform else [1.5, 1.0, 1.0]
+        animation = gltf.animations[0]
+        animation.samplers.append(pygltflib.AnimationSampler(input=animation.samplers[0].input,
+                                                             output=_append(gltf, blob, scales, "VEC3")))
+        animation.channels.append(pygltflib.AnimationChannel(
+            sampler=len(animation.samplers) - 1, target=pygltflib.AnimationChannelTarget(node=3, path="scale")))
+        gltf.buffers[0].byteLength = len(blob)
+        gltf.set_binary_blob(bytes(blob))
+        path = tmp_path / f"scaled{uniform}.glb"
+        gltf.save_binary(str(path))
+        if uniform:
+            back = read_gltf(path)
+            np.testing.assert_array_equal(back.scaled_joints(), [3])
+            joints, ends = _independent_world_positions(path)
+            np.testing.assert_allclose(back.positions(), joints * 100, atol=5e-4)
+            np.testing.assert_allclose(back.end_site_positions(), ends * 100, atol=5e-4)
+        else:
+            with pytest.raises(MotionFormatError, match=r"joint '.*' has the non-uniform scale \[1.5, 1, 1\] at "
+                                                        r"frame 2 along axes turned from its rest frame"):
+                read_gltf(path)

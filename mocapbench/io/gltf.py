@@ -180,8 +180,10 @@ class _Reader:
         values = rows.astype(np.float64)
         if accessor.normalized and scale is not None:
             values = np.maximum(values / scale, -1.0)
-        if not np.all(np.isfinite(values)):
-            raise self.error(f"{where} holds a non-finite value")
+        finite = np.isfinite(values).all(axis=1)
+        if not finite.all():  # the item is the key of an animation output: the frame a reader reports
+            item = int(np.argmin(finite))
+            raise self.error(f"{where} holds a non-finite value at item {item}: {values[item].tolist()}")
         return values
 
 

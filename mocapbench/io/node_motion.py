@@ -171,7 +171,8 @@ def _rebased_scales(scales: np.ndarray, rest_global: np.ndarray, names: Sequence
         if uneven.any():
             frame = int(np.flatnonzero(uneven)[0])
             raise error(
-                f"joint {names[j]!r} has the non-uniform scale {scales[frame, j].tolist()} at frame {frame} along "
+                f"joint {names[j]!r} has the non-uniform scale [{', '.join(f'{v:.6g}' for v in scales[frame, j])}] at frame "
+                f"{frame} along "
                 "axes turned from its rest frame; a Motion scales along the rest axes (a shear otherwise)"
             )
     return rebased
