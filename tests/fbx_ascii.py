@@ -1,8 +1,10 @@
 """A minimal ASCII FBX 7.4 writer: the FBX test files (no FBX writer installs here; ufbx only reads).
 
 Writes a skeleton as ``LimbNode`` models with ``Lcl Translation`` = the offsets and one animation stack with
-``Lcl Rotation`` curves (Euler XYZ degrees, the FBX default ``RotationOrder`` 0) on every joint and ``Lcl
-Translation`` curves on the root, one key per frame. Units: ``UnitScaleFactor`` = cm per file unit; axes from
+``Lcl Rotation`` curves (Euler XYZ degrees, the FBX default ``RotationOrder`` 0) on every joint, ``Lcl
+Translation`` curves on the root and on the joints that move, ``Lcl Scaling`` curves on the joints that scale, one
+key per frame. Optionally the static ``Lcl Rotation`` of every bone is a frame of the motion (as Blender saves the
+current frame) and a ``BindPose`` holds the rest pose. Units: ``UnitScaleFactor`` = cm per file unit; axes from
 ``up_axis``. A test fixture builder, not a product format writer.
 """
 
@@ -24,9 +26,20 @@ def _array(values) -> str:
     return f"*{len(values)} {{\n\t\t\ta: {numbers}\n\t\t}}"
 
 
-def write_fbx_ascii(motion: Motion, path: str | Path, *, unit_cm: float = 1.0, moving_joint: int | None = None) -> Path:
+def write_fbx_ascii(
+    motion: Motion,
+    path: str | Path,
+    *,
+    unit_cm: float = 1.0,
+    moving_joint: int | None = None,
+    saved_frame: int | None = None,
+    bind_pose: bool = False,
+    declared_fps: float | None = None,
+) -> Path:
     """Write ``motion`` (cm) as an ASCII FBX in ``unit_cm`` cm per unit; ``moving_joint`` also animates that
-    joint's translation (a joint that moves, for the error test)."""
+    joint's translation by up to 5 units along x; ``saved_frame`` makes that frame's rotations the bones' static
+    ``Lcl Rotation``; ``bind_pose`` writes a ``BindPose`` of the rest pose (identity rotations, the offsets);
+    ``declared_fps`` is the ``CustomFrameRate`` written (default the motion's)."""
     skeleton = motion.skeleton
     num_frames, num_joints = motion.num_frames, motion.num_joints
     up = {"y": (1, 2), "z": (2, -1)}[motion.up_axis]  # (UpAxis, FrontAxisSign-ish) as Maya/Max export
@@ -34,6 +47,9 @@ def write_fbx_ascii(motion: Motion, path: str | Path, *, unit_cm: float = 1.0, m
     euler = Rotation.from_quat(motion.rotations.reshape(-1, 4)).as_euler("xyz", degrees=True)  # extrinsic XYZ
     euler = np.unwrap(np.radians(euler.reshape(num_frames, num_joints, 3)), axis=0)
     euler = np.degrees(euler)
+    translations = motion.local_translations()
+    moving = set(int(j) for j in motion.moving_joints())
+    scaled = set(int(j) for j in motion.scaled_joints())
     objects, connections = [], []
     next_id = [1000]
 
@@ -74,20 +90,34 @@ def write_fbx_ascii(motion: Motion, path: str | Path, *, unit_cm: float = 1.0, m
         model, attribute = new_id(), new_id()
         model_ids.append(model)
         offset = (motion.root_positions[0] if j == 0 else skeleton.offsets[j]) / unit_cm
+        static = np.zeros(3) if saved_frame is None else euler[saved_frame, j]
         objects.append(
             f'\tNodeAttribute: {attribute}, "NodeAttribute::", "LimbNode" {{\n\t\tTypeFlags: "Skeleton"\n\t}}\n'
             f'\tModel: {model}, "Model::{skeleton.names[j]}", "LimbNode" {{\n\t\tVersion: 232\n\t\tProperties70:  {{\n'
             f'\t\t\tP: "Lcl Translation", "Lcl Translation", "", "A",{offset[0]:.9g},{offset[1]:.9g},{offset[2]:.9g}\n'
+            f'\t\t\tP: "Lcl Rotation", "Lcl Rotation", "", "A",{static[0]:.9g},{static[1]:.9g},{static[2]:.9g}\n'
             "\t\t}\n\t}\n"
         )
         parent = 0 if j == 0 else model_ids[skeleton.parents[j]]
         connections.append(f'\tC: "OO",{attribute},{model}\n\tC: "OO",{model},{parent}\n')
         curve_node(model, "Lcl Rotation", "R", euler[:, j])
-        if j == 0:
-            curve_node(model, "Lcl Translation", "T", motion.root_positions / unit_cm)
+        if j == 0 or j in moving:
+            curve_node(model, "Lcl Translation", "T", translations[:, j] / unit_cm)
         elif j == moving_joint:
             moving = skeleton.offsets[j] / unit_cm + np.linspace(0, 5.0, num_frames)[:, None] * np.array([1.0, 0, 0])
             curve_node(model, "Lcl Translation", "T", moving)
+        if j in scaled:
+            curve_node(model, "Lcl Scaling", "S", motion.scales[:, j])
+    if bind_pose:
+        rest = skeleton.rest_positions() + motion.root_positions[0]
+        pose_nodes = "".join(
+            f"\t\tPoseNode:  {{\n\t\t\tNode: {model_ids[j]}\n\t\t\tMatrix: *16 {{\n\t\t\t\ta: "
+            + ",".join(f"{v:.9g}" for v in [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, *(rest[j] / unit_cm), 1])
+            + "\n\t\t\t}\n\t\t}\n"
+            for j in range(num_joints)
+        )
+        objects.append(f'\tPose: {new_id()}, "Pose::BIND_POSES", "BindPose" {{\n\t\tType: "BindPose"\n'
+                       f"\t\tVersion: 100\n\t\tNbPoseNodes: {num_joints}\n{pose_nodes}\t}}\n")
     header = (
         "; FBX 7.4.0 project file\n"
         "FBXHeaderExtension:  {\n\tFBXHeaderVersion: 1003\n\tFBXVersion: 7400\n\tCreator: \"mocapbench tests\"\n}\n"
@@ -99,7 +129,7 @@ def write_fbx_ascii(motion: Motion, path: str | Path, *, unit_cm: float = 1.0, m
         f'\t\tP: "UnitScaleFactor", "double", "Number", "",{unit_cm:.9g}\n'
         f'\t\tP: "OriginalUnitScaleFactor", "double", "Number", "",{unit_cm:.9g}\n'
         '\t\tP: "TimeMode", "enum", "", "",14\n'
-        f'\t\tP: "CustomFrameRate", "double", "Number", "",{motion.fps:.9g}\n'
+        f'\t\tP: "CustomFrameRate", "double", "Number", "",{declared_fps or motion.fps:.9g}\n'
         "\t}\n}\n"
     )
     text = header + "Objects:  {\n" + "".join(objects) + "}\nConnections:  {\n" + "".join(connections) + "}\n"

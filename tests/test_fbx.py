@@ -13,6 +13,7 @@ from mocapbench.io.fbx import read_fbx
 from mocapbench.io.formats import read_motion
 from mocapbench.motion import MotionFormatError
 from mocapbench.synthetic import rig_motion, user_case
+from mocapbench.synthetic_game import game_rig_motion
 
 
 @pytest.mark.parametrize("case", ["biped-22-zup-mm-xyz", "biped-52-yup-inch-mixed", "random-33-yup-cmu-yzx"])
@@ -32,9 +33,62 @@ def test_fbx_reads_positions_unit_and_axis(tmp_path, case):
     assert read.up_axis == motion.up_axis and warnings == [] or "rest height" in warnings[0]
 
 
-def test_moving_bone_is_refused_in_one_line(tmp_path):
-    path = write_fbx_ascii(rig_motion(num_joints=15, num_frames=10), tmp_path / "moving.fbx", moving_joint=4)
-    with pytest.raises(MotionFormatError, match=r"joint '.*' has an animated translation that moves 5 cm") as error:
+def test_a_moving_bone_is_the_joints_translation(tmp_path):
+    motion = rig_motion(num_joints=15, num_frames=10)
+    back = read_fbx(write_fbx_ascii(motion, tmp_path / "moving.fbx", moving_joint=4))
+    np.testing.assert_array_equal(back.moving_joints(), [4])
+    np.testing.assert_allclose(back.translations[:, 4, 0] - motion.skeleton.offsets[4, 0], np.linspace(0, 5, 10),
+                               atol=1e-5)
+
+
+def test_a_game_rig_reads_with_its_tracks(tmp_path):
+    """Translated pelvis, stretching spine, scaled chest: the same joint positions and tracks, evaluated with the
+    baked keys; they agree with ufbx's own per-frame evaluation of the same nodes."""
+    motion = game_rig_motion(num_frames=30, stretch_cm=3.0, scale=1.4, seed=3)
+    path = write_fbx_ascii(motion, tmp_path / "game.fbx")
+    back = read_fbx(path)
+    assert back.fps == 30.0 and back.skeleton.names == motion.skeleton.names
+    np.testing.assert_array_equal(back.moving_joints(), motion.moving_joints())
+    np.testing.assert_array_equal(back.scaled_joints(), motion.scaled_joints())
+    assert np.abs(back.positions() - motion.positions()).max() < 1e-4
+    ufbx = pytest.importorskip("ufbx")
+    scene = ufbx.load_file(str(path))
+    nodes, stacks = list(scene.nodes), list(scene.anim_stacks)  # ufbx 0.0.5: items live while their list lives
+    anim = stacks[0].anim
+    chest = [node for node in nodes if node.name == motion.skeleton.names[3]][0]
+    for frame in (0, 7, 29):
+        transform = ufbx.evaluate_transform(anim, chest, frame / 30.0)
+        np.testing.assert_allclose(back.scales[frame, 3], list(transform.scale), atol=1e-6)
+
+
+def test_the_rest_pose_is_the_bind_pose_not_the_saved_frame(tmp_path):
+    """Blender saves the current frame as the bones' static transforms; the bind pose is the rest."""
+    motion = rig_motion(num_joints=19, num_frames=12, seed=2)
+    saved = write_fbx_ascii(motion, tmp_path / "saved.fbx", saved_frame=6)
+    bound = write_fbx_ascii(motion, tmp_path / "bound.fbx", saved_frame=6, bind_pose=True)
+    for path in (saved, bound):
+        np.testing.assert_allclose(read_fbx(path).positions(), motion.positions(), atol=1e-4)
+    np.testing.assert_allclose(read_fbx(bound).skeleton.rest_positions(), motion.skeleton.rest_positions(), atol=1e-5)
+    assert np.abs(read_fbx(saved).skeleton.rest_positions() - motion.skeleton.rest_positions()).max() > 1.0
+
+
+def test_a_frame_rate_a_rounding_away_from_an_integer_snaps(tmp_path):
+    motion = rig_motion(num_joints=15, num_frames=20, fps=120.0)
+    assert read_fbx(write_fbx_ascii(motion, tmp_path / "r.fbx", declared_fps=120.0048)).fps == 120.0
+    assert read_fbx(write_fbx_ascii(motion, tmp_path / "n.fbx", declared_fps=119.88)).fps == pytest.approx(119.88)
+
+
+def test_a_scale_of_zero_is_refused_naming_bone_and_frame(tmp_path):
+    motion = game_rig_motion(num_frames=10, scale=1.4, seed=1)
+    text = write_fbx_ascii(motion, tmp_path / "zero.fbx").read_text()
+    path = tmp_path / "zero.fbx"
+    # The chest's Y scale curve: its key 4 set to 0.
+    curve = text.split('"AnimCurveNode::S"')[1].split("KeyValueFloat: *10 {\n\t\t\ta: ")[2]
+    values = curve.split("\n")[0].split(",")
+    values[4] = "0"
+    path.write_text(text.replace(curve.split("\n")[0], ",".join(values), 1))
+    with pytest.raises(MotionFormatError, match=r"zero.fbx: bone 'Spine1' has scale \[.*, 0.0, .*\] at frame 4; a scale "
+                                                "must be > 0") as error:
         read_fbx(path)
     assert "\n" not in str(error.value)
 

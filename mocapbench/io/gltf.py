@@ -44,6 +44,7 @@ from scipy.spatial.transform import Rotation
 
 from mocapbench.io.external_files import check_reference, read_data_uri, read_reference
 from mocapbench.io.gltf_schema import check_document
+from mocapbench.io.keyframes import sample_keys as _sample
 from mocapbench.io.node_motion import motion_from_nodes
 from mocapbench.io.read_limits import check_array_bytes, check_motion_size
 from mocapbench.motion import Motion, MotionFormatError
@@ -62,7 +63,6 @@ _COMPONENTS = {
 _WIDTH = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT4": 16}
 _MAX_FILE_BYTES = 1 << 31
 _MAX_FRAMES = 10_000_000
-_KEY_TIME_TOLERANCE_S = 1e-5
 
 
 class _Reader:
@@ -218,42 +218,6 @@ def _static_trs(reader: _Reader, index: int) -> tuple[np.ndarray, np.ndarray, np
         raise reader.error(f"node {index} ({node.name!r}) has a degenerate or mirroring transform")
     quat = Rotation.from_matrix(matrix[:3, :3] / scale).as_quat()
     return matrix[:3, 3].copy(), quat, scale
-
-
-def _sample(times: np.ndarray, values: np.ndarray, interpolation: str, at: np.ndarray, rotation: bool) -> np.ndarray:
-    """Evaluate a sampler at times ``at`` (s): values (K, W) or, for CUBICSPLINE, (3K, W) in-tangent/value/out."""
-    cubic = interpolation == "CUBICSPLINE"
-    keys = values.reshape(len(times), 3, -1)[:, 1] if cubic else values
-    if len(times) == 1:
-        return np.broadcast_to(keys[0], (len(at), keys.shape[1])).copy()
-    index = np.clip(np.searchsorted(times, at, side="right") - 1, 0, len(times) - 2)
-    span = times[index + 1] - times[index]
-    u = np.clip((at - times[index]) / span, 0.0, 1.0)[:, None]
-    if interpolation == "STEP":
-        # Key times are float32 in the file: a sample time within 10 us of a key takes that key.
-        result = keys[np.clip(np.searchsorted(times, at + _KEY_TIME_TOLERANCE_S, side="right") - 1, 0, len(times) - 1)]
-    elif cubic:
-        tangents = values.reshape(len(times), 3, -1)
-        out_tangent, in_tangent = tangents[index, 2], tangents[index + 1, 0]
-        u2, u3 = u * u, u * u * u
-        result = ((2 * u3 - 3 * u2 + 1) * keys[index] + (u3 - 2 * u2 + u) * span[:, None] * out_tangent
-                  + (-2 * u3 + 3 * u2) * keys[index + 1] + (u3 - u2) * span[:, None] * in_tangent)
-    elif rotation:
-        q0, q1 = keys[index], keys[index + 1].copy()
-        q1[np.sum(q0 * q1, axis=1) < 0] *= -1
-        dot = np.clip(np.sum(q0 * q1, axis=1, keepdims=True), -1.0, 1.0)
-        angle = np.arccos(dot)
-        small = angle[:, 0] < 1e-6
-        sin = np.where(small[:, None], 1.0, np.sin(angle))
-        w0 = np.where(small[:, None], 1 - u, np.sin((1 - u) * angle) / sin)
-        w1 = np.where(small[:, None], u, np.sin(u * angle) / sin)
-        result = w0 * q0 + w1 * q1
-    else:
-        result = (1 - u) * keys[index] + u * keys[index + 1]
-    if rotation:
-        norms = np.linalg.norm(result, axis=1, keepdims=True)
-        result = result / np.where(norms < 1e-12, 1.0, norms)
-    return result
 
 
 def _frames_per_second(key_times: list[np.ndarray]) -> float:
