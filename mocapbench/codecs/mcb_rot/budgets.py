@@ -170,19 +170,19 @@ def joint_budgets(
     )
 
 
-def offset_discrepancy_cm(original: Skeleton, stored: Skeleton) -> float:
+def offset_discrepancy_cm(original: Skeleton, stored: Skeleton, ends: bool = False) -> float:
     """Largest position change of any joint, in any pose, from replacing ``original``'s offsets by ``stored``'s, cm.
 
-    The stream keeps offsets as float32; this bound (the sum of offset changes along the worst chain, to a joint or an
-    end site) is taken off the error budget so that the guarantee holds against the caller's float64 skeleton.
+    The stream keeps offsets as float32; this bound (the sum of offset changes along the worst chain, to a joint or,
+    with ``ends``, an end site) is taken off the error budget so that the guarantee holds against the caller's float64 skeleton.
     """
     change = np.sqrt(np.sum((original.offsets - stored.offsets) ** 2, axis=1))
     change[0] = 0.0
     total = np.zeros(original.num_joints)
     for k in range(1, original.num_joints):
         total[k] = total[original.parents[k]] + change[k]
-    ends = np.zeros(0)
-    if len(original.end_site_parents) == len(stored.end_site_parents) > 0:  # end sites: one offset further
-        ends = total[original.end_site_parents] + np.sqrt(
+    tips = np.zeros(0)
+    if ends and len(original.end_site_parents) == len(stored.end_site_parents) > 0:  # one offset further
+        tips = total[original.end_site_parents] + np.sqrt(
             np.sum((original.end_site_offsets - stored.end_site_offsets) ** 2, axis=1))
-    return float(max(total.max(), ends.max(initial=0.0)))
+    return float(max(total.max(), tips.max(initial=0.0)))

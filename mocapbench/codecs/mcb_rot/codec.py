@@ -84,7 +84,8 @@ each translated joint's longest translation is its bone in the budgets, and forw
 and in the decoder, steps from the parent by the decoded translation of the frame; a motion whose joints do not move
 writes no track. The bound covers the end sites too (the head, finger and toe tips a viewer draws): each is a virtual
 child of its joint in the budgets and a checked point of the closed loop, so a leaf with an end site is budgeted by
-its lever instead of ``free_angle_deg``. Scale tracks are refused in one line naming the joint (the budgets assume
+its lever instead of ``free_angle_deg`` (``end_sites=false``: the joints only, as before; the bytes the end sites cost are
+measured by the benchmark). Scale tracks are refused in one line naming the joint (the budgets assume
 bones of fixed length).
 
 Departures from the issue's sketch: no trained prior (the stream needs no model, ``model_bytes`` is 0). Leaves
@@ -206,6 +207,9 @@ class McbRotCodec(Codec):
             0.0, low=0.0, high=100.0, unit="cm",
             doc="the bound also holds on ACL's virtual vertices at this distance from every joint (0: joints only)",
         )
+        end_sites: bool = param(
+            True, doc="the bound also covers the end sites (head, finger and toe tips); false: joints only"
+        )
         track_share: float = param(
             0.1, low=0.01, high=0.5, doc="share of eps given to a game rig's translation tracks (their grid's error)"
         )
@@ -239,7 +243,7 @@ class McbRotCodec(Codec):
         config = self.config
         skeleton_blob = pack_skeleton_runtime(motion.skeleton, skeleton_step_exponent(config.eps_cm, motion.skeleton))
         stored = unpack_skeleton_runtime(ByteReader(skeleton_blob))
-        discrepancy = offset_discrepancy_cm(motion.skeleton, stored)
+        discrepancy = offset_discrepancy_cm(motion.skeleton, stored, config.end_sites)
         # A game rig's translation tracks, on a grid whose error (along the worst chain) comes off the bound.
         tracks = plan_tracks(motion, config.track_share * config.eps_cm, lambda values: fit_single(values, 0.5))
         track_error = 0.0 if tracks is None else tracks.error_cm(stored)
@@ -250,7 +254,7 @@ class McbRotCodec(Codec):
                 f"(their grid moves joints by up to {discrepancy:.3g} cm)."
             )
         target = motion.positions()
-        ends = motion.end_site_positions() if len(motion.skeleton.end_site_parents) else None
+        ends = motion.end_site_positions() if config.end_sites and len(motion.skeleton.end_site_parents) else None
         cuts = find_cuts(target, ratio=config.cut_ratio, min_jump_cm=config.cut_min_cm) if config.cut_ratio > 0 else np.zeros(0, np.int64)
         starts = segment_starts(motion.num_frames, cuts, config.segment_frames)
         layout = SegmentLayout(motion.num_frames, starts, config.chunk_frames)
@@ -263,7 +267,7 @@ class McbRotCodec(Codec):
         settings = Settings.create(config.eps_cm, bound, 1.0, config.frequency_slope, config.rounding,
                                    config.root_share, np.deg2rad(config.free_angle_deg), config.allocation_power,
                                    config.segment_frames, config.chunk_frames, config.shell_cm,
-                                   tracks=tracks is not None, ends=True)
+                                   tracks=tracks is not None, ends=config.end_sites)
         budgets = stream_budgets(settings, stored, tracks)
         channels = 3 + 3 * motion.num_joints
         info = StreamInfo(settings, stored, budgets, layout, cuts, overrides, axis_codes,
