@@ -32,7 +32,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from mocapbench.codecs.mcb_rot import kinematics
+from mocapbench.codecs.mcb_rot import kinematics, native
 from mocapbench.codecs.mcb_rot.classes import NUM_CLASSES, band_of
 from mocapbench.codecs.mcb_rot.scratch import Scratch, thread_scratch
 from mocapbench.codecs.mcb_rot.stream import (
@@ -81,6 +81,14 @@ def decode_range(
     positions, roots, quats = out[:3]
     translations = out[3] if len(out) > 3 else None  # (n, J, 3): the joints' steps, filled when the stream has tracks
     moving = None if info.tracks is None else info.tracks.moving(num_joints)
+    clip = native_clip(info, payload)
+    if clip is not None:  # the runtime samples the rotations; forward kinematics here, as below
+        into = quats if quats.flags.c_contiguous else np.empty(quats.shape)
+        roots_into = roots if roots.flags.c_contiguous else np.empty(roots.shape)
+        clip.frames(start, stop, roots_into, into)
+        roots[...] = roots_into
+        kinematics.positions(into, roots_into, info.skeleton, positions, quats)
+        return positions, roots, quats
     scratch = thread_scratch()
     first_segment = int(np.searchsorted(layout.starts, start, side="right")) - 1  # the segment holding ``start``
     for chunks in _blocks(info, layout.chunks_of_frames(start, stop)):
@@ -100,6 +108,19 @@ def decode_range(
                              translations=steps, moving=moving)
     scratch.trim()
     return positions, roots, quats
+
+
+def native_clip(info: StreamInfo, payload: memoryview):
+    """The runtime's opened clip of a format 6 payload (kept in ``info``'s cache), or None: an older format, the
+    runtime not built, or ``MOCAPBENCH_NATIVE=0``."""
+    if info.version < 6 or info.tracks is not None:  # (the runtime does not read translation tracks yet)
+        return None
+    if "native" not in info._cache:
+        lib = native.library()
+        # fps 1: frames are asked for by index, the runtime's time-based sampling is not used here
+        info._cache["native"] = None if lib is None else native.NativeClip(
+            lib, payload, info.layout.num_frames, info.skeleton.num_joints, 1.0)
+    return info._cache["native"]
 
 
 def _blocks(info: StreamInfo, chunks: np.ndarray) -> list[np.ndarray]:

@@ -1,0 +1,156 @@
+"""The native runtime (``runtime/``, C) from Python: built on first use, loaded with ctypes, one context per stream.
+
+``mcb-rot`` decodes format 6 streams through the runtime when it is available: the same entropy decoding, synthesis,
+re-references and corrections as the numpy decoder (:mod:`.decoder`, kept as the reference: older formats, and
+every machine without a C compiler), in float64, so that both give the same rotations up to float rounding (a test
+compares them on every stream the suite makes). Forward kinematics stays in Python (:mod:`.kinematics`).
+
+The library is compiled from ``runtime/src/mcbrot.c`` with the system C compiler (``$CC``, else ``cc``, ``gcc``,
+``clang``) into ``<cache>/mcbrot-<hash>/`` (the cache root of :func:`mocapbench.codecs.acl.build.cache_root`; the
+hash covers the sources, the compiler and its flags), under a file lock, once; ``make -C runtime`` builds the same
+library for an engine. Without a compiler, or when the build fails, :func:`library` returns None once, logs one line
+saying why, and the numpy decoder runs. ``MOCAPBENCH_NATIVE=0`` turns the runtime off (the numpy path, e.g. to
+time it).
+"""
+
+from __future__ import annotations
+
+import ctypes
+import fcntl
+import hashlib
+import logging
+import os
+import shutil
+import subprocess
+import tempfile
+from functools import cache
+from pathlib import Path
+
+import numpy as np
+
+from mocapbench.entropy.errors import BitstreamError
+
+__all__ = ["ABI_VERSION", "RUNTIME_DIR", "library", "NativeClip", "NativeError"]
+
+log = logging.getLogger(__name__)
+
+ABI_VERSION = 1
+RUNTIME_DIR = Path(__file__).resolve().parents[3] / "runtime"
+_SOURCES = ("src/mcbrot.c", "src/mcbrot_tables.h", "include/mcbrot.h")
+_FLAGS = ["-O2", "-std=c99", "-fPIC", "-shared", "-fvisibility=hidden"]
+_STATUS_BITSTREAM = {2, 3, 4, 5, 9}  # truncated, corrupt, not mcb-rot, format, unsupported
+
+
+class NativeError(RuntimeError):
+    """The runtime refused a call for a reason that is not the stream's (a context too small, an argument)."""
+
+
+def _compiler() -> str | None:
+    for name in (os.environ.get("CC"), "cc", "gcc", "clang"):
+        if name and (path := shutil.which(name)):
+            return path
+    return None
+
+
+def _build() -> Path:
+    from mocapbench.codecs.acl.build import cache_root
+
+    compiler = _compiler()
+    if compiler is None:
+        raise RuntimeError("no C compiler found (set $CC or install gcc)")
+    if not all((RUNTIME_DIR / source).is_file() for source in _SOURCES):
+        raise RuntimeError(f"the runtime's sources are not in {RUNTIME_DIR}")
+    key = hashlib.sha256()
+    for part in [(RUNTIME_DIR / source).read_bytes() for source in _SOURCES] + [compiler.encode(),
+                                                                              " ".join(_FLAGS).encode()]:
+        key.update(part)
+        key.update(b"\0")
+    folder = cache_root() / f"mcbrot-{key.hexdigest()[:16]}"
+    target = folder / "libmcbrot.so"
+    if target.is_file():
+        return target
+    folder.mkdir(parents=True, exist_ok=True)
+    with open(folder / "build.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if target.is_file():
+            return target
+        fd, partial = tempfile.mkstemp(prefix="libmcbrot.", suffix=".so.partial", dir=folder)
+        os.close(fd)
+        command = [compiler, *_FLAGS, "-I", str(RUNTIME_DIR / "include"), str(RUNTIME_DIR / "src" / "mcbrot.c"),
+                   "-o", partial, "-lm"]
+        result = subprocess.run(command, capture_output=True, text=True, check=False)
+        (folder / "build.log").write_text(" ".join(command) + "\n" + result.stdout + result.stderr)
+        if result.returncode != 0:
+            os.unlink(partial)
+            first = next((line for line in result.stderr.splitlines() if "error" in line), "unknown error")
+            raise RuntimeError(f"compiling the runtime failed: {first.strip()} (log: {folder / 'build.log'})")
+        os.replace(partial, target)
+    return target
+
+
+@cache
+def library() -> ctypes.CDLL | None:
+    """The runtime, built and loaded on first use; None (and one logged line) when it cannot be."""
+    if os.environ.get("MOCAPBENCH_NATIVE", "1") == "0":
+        return None
+    try:
+        lib = ctypes.CDLL(str(_build()))
+    except (RuntimeError, OSError) as error:
+        log.warning("mcb-rot: the native runtime is not available (%s); decoding with numpy.", error)
+        return None
+    u8p, size_p = ctypes.POINTER(ctypes.c_uint8), ctypes.POINTER(ctypes.c_size_t)
+    dp = ctypes.POINTER(ctypes.c_double)
+    lib.mcbrot_abi_version.restype = ctypes.c_int
+    lib.mcbrot_payload_context_size.argtypes = [u8p, ctypes.c_size_t, ctypes.c_uint32, ctypes.c_uint32,
+                                                ctypes.c_double, size_p, ctypes.c_char_p, ctypes.c_size_t]
+    lib.mcbrot_open_payload.argtypes = [ctypes.c_void_p, ctypes.c_size_t, u8p, ctypes.c_size_t, ctypes.c_uint32,
+                                        ctypes.c_uint32, ctypes.c_double]
+    lib.mcbrot_decode_frames.argtypes = [ctypes.c_void_p, ctypes.c_uint32, ctypes.c_uint32, dp, dp]
+    lib.mcbrot_message.argtypes = [ctypes.c_void_p]
+    lib.mcbrot_message.restype = ctypes.c_char_p
+    if lib.mcbrot_abi_version() != ABI_VERSION:
+        log.warning("mcb-rot: the native runtime's ABI is %d, this module speaks %d; decoding with numpy.",
+                    lib.mcbrot_abi_version(), ABI_VERSION)
+        return None
+    return lib
+
+
+def _raise(status: int, message: str) -> None:
+    if status in _STATUS_BITSTREAM:
+        raise BitstreamError(message)
+    raise NativeError(message)
+
+
+class NativeClip:
+    """One opened payload (format 6): its context (a numpy buffer) and the payload bytes it points into."""
+
+    def __init__(self, lib: ctypes.CDLL, payload: bytes, num_frames: int, num_joints: int, fps: float) -> None:
+        self._lib = lib
+        self._payload = bytes(payload)  # kept alive: the context points into it
+        self.num_frames, self.num_joints = num_frames, num_joints
+        data = (ctypes.c_uint8 * len(self._payload)).from_buffer_copy(self._payload)
+        self._data = data
+        size = ctypes.c_size_t()
+        message = ctypes.create_string_buffer(256)
+        status = lib.mcbrot_payload_context_size(data, len(self._payload), num_frames, num_joints, fps,
+                                                 ctypes.byref(size), message, 256)
+        if status:
+            _raise(status, message.value.decode(errors="replace"))
+        self.context_bytes = size.value
+        self._context = np.zeros(size.value // 8 + 2, dtype=np.float64)  # 16-aligned (numpy aligns to 16 or more)
+        status = lib.mcbrot_open_payload(self._pointer, size.value, data, len(self._payload), num_frames, num_joints,
+                                         fps)
+        if status:
+            _raise(status, lib.mcbrot_message(self._pointer).decode(errors="replace"))
+
+    @property
+    def _pointer(self) -> int:
+        return self._context.ctypes.data
+
+    def frames(self, start: int, stop: int, roots: np.ndarray, quats: np.ndarray) -> None:
+        """Write frames ``start:stop``: roots (n, 3) cm and rotations (n, J, 4), C-contiguous float64."""
+        dp = ctypes.POINTER(ctypes.c_double)
+        status = self._lib.mcbrot_decode_frames(self._pointer, start, stop - start, quats.ctypes.data_as(dp),
+                                                roots.ctypes.data_as(dp))
+        if status:
+            _raise(status, self._lib.mcbrot_message(self._pointer).decode(errors="replace"))

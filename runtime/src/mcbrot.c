@@ -1,0 +1,1510 @@
+/* mcbrot: native sampler of mcb-rot payload format 6 (see include/mcbrot.h for the API, README.md for the design).
+ *
+ * The layout read here is written down in mocapbench/codecs/mcb_rot/stream.py (the payload),
+ * mocapbench/codecs/mcb_rot/skeleton6.py (the skeleton), mocapbench/entropy/rans6.py (the rANS units) and
+ * mocapbench/codecs/container.py (container and CRC); every limit the Python decoder checks is checked here too,
+ * before the value is used. Arithmetic is float64 throughout: the outputs equal the Python decoder's up to float
+ * rounding (a test compares them on every stream the suite makes).
+ */
+#include "mcbrot.h"
+
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <string.h>
+
+#include "mcbrot_tables.h"
+
+/* ---------------------------------------------------------------------------------------------------------- */
+/* limits (as the Python decoder's)                                                                            */
+
+#define MAX_FRAMES 100000000u
+#define MAX_JOINTS 4096u
+#define MAX_NAME 64u
+#define NUM_CLASSES 64
+#define NUM_BANDS 12
+#define SIDE 64                 /* side values use classes SIDE + class */
+#define MAX_TOKEN (16 + 31 - 5) /* magnitudes below 2^31 */
+#define RANS_LOW (1u << 23)
+#define PRECISION 15
+#define COARSE_SHIFT (PRECISION - 6)
+#define MESSAGE_BYTES 200
+#define OPEN_MAGIC 0x4d43424fu /* "MCBO" */
+#define AXIS_STEP (3.14159265358979323846 / 32768.0)
+#define PI 3.14159265358979323846
+
+/* ---------------------------------------------------------------------------------------------------------- */
+/* the context                                                                                                 */
+
+typedef struct override_t {
+    uint32_t segment, joint;
+    double quat[4];
+} override_t;
+
+typedef struct ctx_t {
+    uint32_t magic;
+    uint32_t version;
+    size_t bytes_used;
+    const uint8_t *payload;
+    size_t payload_bytes;
+    uint32_t frames, joints, channels, segments, chunks, ends;
+    double fps;
+    /* settings */
+    double eps, bound, multiplier, slope, rounding, root_share, free_angle, power, shell;
+    uint32_t segment_frames, chunk_frames;
+    int dc_tilt, count_tilt, gap_class, value_class;
+    uint32_t num_overrides, num_turned, unit_values, max_length, max_chunk_segments;
+    /* arrays inside the context */
+    int32_t *parents;       /* J */
+    double *offsets;        /* J x 3 */
+    double *base_step;      /* C: multiplier x the channel's relative step */
+    double *correction_step; /* J + 1 */
+    int32_t *turned;        /* J: index into axes, or -1 */
+    double *axes;           /* T x 9, row-major, columns are the axes */
+    override_t *overrides;  /* sorted by (segment, joint) */
+    uint32_t *seg_start;    /* S + 1 */
+    uint32_t *chunk_first;  /* K + 1: first segment of each chunk */
+    uint32_t *chunk_offset; /* K + 1: byte offsets in the payload */
+    uint8_t *class_table;   /* C x NUM_BANDS */
+    int64_t *dc;            /* S x C */
+    uint16_t *counts;       /* S x C */
+    /* the cache of one chunk */
+    int64_t cached_chunk;
+    int32_t *values;        /* unit_values: coefficients (segment, channel, k), gaps, correction values */
+    uint32_t *coef_start;   /* max_chunk_segments x C + 1: where each (segment, channel) starts in values */
+    uint32_t *corr_flat;    /* unit_values / 4: corrections as frame * (J + 1) + slot, from the chunk's first frame */
+    uint32_t num_corrections, corr_values_at;
+    /* per segment length tables */
+    uint32_t table_length;
+    double *cosines;        /* 4 n: cos(pi m / 2n) */
+    double *ramp;           /* n: 1 + slope k / n */
+    uint8_t *bands;         /* n: band of frequency k */
+    double *scratch;        /* J x 4 + 3 x 2 + C: two poses for linear sampling, the channel values */
+    char message[MESSAGE_BYTES];
+} ctx_t;
+
+/* ---------------------------------------------------------------------------------------------------------- */
+/* messages                                                                                                    */
+
+static int fail(char *message, size_t bytes, int status, const char *format, ...) {
+    if (message && bytes) {
+        va_list args;
+        va_start(args, format);
+        vsnprintf(message, bytes, format, args);
+        va_end(args);
+    }
+    return status;
+}
+
+MCBROT_API int mcbrot_abi_version(void) { return MCBROT_ABI_VERSION; }
+
+MCBROT_API const char *mcbrot_status_text(int status) {
+    switch (status) {
+    case MCBROT_OK: return "ok";
+    case MCBROT_E_ARGUMENT: return "invalid argument";
+    case MCBROT_E_TRUNCATED: return "the stream is truncated";
+    case MCBROT_E_CORRUPT: return "the stream is corrupt";
+    case MCBROT_E_NOT_MCBROT: return "not an mcb-rot stream";
+    case MCBROT_E_FORMAT: return "an mcb-rot payload format this library does not read";
+    case MCBROT_E_CONTEXT_SMALL: return "the context is too small";
+    case MCBROT_E_TIME: return "the time is NaN or outside the clip";
+    case MCBROT_E_NOT_OPEN: return "the context holds no opened clip";
+    case MCBROT_E_UNSUPPORTED: return "the stream uses a feature this library does not implement";
+    default: return "unknown status";
+    }
+}
+
+/* ---------------------------------------------------------------------------------------------------------- */
+/* byte reader                                                                                                 */
+
+typedef struct reader_t {
+    const uint8_t *data;
+    size_t pos, end;
+    char *message;
+    size_t message_bytes;
+} reader_t;
+
+#define MSG(r) (r)->message, (r)->message_bytes
+
+static int need(reader_t *r, size_t n, const char *what) {
+    if (r->end - r->pos < n)
+        return fail(MSG(r), MCBROT_E_TRUNCATED, "mcb-rot: the payload ends inside its %s (byte %zu of %zu)", what,
+                    r->pos, r->end);
+    return MCBROT_OK;
+}
+
+static int read_u8(reader_t *r, uint32_t *out, const char *what) {
+    int s = need(r, 1, what);
+    if (s) return s;
+    *out = r->data[r->pos++];
+    return MCBROT_OK;
+}
+
+static int read_f32(reader_t *r, double *out, const char *what) {
+    int s = need(r, 4, what);
+    if (s) return s;
+    uint32_t bits = (uint32_t)r->data[r->pos] | (uint32_t)r->data[r->pos + 1] << 8 |
+                    (uint32_t)r->data[r->pos + 2] << 16 | (uint32_t)r->data[r->pos + 3] << 24;
+    float value;
+    memcpy(&value, &bits, 4);
+    *out = (double)value;
+    r->pos += 4;
+    return MCBROT_OK;
+}
+
+static int read_varint(reader_t *r, uint64_t *out, const char *what, int max_bytes) {
+    uint64_t value = 0;
+    for (int i = 0; i < max_bytes; ++i) {
+        if (r->pos >= r->end)
+            return fail(MSG(r), MCBROT_E_TRUNCATED, "mcb-rot: the payload ends inside its %s", what);
+        uint8_t byte = r->data[r->pos++];
+        if (i == 9 && byte > 1)
+            return fail(MSG(r), MCBROT_E_CORRUPT, "mcb-rot: %s: a varint exceeds 64 bits", what);
+        value |= (uint64_t)(byte & 0x7f) << (7 * i);
+        if (!(byte & 0x80)) {
+            *out = value;
+            return MCBROT_OK;
+        }
+    }
+    return fail(MSG(r), MCBROT_E_CORRUPT, "mcb-rot: %s: a varint longer than %d bytes", what, max_bytes);
+}
+
+static int read_count(reader_t *r, uint32_t *out, uint64_t limit, const char *what) {
+    uint64_t value;
+    int s = read_varint(r, &value, what, 10);
+    if (s) return s;
+    if (value > limit)
+        return fail(MSG(r), MCBROT_E_CORRUPT, "mcb-rot: expected a %s of at most %llu, found %llu", what,
+                    (unsigned long long)limit, (unsigned long long)value);
+    *out = (uint32_t)value;
+    return MCBROT_OK;
+}
+
+/* ---------------------------------------------------------------------------------------------------------- */
+/* CRC32 (zlib's polynomial), bitwise with a 16-entry table: no global state                                   */
+
+static uint32_t crc32_of(const uint8_t *data, size_t n) {
+    static const uint32_t table[16] = {
+        0x00000000u, 0x1db71064u, 0x3b6e20c8u, 0x26d930acu, 0x76dc4190u, 0x6b6b51f4u, 0x4db26158u, 0x5005713cu,
+        0xedb88320u, 0xf00f9344u, 0xd6d6a3e8u, 0xcb61b38cu, 0x9b64c2b0u, 0x86d3d2d4u, 0xa00ae278u, 0xbdbdf21cu};
+    uint32_t crc = 0xffffffffu;
+    for (size_t i = 0; i < n; ++i) {
+        crc ^= data[i];
+        crc = (crc >> 4) ^ table[crc & 15];
+        crc = (crc >> 4) ^ table[crc & 15];
+    }
+    return crc ^ 0xffffffffu;
+}
+
+/* ---------------------------------------------------------------------------------------------------------- */
+/* container                                                                                                   */
+
+typedef struct container_t {
+    uint32_t frames, joints;
+    double fps;
+    const uint8_t *payload;
+    size_t payload_bytes;
+} container_t;
+
+static uint32_t le32(const uint8_t *p) {
+    return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24;
+}
+
+static int read_container(const uint8_t *s, size_t n, container_t *c, char *message, size_t bytes) {
+    if (!s) return fail(message, bytes, MCBROT_E_ARGUMENT, "mcb-rot: the stream pointer is NULL");
+    if (n < 10)
+        return fail(message, bytes, MCBROT_E_TRUNCATED,
+                    "mcb-rot: the stream is truncated: expected at least 10 header bytes, found %zu", n);
+    if (memcmp(s, "MCB\0", 4) != 0)
+        return fail(message, bytes, MCBROT_E_NOT_MCBROT, "mcb-rot: not a mocapbench stream (wrong magic)");
+    uint32_t version = s[4];
+    if (version != 1 && version != 2)
+        return fail(message, bytes, MCBROT_E_FORMAT, "mcb-rot: unknown container version %u (expected 1 or 2)",
+                    version);
+    uint32_t crc = le32(s + 5);
+    const uint8_t *body = s + 9;
+    size_t body_bytes = n - 9;
+    uint32_t name_length = body[0];
+    size_t fields = version == 1 ? 18 : 23;
+    size_t fixed = 1 + name_length + fields;
+    if (name_length == 0 || name_length > MAX_NAME)
+        return fail(message, bytes, MCBROT_E_CORRUPT, "mcb-rot: corrupt header: codec name length %u", name_length);
+    if (body_bytes < fixed)
+        return fail(message, bytes, MCBROT_E_TRUNCATED, "mcb-rot: the stream is truncated: expected %zu header "
+                    "bytes, found %zu", 9 + fixed, n);
+    const uint8_t *f = body + 1 + name_length;
+    uint32_t frames = le32(f), joints = (uint32_t)f[4] | (uint32_t)f[5] << 8;
+    double fps;
+    memcpy(&fps, f + 6, 8); /* little-endian hosts (x86-64, arm64) */
+    float unit = 1.0f;
+    uint8_t axis = '?';
+    if (version == 2) {
+        memcpy(&unit, f + 14, 4);
+        axis = f[18];
+    }
+    uint32_t payload_length = le32(f + fields - 4);
+    if (body_bytes - fixed != payload_length)
+        return fail(message, bytes, body_bytes - fixed < payload_length ? MCBROT_E_TRUNCATED : MCBROT_E_CORRUPT,
+                    "mcb-rot: the header declares a %u-byte payload, found %zu bytes after the header",
+                    payload_length, body_bytes - fixed);
+    uint32_t computed = crc32_of(body, body_bytes);
+    if (computed != crc)
+        return fail(message, bytes, MCBROT_E_CORRUPT,
+                    "mcb-rot: the stream is corrupted: CRC32 expected %#010x (from the header), computed %#010x", crc,
+                    computed);
+    if (name_length != 7 || memcmp(body + 1, "mcb-rot", 7) != 0) {
+        char name[MAX_NAME + 1];
+        for (uint32_t i = 0; i < name_length; ++i) name[i] = (body[1 + i] >= 32 && body[1 + i] < 127) ? (char)body[1 + i] : '?';
+        name[name_length] = 0;
+        return fail(message, bytes, MCBROT_E_NOT_MCBROT, "mcb-rot: this is a stream of codec '%s'", name);
+    }
+    if (frames < 1 || frames > MAX_FRAMES || joints < 1 || joints > MAX_JOINTS || !(fps >= 1e-3 && fps <= 1e5))
+        return fail(message, bytes, MCBROT_E_CORRUPT, "mcb-rot: corrupt header: F=%u, J=%u, fps=%g", frames, joints,
+                    fps);
+    double relative = 1.0 / 8388608.0;
+    if (!((double)unit >= 1e-4 * (1 - relative) && (double)unit <= 1e6 * (1 + relative)) ||
+        !(axis == 'x' || axis == 'y' || axis == 'z' || axis == '?'))
+        return fail(message, bytes, MCBROT_E_CORRUPT, "mcb-rot: corrupt header: source unit %g cm, up axis %d",
+                    (double)unit, axis);
+    c->frames = frames;
+    c->joints = joints;
+    c->fps = fps;
+    c->payload = body + fixed;
+    c->payload_bytes = payload_length;
+    return MCBROT_OK;
+}
+
+/* ---------------------------------------------------------------------------------------------------------- */
+/* the payload header, in two passes: `plan` (no memory: counts and sizes) and `fill` (into the context)        */
+
+typedef struct header_t {
+    /* settings */
+    double eps, bound, multiplier, slope, rounding, root_share, free_angle, power, shell;
+    uint32_t segment_frames, chunk_frames;
+    /* skeleton */
+    int exponent;
+    uint32_t joints, ends;
+    size_t parents_at, offsets_at, offsets_bytes;
+    /* positions of the parts */
+    size_t cuts_at, overrides_at, axes_at, classes_at, side_at;
+    uint32_t num_cuts, num_overrides, num_turned, unit_values;
+    uint32_t segments, chunks, max_length, max_chunk_segments;
+} header_t;
+
+static const double defaults_f32[] = {0.0, 0.0, 0.0, 1.0, 0.45f, 0.05f, 0.017453292519943295f, 0.0};
+
+static int read_settings(reader_t *r, header_t *h) {
+    uint32_t format;
+    int s = read_u8(r, &format, "format");
+    if (s) return s;
+    if (format != MCBROT_PAYLOAD_FORMAT)
+        return fail(MSG(r), MCBROT_E_FORMAT, "mcb-rot: payload format %u; this runtime reads format %d only (older "
+                    "streams: decode them with Python and re-encode)", format, MCBROT_PAYLOAD_FORMAT);
+    if ((s = read_f32(r, &h->eps, "eps")) || (s = read_f32(r, &h->bound, "bound"))) return s;
+    uint64_t flags;
+    if ((s = read_varint(r, &flags, "settings flags", 2))) return s;
+    if (flags >> 11)
+        return fail(MSG(r), MCBROT_E_CORRUPT, "mcb-rot: unknown settings flags %#llx", (unsigned long long)flags);
+    if (flags & (1u << 10))
+        return fail(MSG(r), MCBROT_E_UNSUPPORTED, "mcb-rot: the stream has translation/scale tracks, which this "
+                    "runtime does not read yet");
+    if (flags & 1) {
+        if ((s = read_f32(r, &h->multiplier, "multiplier"))) return s;
+    } else {
+        uint32_t code;
+        if ((s = read_u8(r, &code, "multiplier code"))) return s;
+        h->multiplier = (double)(float)pow(2.0, ((double)code - 64.0) / 2.0);
+    }
+    /* defaults: shell 0, segment 128, chunk 128, slope 1, rounding 0.45, root share 0.05, free angle 1 deg, power 0 */
+    double shell = 0.0, slope = 1.0, rounding = defaults_f32[4], root_share = defaults_f32[5],
+           free_angle = defaults_f32[6], power = 0.0;
+    uint64_t segment = 128, chunk = 128;
+    for (int bit = 2; bit < 10; ++bit) {
+        int set = (int)((flags >> bit) & 1);
+        const char *name = "setting";
+        double *f32 = NULL;
+        uint64_t *var = NULL;
+        switch (bit) {
+        case 2: f32 = &shell; name = "shell distance"; break;
+        case 3: var = &segment; name = "segment frames"; break;
+        case 4: var = &chunk; name = "chunk frames"; break;
+        case 5: f32 = &slope; name = "slope"; break;
+        case 6: f32 = &rounding; name = "rounding"; break;
+        case 7: f32 = &root_share; name = "root share"; break;
+        case 8: f32 = &free_angle; name = "free angle"; break;
+        case 9: f32 = &power; name = "allocation power"; break;
+        }
+        if (set) {
+            if (f32 && (s = read_f32(r, f32, name))) return s;
+            if (var && (s = read_varint(r, var, name, 10))) return s;
+        } else if (bit == 5 && (flags & 2)) {
+            slope = 0.0;
+        }
+    }
+    if (!(h->bound > 0 && h->bound <= 100 && h->eps > 0 && h->eps <= 101 && h->multiplier > 0 &&
+          h->multiplier <= 1e6 && slope >= 0 && slope <= 64 && rounding >= 0 && rounding <= 0.5 && root_share > 0 &&
+          root_share < 1 && free_angle > 0 && free_angle <= PI && power >= 0 && power <= 64 && segment >= 1 &&
+          segment <= 4096 && chunk >= 1 && chunk <= (1u << 20) && shell >= 0 && shell <= 100))
+        return fail(MSG(r), MCBROT_E_CORRUPT, "mcb-rot: settings out of range: eps %g, bound %g, multiplier %g, slope "
+                    "%g, rounding %g, root share %g, free angle %g, allocation power %g, segment frames %llu, chunk "
+                    "frames %llu, shell distance %g", h->eps, h->bound, h->multiplier, slope, rounding, root_share,
+                    free_angle, power, (unsigned long long)segment, (unsigned long long)chunk, shell);
+    h->slope = slope;
+    h->rounding = rounding;
+    h->root_share = root_share;
+    h->free_angle = free_angle;
+    h->power = power;
+    h->shell = shell;
+    h->segment_frames = (uint32_t)segment;
+    h->chunk_frames = (uint32_t)chunk;
+    return MCBROT_OK;
+}
+
+/* A bit reader over [start, end) bytes, MSB first. */
+typedef struct bits_t {
+    const uint8_t *data;
+    size_t at, limit; /* in bits */
+} bits_t;
+
+static int take_bits(bits_t *b, uint32_t n, uint64_t *out) {
+    if (b->limit - b->at < n) return -1;
+    uint64_t v = 0;
+    for (uint32_t i = 0; i < n; ++i, ++b->at) v = v << 1 | ((b->data[b->at >> 3] >> (7 - (b->at & 7))) & 1);
+    *out = v;
+    return 0;
+}
+
+/* The skeleton's offsets blob (skeleton_blob._pack_offsets): checked, and the first `keep` vectors (cm) written to
+ * `out` (keep x 3) when it is not NULL (a repeat names an earlier vector, so the joints' need no end site's). */
+static int read_offsets(reader_t *r, const uint8_t *blob, size_t n, uint32_t count, double step, double *out,
+                        uint32_t keep) {
+    if (n == 0 || blob[0] > 62)
+        return fail(MSG(r), MCBROT_E_CORRUPT, "mcb-rot: skeleton: expected offsets of at most 62 bits");
+    uint32_t width = blob[0];
+    bits_t b = {blob + 1, 0, (n - 1) * 8};
+    uint32_t index_bits = 0;
+    while (count > 1 && ((uint64_t)(count - 1) >> index_bits)) ++index_bits;
+    /* pass 1: the repeat flags, to know which vectors are fresh */
+    uint64_t v;
+    size_t flags_at = b.at;
+    uint32_t repeats = 0;
+    for (uint32_t i = 1; i < count; ++i) {
+        if (take_bits(&b, 1, &v)) goto truncated;
+        repeats += (uint32_t)v;
+    }
+    size_t sources_at = b.at;
+    if (b.limit - b.at < (size_t)repeats * index_bits) goto truncated;
+    b.at += (size_t)repeats * index_bits;
+    uint32_t fresh = count - repeats;
+    size_t zero_at = b.at;
+    uint32_t nonzero = 0;
+    for (uint32_t i = 0; i < 3 * fresh; ++i) {
+        if (take_bits(&b, 1, &v)) goto truncated;
+        nonzero += (uint32_t)v;
+    }
+    size_t signs_at = b.at;
+    if (b.limit - b.at < nonzero) goto truncated;
+    b.at += nonzero;
+    size_t magnitudes_at = b.at;
+    if ((b.limit - b.at) / (width ? width : 1) < (width ? nonzero : 0)) goto truncated;
+    b.at += (size_t)nonzero * width;
+    if (b.limit - b.at >= 8)
+        return fail(MSG(r), MCBROT_E_CORRUPT, "mcb-rot: skeleton: %zu bytes follow the offsets", (b.limit - b.at) / 8);
+    /* pass 2: the values */
+    bits_t fl = {b.data, flags_at, sources_at}, src = {b.data, sources_at, zero_at}, zf = {b.data, zero_at, signs_at},
+           sg = {b.data, signs_at, magnitudes_at}, mg = {b.data, magnitudes_at, b.at};
+    double limit = 1e6 / step + 1;
+    for (uint32_t i = 0; i < count; ++i) {
+        uint64_t repeated = 0;
+        if (i > 0) take_bits(&fl, 1, &repeated);
+        if (repeated) {
+            uint64_t source = 0;
+            take_bits(&src, index_bits, &source);
+            if (source >= i)
+                return fail(MSG(r), MCBROT_E_CORRUPT, "mcb-rot: skeleton: a repeated offset names a later one");
+            /* the source must not be a repeat itself: re-read its flag */
+            if (source > 0) {
+                bits_t check = {b.data, flags_at + (size_t)(source - 1), sources_at};
+                uint64_t again;
+                take_bits(&check, 1, &again);
+                if (again)
+                    return fail(MSG(r), MCBROT_E_CORRUPT, "mcb-rot: skeleton: a repeated offset names a repeated one");
+            }
+            if (out && i < keep) memcpy(out + 3 * i, out + 3 * source, 3 * sizeof(double));
+            continue;
+        }
+        for (int c = 0; c < 3; ++c) {
+            uint64_t present = 0, sign = 0, magnitude = 0;
+            take_bits(&zf, 1, &present);
+            if (present) {
+                take_bits(&sg, 1, &sign);
+                take_bits(&mg, width, &magnitude);
+            }
+            double value = (double)magnitude;
+            if (value > limit) return fail(MSG(r), MCBROT_E_CORRUPT, "mcb-rot: skeleton: an offset exceeds 1e6 cm");
+            if (out && i < keep) out[3 * i + c] = (sign ? -value : value) * step;
+        }
+    }
+    return MCBROT_OK;
+truncated:
+    return fail(MSG(r), MCBROT_E_CORRUPT, "mcb-rot: skeleton: the offsets end inside their bits");
+}
+
+static int read_small_ints(reader_t *r, uint32_t count, uint32_t limit, const char *what, uint8_t *out) {
+    size_t flags_bytes = (count + 7) / 8;
+    int s = need(r, flags_bytes, what);
+    if (s) return s;
+    const uint8_t *flags = r->data + r->pos;
+    r->pos += flags_bytes;
+    uint32_t nonzero = 0;
+    for (uint32_t i = 0; i < count; ++i) nonzero += (flags[i >> 3] >> (7 - (i & 7))) & 1;
+    if (out) memset(out, 0, count);
+    if (!nonzero) return MCBROT_OK;
+    if ((s = need(r, 2, what))) return s;
+    uint32_t low = r->data[r->pos], width = r->data[r->pos + 1];
+    r->pos += 2;
+    if (low < 1 || low >= limit || width > 8)
+        return fail(MSG(r), MCBROT_E_CORRUPT, "mcb-rot: %s: expected values below %u, found a low of %u, width %u",
+                    what, limit, low, width);
+    size_t bytes = ((size_t)nonzero * width + 7) / 8;
+    if ((s = need(r, bytes, what))) return s;
+    bits_t b = {r->data + r->pos, 0, bytes * 8};
+    r->pos += bytes;
+    for (uint32_t i = 0; i < count; ++i) {
+        if (!((flags[i >> 3] >> (7 - (i & 7))) & 1)) continue;
+        uint64_t v = 0;
+        take_bits(&b, width, &v);
+        if (low + v >= limit)
+            return fail(MSG(r), MCBROT_E_CORRUPT, "mcb-rot: %s: expected values below %u, found %llu", what, limit,
+                        (unsigned long long)(low + v));
+        if (out) out[i] = (uint8_t)(low + v);
+    }
+    return MCBROT_OK;
+}
+
+/* Segment starts: a grid of segment_frames restarted at every cut (Python's window_lengths). Calls `emit` per
+ * segment when `starts` is not NULL; returns the count and the longest. */
+static void segment_grid(uint32_t frames, const uint32_t *cuts, uint32_t num_cuts, uint32_t grid, uint32_t *starts,
+                         uint32_t *count, uint32_t *longest) {
+    uint32_t n = 0, most = 0, begin = 0;
+    for (uint32_t i = 0; i <= num_cuts; ++i) {
+        uint32_t stop = i < num_cuts ? cuts[i] : frames;
+        for (uint32_t at = begin; at < stop; at += grid) {
+            uint32_t length = stop - at < grid ? stop - at : grid;
+            if (starts) starts[n] = at;
+            ++n;
+            if (length > most) most = length;
+        }
+        begin = stop;
+    }
+    if (starts) starts[n] = frames;
+    *count = n;
+    *longest = most;
+}
+
+/* Pass 1 over the payload header: every field up to the side unit read and checked, sizes found. The cuts are
+ * needed for the segment count: they are read into `cuts` (at most F - 1 values) when not NULL, else only
+ * counted. */
+static int plan(const container_t *c, header_t *h, reader_t *r, uint32_t *cuts_out) {
+    int s;
+    memset(h, 0, sizeof *h);
+    if ((s = read_settings(r, h))) return s;
+    /* skeleton, runtime part */
+    uint64_t zig;
+    if ((s = read_varint(r, &zig, "offset grid exponent", 10))) return s;
+    int64_t exponent = (int64_t)(zig >> 1) ^ -(int64_t)(zig & 1);
+    if (exponent < -40 || exponent > 10)
+        return fail(MSG(r), MCBROT_E_CORRUPT, "mcb-rot: skeleton: offset grid exponent %lld outside [-40, 10]",
+                    (long long)exponent);
+    h->exponent = (int)exponent;
+    if ((s = read_count(r, &h->joints, MAX_JOINTS, "joint count")) || (s = read_count(r, &h->ends, MAX_JOINTS,
+                                                                                     "end-site count")))
+        return s;
+    if (h->joints != c->joints)
+        return fail(MSG(r), MCBROT_E_CORRUPT, "mcb-rot: the skeleton has %u joints, the header says %u", h->joints,
+                    c->joints);
+    h->parents_at = r->pos;
+    for (uint32_t j = 1; j < h->joints; ++j) {
+        uint64_t step;
+        if ((s = read_varint(r, &step, "parents", 10))) return s;
+        if (step < 1 || step > j)
+            return fail(MSG(r), MCBROT_E_CORRUPT, "mcb-rot: skeleton: joint %u names parent %lld", j,
+                        (long long)j - (long long)step);
+    }
+    uint32_t blob;
+    if ((s = read_count(r, &blob, r->end - r->pos, "offsets size"))) return s;
+    h->offsets_at = r->pos;
+    h->offsets_bytes = blob;
+    if ((s = read_offsets(r, r->data + r->pos, blob, h->joints + h->ends, ldexp(1.0, h->exponent), NULL, 0))) return s;
+    r->pos += blob;
+    if ((s = read_count(r, &blob, r->end - r->pos, "skeleton names size"))) return s;
+    r->pos += blob; /* zstd: names and channel orders, not needed to sample */
+    /* cuts */
+    h->cuts_at = r->pos;
+    if ((s = read_count(r, &h->num_cuts, c->frames - 1, "cut count"))) return s;
+    uint64_t at = 0;
+    for (uint32_t i = 0; i < h->num_cuts; ++i) {
+        uint64_t gap;
+        if ((s = read_varint(r, &gap, "cuts", 10))) return s;
+        at += gap;
+        if (gap < 1 || at > c->frames - 1)
+            return fail(MSG(r), MCBROT_E_CORRUPT, "mcb-rot: cuts must increase within frames 1..%u", c->frames - 1);
+        if (cuts_out) cuts_out[i] = (uint32_t)at;
+    }
+    /* segments and chunks */
+    if (cuts_out || h->num_cuts == 0) {
+        segment_grid(c->frames, cuts_out, h->num_cuts, h->segment_frames, NULL, &h->segments, &h->max_length);
+    } else { /* count the segments without storing the cuts: re-read the gaps */
+        reader_t again = *r;
+        again.pos = h->cuts_at;
+        uint32_t n;
+        read_count(&again, &n, c->frames - 1, "cut count");
+        uint64_t begin = 0, total = 0, longest = 0, position = 0;
+        for (uint32_t i = 0; i <= n; ++i) {
+            uint64_t gap = 0;
+            if (i < n) read_varint(&again, &gap, "cuts", 10);
+            position += gap;
+            uint64_t stop = i < n ? position : c->frames;
+            uint64_t length = stop - begin;
+            total += (length + h->segment_frames - 1) / h->segment_frames;
+            uint64_t most = length < h->segment_frames ? length : h->segment_frames;
+            if (most > longest) longest = most;
+            begin = stop;
+        }
+        h->segments = (uint32_t)total;
+        h->max_length = (uint32_t)longest;
+    }
+    /* chunks: group segments until one holds chunk_frames; count and the most segments in one (needs lengths:
+     * computed from the grid again, cheaply, in open; here an upper bound from the settings) */
+    h->max_chunk_segments = 0;
+    /* re-references */
+    h->overrides_at = r->pos;
+    if ((s = read_count(r, &h->num_overrides, (uint64_t)h->segments * h->joints, "re-reference count"))) return s;
+    for (uint32_t i = 0; i < h->num_overrides; ++i) {
+        uint64_t segment, joint;
+        if ((s = read_varint(r, &segment, "re-referenced segment", 10)) ||
+            (s = read_varint(r, &joint, "re-referenced joint", 10)) || (s = need(r, 12, "reference")))
+            return s;
+        r->pos += 12;
+    }
+    /* principal axes */
+    h->axes_at = r->pos;
+    size_t flag_bytes = (h->joints + 7) / 8;
+    if ((s = need(r, flag_bytes, "axis flags"))) return s;
+    uint32_t flagged = 0;
+    for (uint32_t j = 0; j < h->joints; ++j) flagged += (r->data[r->pos + (j >> 3)] >> (7 - (j & 7))) & 1;
+    r->pos += flag_bytes;
+    if ((s = need(r, (size_t)6 * flagged, "joint axes"))) return s;
+    r->pos += (size_t)6 * flagged;
+    h->num_turned = flagged;
+    /* classes */
+    h->classes_at = r->pos;
+    uint32_t channels = 3 + 3 * h->joints;
+    if ((s = read_small_ints(r, channels, 128, "channel classes", NULL)) ||
+        (s = read_small_ints(r, NUM_BANDS - 1, 128, "band classes", NULL)) || (s = need(r, 4, "classes")))
+        return s;
+    int dc_tilt = (int)r->data[r->pos] - NUM_CLASSES, count_tilt = (int)r->data[r->pos + 1] - NUM_CLASSES;
+    int gap = r->data[r->pos + 2], value = r->data[r->pos + 3];
+    if (dc_tilt >= NUM_CLASSES || count_tilt >= NUM_CLASSES || gap >= NUM_CLASSES || value >= NUM_CLASSES)
+        return fail(MSG(r), MCBROT_E_CORRUPT, "mcb-rot: classes must be < %d", NUM_CLASSES);
+    r->pos += 4;
+    uint64_t longest = h->max_length > h->chunk_frames ? h->max_length : h->chunk_frames;
+    uint64_t most = longest * (channels + 4 * ((uint64_t)h->joints + 1));
+    if ((s = read_count(r, &h->unit_values, most, "largest unit"))) return s;
+    h->side_at = r->pos;
+    return MCBROT_OK;
+}
+
+/* ---------------------------------------------------------------------------------------------------------- */
+/* rANS units                                                                                                  */
+
+typedef struct unit_t {
+    const uint8_t *data;
+    size_t pos, end;         /* rANS bytes */
+    size_t bit, bit_limit;   /* sign and raw bits, in bits from data */
+    uint32_t x[2];
+    uint32_t index;
+} unit_t;
+
+/* Start a unit at r->pos; `count` values follow. */
+static int unit_begin(reader_t *r, unit_t *u, uint32_t count, size_t limit, const char *what) {
+    uint64_t size;
+    int s = read_varint(r, &size, what, 10);
+    if (s) return s;
+    if (size > r->end - r->pos)
+        return fail(MSG(r), MCBROT_E_TRUNCATED, "mcb-rot: %s: expected %llu rANS bytes, only %zu left", what,
+                    (unsigned long long)size, r->end - r->pos);
+    u->data = r->data;
+    u->pos = r->pos;
+    u->end = r->pos + (size_t)size;
+    u->bit = u->end * 8;
+    u->bit_limit = limit * 8;
+    u->index = 0;
+    if (count == 0) {
+        if (size != 0) return fail(MSG(r), MCBROT_E_CORRUPT, "mcb-rot: %s: rANS bytes for no value", what);
+        return MCBROT_OK;
+    }
+    if (size < 8) return fail(MSG(r), MCBROT_E_CORRUPT, "mcb-rot: %s: the rANS data ends before its values", what);
+    u->x[0] = le32(u->data + u->pos);
+    u->x[1] = le32(u->data + u->pos + 4);
+    u->pos += 8;
+    return MCBROT_OK;
+}
+
+/* The next value of class `k`; returns 0, or a nonzero code: 1 rANS truncated, 2 token too large, 4 bits
+ * truncated. */
+static inline int unit_next(unit_t *u, uint32_t k, int32_t *out) {
+    uint32_t *x = &u->x[u->index & 1];
+    ++u->index;
+    uint32_t slot = *x & ((1u << PRECISION) - 1);
+    const uint16_t *cum = mcbrot_cum[k];
+    uint32_t token = mcbrot_coarse[k][slot >> COARSE_SHIFT];
+    while (cum[token + 1] <= slot) ++token;
+    uint32_t value = mcbrot_freq[k][token] * (*x >> PRECISION) + slot - cum[token];
+    while (value < RANS_LOW) {
+        if (u->pos >= u->end) return 1;
+        value = value << 8 | u->data[u->pos++];
+    }
+    *x = value;
+    if (token > MAX_TOKEN) return 2;
+    if (token == 0) {
+        *out = 0;
+        return 0;
+    }
+    if (u->bit >= u->bit_limit) return 4;
+    uint32_t negative = (u->data[u->bit >> 3] >> (7 - (u->bit & 7))) & 1;
+    ++u->bit;
+    int64_t magnitude = token;
+    if (token >= 16) {
+        uint32_t width = token - 16 + 4;
+        if (u->bit_limit - u->bit < width) return 4;
+        magnitude = 1;
+        for (uint32_t i = 0; i < width; ++i, ++u->bit)
+            magnitude = magnitude << 1 | ((u->data[u->bit >> 3] >> (7 - (u->bit & 7))) & 1);
+    }
+    *out = (int32_t)(negative ? -magnitude : magnitude);
+    return 0;
+}
+
+static int unit_error(reader_t *r, int code, const char *what) {
+    static const char *const text[] = {"", "the rANS data ends before its values", "a value exceeds 2^31",
+                                       "the rANS data does not end where it should (corrupt)",
+                                       "the sign and raw bits end before their values"};
+    return fail(MSG(r), MCBROT_E_CORRUPT, "mcb-rot: %s: %s", what, text[code]);
+}
+
+/* Finish a unit: both states back at 2^23, every rANS byte read; r->pos moves past the bits. */
+static int unit_end(reader_t *r, unit_t *u, uint32_t count, const char *what) {
+    if (count && (u->x[0] != RANS_LOW || u->x[1] != RANS_LOW || u->pos != u->end)) return unit_error(r, 3, what);
+    r->pos = (u->bit + 7) >> 3;
+    return MCBROT_OK;
+}
+
+/* ---------------------------------------------------------------------------------------------------------- */
+/* layout of the context                                                                                       */
+
+typedef struct layout_t {
+    size_t parents, offsets, base_step, correction_step, turned, axes, overrides, seg_start, chunk_first,
+        chunk_offset, class_table, dc, counts, values, coef_start, corr_flat, cosines, ramp, bands, scratch, total;
+} layout_t;
+
+static size_t place(size_t *at, size_t bytes) {
+    size_t here = (*at + 15) & ~(size_t)15;
+    *at = here + bytes;
+    return here;
+}
+
+static void layout_of(const header_t *h, uint32_t chunks, uint32_t max_chunk_segments, layout_t *l) {
+    size_t at = sizeof(ctx_t);
+    size_t J = h->joints, C = 3 + 3 * J, S = h->segments, n = h->max_length;
+    l->parents = place(&at, 4 * J);
+    l->offsets = place(&at, 24 * J);
+    l->base_step = place(&at, 8 * C);
+    l->correction_step = place(&at, 8 * (J + 1));
+    l->turned = place(&at, 4 * J);
+    l->axes = place(&at, 72 * (size_t)h->num_turned);
+    l->overrides = place(&at, sizeof(override_t) * (size_t)h->num_overrides);
+    l->seg_start = place(&at, 4 * (S + 1));
+    l->chunk_first = place(&at, 4 * ((size_t)chunks + 1));
+    l->chunk_offset = place(&at, 8 * ((size_t)chunks + 1));
+    l->class_table = place(&at, C * NUM_BANDS);
+    l->dc = place(&at, 8 * S * C);
+    l->counts = place(&at, 2 * S * C);
+    l->values = place(&at, 4 * (size_t)h->unit_values);
+    l->coef_start = place(&at, 4 * ((size_t)max_chunk_segments * C + 1));
+    l->corr_flat = place(&at, 4 * ((size_t)h->unit_values / 4 + 1));
+    l->cosines = place(&at, 8 * 4 * n);
+    l->ramp = place(&at, 8 * n);
+    l->bands = place(&at, n);
+    l->scratch = place(&at, 8 * (2 * (4 * J + 3) + C));
+    l->total = (at + 15) & ~(size_t)15;
+}
+
+/* Chunk grouping (SegmentLayout): consecutive segments until a chunk holds at least chunk_frames frames. */
+static void chunk_grid(const uint32_t *seg_start, uint32_t segments, uint32_t chunk_frames, uint32_t *first,
+                       uint32_t *count, uint32_t *most) {
+    uint32_t n = 0, held = 0, largest = 0, begin = 0;
+    if (first) first[0] = 0;
+    for (uint32_t s = 0; s + 1 < segments; ++s) {
+        held += seg_start[s + 1] - seg_start[s];
+        if (held >= chunk_frames) {
+            ++n;
+            if (first) first[n] = s + 1;
+            if (s + 1 - begin > largest) largest = s + 1 - begin;
+            begin = s + 1;
+            held = 0;
+        }
+    }
+    ++n;
+    if (first) first[n] = segments;
+    if (segments - begin > largest) largest = segments - begin;
+    *count = n;
+    *most = largest;
+}
+
+/* The chunk count and the most segments of one chunk, without memory: the grid walked twice. */
+static void count_chunks(const container_t *c, const header_t *h, reader_t *r, uint32_t *chunks, uint32_t *most) {
+    /* walk the segments (from the cuts in the stream) and group them */
+    reader_t cr = *r;
+    cr.pos = h->cuts_at;
+    uint32_t n;
+    read_count(&cr, &n, c->frames - 1, "cut count");
+    uint64_t begin = 0, position = 0;
+    uint32_t groups = 0, largest = 0, in_chunk = 0, held = 0;
+    uint32_t total_segments = 0;
+    for (uint32_t i = 0; i <= n; ++i) {
+        uint64_t gap = 0;
+        if (i < n) read_varint(&cr, &gap, "cuts", 10);
+        position += gap;
+        uint64_t stop = i < n ? position : c->frames;
+        for (uint64_t at = begin; at < stop; at += h->segment_frames) {
+            uint32_t length = (uint32_t)(stop - at < h->segment_frames ? stop - at : h->segment_frames);
+            ++total_segments;
+            ++in_chunk;
+            held += length;
+            if (held >= h->chunk_frames && total_segments < h->segments) {
+                ++groups;
+                if (in_chunk > largest) largest = in_chunk;
+                in_chunk = 0;
+                held = 0;
+            }
+        }
+        begin = stop;
+    }
+    ++groups;
+    if (in_chunk > largest) largest = in_chunk;
+    *chunks = groups;
+    *most = largest;
+}
+
+static int size_of(const uint8_t *stream, size_t n, container_t *c, header_t *h, layout_t *l, uint32_t *chunks,
+                   uint32_t *most, char *message, size_t bytes) {
+    int s = c->payload ? MCBROT_OK : read_container(stream, n, c, message, bytes);
+    if (s) return s;
+    reader_t r = {c->payload, 0, c->payload_bytes, message, bytes};
+    if ((s = plan(c, h, &r, NULL))) return s;
+    count_chunks(c, h, &r, chunks, most);
+    layout_of(h, *chunks, *most, l);
+    return MCBROT_OK;
+}
+
+MCBROT_API int mcbrot_context_size(const uint8_t *stream, size_t stream_bytes, size_t *size, char *message,
+                                   size_t message_bytes) {
+    if (message && message_bytes) message[0] = 0;
+    if (!size) return fail(message, message_bytes, MCBROT_E_ARGUMENT, "mcb-rot: `size` is NULL");
+    container_t c = {0};
+    header_t h;
+    layout_t l;
+    uint32_t chunks, most;
+    int s = size_of(stream, stream_bytes, &c, &h, &l, &chunks, &most, message, message_bytes);
+    if (s) return s;
+    *size = l.total;
+    return MCBROT_OK;
+}
+
+static int payload_container(const uint8_t *payload, size_t bytes, uint32_t frames, uint32_t joints, double fps,
+                             container_t *c, char *message, size_t message_bytes) {
+    if (!payload || !bytes) return fail(message, message_bytes, MCBROT_E_TRUNCATED, "mcb-rot: the payload is empty");
+    if (frames < 1 || frames > MAX_FRAMES || joints < 1 || joints > MAX_JOINTS || !(fps >= 1e-3 && fps <= 1e5))
+        return fail(message, message_bytes, MCBROT_E_ARGUMENT, "mcb-rot: F=%u, J=%u, fps=%g out of range", frames,
+                    joints, fps);
+    c->frames = frames;
+    c->joints = joints;
+    c->fps = fps;
+    c->payload = payload;
+    c->payload_bytes = bytes;
+    return MCBROT_OK;
+}
+
+MCBROT_API int mcbrot_payload_context_size(const uint8_t *payload, size_t payload_bytes, uint32_t frames,
+                                           uint32_t joints, double fps, size_t *size, char *message,
+                                           size_t message_bytes) {
+    if (message && message_bytes) message[0] = 0;
+    if (!size) return fail(message, message_bytes, MCBROT_E_ARGUMENT, "mcb-rot: `size` is NULL");
+    container_t c = {0};
+    header_t h;
+    layout_t l;
+    uint32_t chunks, most;
+    int s = payload_container(payload, payload_bytes, frames, joints, fps, &c, message, message_bytes);
+    if (s || (s = size_of(NULL, 0, &c, &h, &l, &chunks, &most, message, message_bytes))) return s;
+    *size = l.total;
+    return MCBROT_OK;
+}
+
+static int open_with(void *context, size_t context_bytes, container_t *c, const uint8_t *stream, size_t stream_bytes);
+
+MCBROT_API int mcbrot_open(void *context, size_t context_bytes, const uint8_t *stream, size_t stream_bytes) {
+    container_t c = {0};
+    return open_with(context, context_bytes, &c, stream, stream_bytes);
+}
+
+MCBROT_API int mcbrot_open_payload(void *context, size_t context_bytes, const uint8_t *payload, size_t payload_bytes,
+                                   uint32_t frames, uint32_t joints, double fps) {
+    if (!context || (uintptr_t)context % MCBROT_CONTEXT_ALIGN) return MCBROT_E_ARGUMENT;
+    if (context_bytes < sizeof(ctx_t)) return MCBROT_E_CONTEXT_SMALL;
+    container_t c = {0};
+    int s = payload_container(payload, payload_bytes, frames, joints, fps, &c, ((ctx_t *)context)->message,
+                              MESSAGE_BYTES);
+    if (s) return s;
+    return open_with(context, context_bytes, &c, NULL, 0);
+}
+
+/* ---------------------------------------------------------------------------------------------------------- */
+/* budgets (budgets.joint_budgets): angle budgets from the lever arms, without the J x J chain matrix          */
+
+static void budgets(ctx_t *x, double *rotation, double *base, double *dist, double *lever, double *sums) {
+    uint32_t J = x->joints;
+    const int32_t *parent = x->parents;
+    double shell = x->shell;
+    dist[0] = 0.0;
+    for (uint32_t j = 1; j < J; ++j) {
+        const double *o = x->offsets + 3 * j;
+        dist[j] = dist[parent[j]] + sqrt(o[0] * o[0] + o[1] * o[1] + o[2] * o[2]);
+    }
+    /* lever[a] = max over the points a's rotation moves: proper descendants k (chain dist k - dist a), and with a
+     * shell the vertices of a and of its descendants (chain + shell) */
+    for (uint32_t j = 0; j < J; ++j) lever[j] = shell > 0 ? shell : 0.0;
+    for (uint32_t k = J; k-- > 1;) {
+        for (int32_t a = parent[k]; a >= 0; a = a > 0 ? parent[a] : -1) {
+            double chain = dist[k] - dist[a] + (shell > 0 ? shell : 0.0);
+            if (chain > lever[a]) lever[a] = chain;
+        }
+    }
+    /* worst = max over points of sum over movers a of chain(a, point) / lever[a] */
+    double worst = 0.0;
+    for (uint32_t k = 0; k < J; ++k) {
+        double joint = 0.0, vertex = shell > 0 ? (lever[k] > 0 ? shell / lever[k] : 0.0) : 0.0;
+        for (int32_t a = k > 0 ? parent[k] : -1; a >= 0; a = a > 0 ? parent[a] : -1) {
+            if (!(lever[a] > 0)) continue;
+            double chain = dist[k] - dist[a];
+            joint += chain / lever[a];
+            if (shell > 0) vertex += (chain + shell) / lever[a];
+        }
+        if (joint > worst) worst = joint;
+        if (vertex > worst) worst = vertex;
+    }
+    double weight = worst > 0 ? x->bound * (1.0 - x->root_share) / worst : 0.0;
+    for (uint32_t j = 0; j < J; ++j) rotation[j] = lever[j] > 0 ? weight / lever[j] : x->free_angle;
+    if (x->power > 0) {
+        for (uint32_t j = 0; j < J; ++j) sums[j] = shell > 0 ? pow(shell, x->power) : 0.0;
+        for (uint32_t k = 1; k < J; ++k)
+            for (int32_t a = parent[k]; a >= 0; a = a > 0 ? parent[a] : -1) {
+                double chain = dist[k] - dist[a];
+                sums[a] += pow(chain, x->power);
+                if (shell > 0) sums[a] += pow(chain + shell, x->power);
+            }
+        for (uint32_t j = 0; j < J; ++j)
+            base[j] = lever[j] > 0 ? weight / pow(sums[j], 1.0 / x->power) : x->free_angle;
+    } else {
+        for (uint32_t j = 0; j < J; ++j) base[j] = rotation[j];
+    }
+}
+
+/* ---------------------------------------------------------------------------------------------------------- */
+/* quaternions                                                                                                 */
+
+static void exp_map(double x, double y, double z, double *q) {
+    double angle = sqrt(x * x + y * y + z * z);
+    double scale = angle < 1e-6 ? 0.5 - angle * angle / 48.0 : sin(0.5 * angle) / angle;
+    q[0] = x * scale;
+    q[1] = y * scale;
+    q[2] = z * scale;
+    q[3] = cos(0.5 * angle);
+}
+
+/* The decoder's map (stream.assemble): sin and cos of the half angle from u = tan(theta / 4). */
+static void exp_map_tan(double x, double y, double z, double *q) {
+    double angle = sqrt(x * x + y * y + z * z);
+    double u = tan(angle * 0.25);
+    double ratio = 2.0 / (u * u + 1.0);
+    double scale = angle < 1e-6 ? 0.5 - angle * angle / 48.0 : u * ratio / angle;
+    q[0] = x * scale;
+    q[1] = y * scale;
+    q[2] = z * scale;
+    q[3] = ratio - 1.0;
+}
+
+static void multiply(const double *a, const double *b, double *out) {
+    double x = a[3] * b[0] + a[0] * b[3] + a[1] * b[2] - a[2] * b[1];
+    double y = a[3] * b[1] - a[0] * b[2] + a[1] * b[3] + a[2] * b[0];
+    double z = a[3] * b[2] + a[0] * b[1] - a[1] * b[0] + a[2] * b[3];
+    double w = a[3] * b[3] - a[0] * b[0] - a[1] * b[1] - a[2] * b[2];
+    out[0] = x;
+    out[1] = y;
+    out[2] = z;
+    out[3] = w;
+}
+
+/* ---------------------------------------------------------------------------------------------------------- */
+/* open                                                                                                        */
+
+static int band_of(uint32_t k, uint32_t length, uint32_t nominal) {
+    uint64_t scaled = (uint64_t)k * nominal, square = scaled * scaled, unit = (uint64_t)length * length;
+    int band = 1;
+    for (int m = 1; m < NUM_BANDS - 1; ++m) band += square >= unit << m;
+    return band;
+}
+
+static int clip_class(int value) { return value < 0 ? 0 : value > NUM_CLASSES - 1 ? NUM_CLASSES - 1 : value; }
+
+static int open_with(void *context, size_t context_bytes, container_t *given, const uint8_t *stream,
+                     size_t stream_bytes) {
+    if (!context) return MCBROT_E_ARGUMENT;
+    if ((uintptr_t)context % MCBROT_CONTEXT_ALIGN) return MCBROT_E_ARGUMENT;
+    if (context_bytes < sizeof(ctx_t)) return MCBROT_E_CONTEXT_SMALL;
+    ctx_t *x = (ctx_t *)context;
+    memset(x, 0, sizeof *x);
+    char *message = x->message;
+    container_t c = *given;
+    header_t h;
+    layout_t l;
+    uint32_t chunks, most;
+    int s = size_of(stream, stream_bytes, &c, &h, &l, &chunks, &most, message, MESSAGE_BYTES);
+    if (s) return s;
+    if (context_bytes < l.total)
+        return fail(message, MESSAGE_BYTES, MCBROT_E_CONTEXT_SMALL, "mcb-rot: the context holds %zu bytes, this "
+                    "stream needs %zu (mcbrot_context_size)", context_bytes, l.total);
+    uint8_t *base = (uint8_t *)context;
+    x->parents = (int32_t *)(base + l.parents);
+    x->offsets = (double *)(base + l.offsets);
+    x->base_step = (double *)(base + l.base_step);
+    x->correction_step = (double *)(base + l.correction_step);
+    x->turned = (int32_t *)(base + l.turned);
+    x->axes = (double *)(base + l.axes);
+    x->overrides = (override_t *)(base + l.overrides);
+    x->seg_start = (uint32_t *)(base + l.seg_start);
+    x->chunk_first = (uint32_t *)(base + l.chunk_first);
+    x->chunk_offset = (uint32_t *)(base + l.chunk_offset);
+    x->class_table = base + l.class_table;
+    x->dc = (int64_t *)(base + l.dc);
+    x->counts = (uint16_t *)(base + l.counts);
+    x->values = (int32_t *)(base + l.values);
+    x->coef_start = (uint32_t *)(base + l.coef_start);
+    x->corr_flat = (uint32_t *)(base + l.corr_flat);
+    x->cosines = (double *)(base + l.cosines);
+    x->ramp = (double *)(base + l.ramp);
+    x->bands = base + l.bands;
+    x->scratch = (double *)(base + l.scratch);
+    x->bytes_used = l.total;
+    x->payload = c.payload;
+    x->payload_bytes = c.payload_bytes;
+    x->frames = c.frames;
+    x->joints = c.joints;
+    x->channels = 3 + 3 * c.joints;
+    x->fps = c.fps;
+    x->segments = h.segments;
+    x->chunks = chunks;
+    x->ends = h.ends;
+    x->eps = h.eps;
+    x->bound = h.bound;
+    x->multiplier = h.multiplier;
+    x->slope = h.slope;
+    x->rounding = h.rounding;
+    x->root_share = h.root_share;
+    x->free_angle = h.free_angle;
+    x->power = h.power;
+    x->shell = h.shell;
+    x->segment_frames = h.segment_frames;
+    x->chunk_frames = h.chunk_frames;
+    x->num_overrides = h.num_overrides;
+    x->num_turned = h.num_turned;
+    x->unit_values = h.unit_values;
+    x->max_length = h.max_length;
+    x->max_chunk_segments = most;
+    x->cached_chunk = -1;
+    x->table_length = 0;
+    uint32_t J = x->joints, C = x->channels, S = x->segments;
+    reader_t r = {c.payload, 0, c.payload_bytes, message, MESSAGE_BYTES};
+    /* skeleton */
+    r.pos = h.parents_at;
+    x->parents[0] = -1;
+    for (uint32_t j = 1; j < J; ++j) {
+        uint64_t step;
+        read_varint(&r, &step, "parents", 10);
+        x->parents[j] = (int32_t)(j - step);
+    }
+    /* the joints' offsets (the end sites' are checked by plan, not kept) */
+    read_offsets(&r, r.data + h.offsets_at, h.offsets_bytes, J + h.ends, ldexp(1.0, h.exponent), x->offsets, J);
+    /* cuts -> segment starts (the cuts go to the segment array's tail first) */
+    r.pos = h.cuts_at;
+    uint32_t num_cuts;
+    read_count(&r, &num_cuts, c.frames - 1, "cut count");
+    {
+        uint32_t *cuts = x->seg_start + (S + 1) - num_cuts; /* S + 1 >= cuts + 1 */
+        uint64_t at = 0;
+        for (uint32_t i = 0; i < num_cuts; ++i) {
+            uint64_t gap;
+            read_varint(&r, &gap, "cuts", 10);
+            at += gap;
+            cuts[i] = (uint32_t)at;
+        }
+        /* the grid is written front to back and never reaches a cut it has still to read: every take has a
+         * segment, so the segments up to take i end before index S + 1 - cuts + i, where cut i lies */
+        uint32_t count, longest;
+        segment_grid(c.frames, cuts, num_cuts, h.segment_frames, x->seg_start, &count, &longest);
+    }
+    chunk_grid(x->seg_start, S, h.chunk_frames, x->chunk_first, &chunks, &most);
+    /* re-references (strictly increasing (segment, joint), as the encoder writes them) */
+    r.pos = h.overrides_at;
+    uint32_t n;
+    read_count(&r, &n, (uint64_t)S * J, "re-reference count");
+    for (uint32_t i = 0; i < n; ++i) {
+        uint64_t segment, joint;
+        double v[3];
+        read_varint(&r, &segment, "re-referenced segment", 10);
+        read_varint(&r, &joint, "re-referenced joint", 10);
+        read_f32(&r, &v[0], "reference");
+        read_f32(&r, &v[1], "reference");
+        read_f32(&r, &v[2], "reference");
+        if (segment >= S || joint >= J || !(fabs(v[0]) <= 2 * PI && fabs(v[1]) <= 2 * PI && fabs(v[2]) <= 2 * PI))
+            return fail(message, MESSAGE_BYTES, MCBROT_E_CORRUPT, "mcb-rot: a re-reference names a segment or joint "
+                        "outside the motion");
+        if (i > 0 && (segment < x->overrides[i - 1].segment ||
+                      (segment == x->overrides[i - 1].segment && joint <= x->overrides[i - 1].joint)))
+            return fail(message, MESSAGE_BYTES, MCBROT_E_CORRUPT, "mcb-rot: the re-references are not in order");
+        x->overrides[i].segment = (uint32_t)segment;
+        x->overrides[i].joint = (uint32_t)joint;
+        exp_map(v[0], v[1], v[2], x->overrides[i].quat);
+    }
+    /* principal axes */
+    r.pos = h.axes_at;
+    {
+        const uint8_t *flags = r.data + r.pos;
+        r.pos += (J + 7) / 8;
+        uint32_t t = 0;
+        for (uint32_t j = 0; j < J; ++j) {
+            x->turned[j] = -1;
+            if (!((flags[j >> 3] >> (7 - (j & 7))) & 1)) continue;
+            int16_t code[3];
+            for (int k = 0; k < 3; ++k) {
+                code[k] = (int16_t)((uint16_t)r.data[r.pos] | (uint16_t)r.data[r.pos + 1] << 8);
+                r.pos += 2;
+            }
+            if (code[0] == 0 && code[1] == 0 && code[2] == 0) continue; /* not turned: identity */
+            double q[4];
+            exp_map(code[0] * AXIS_STEP, code[1] * AXIS_STEP, code[2] * AXIS_STEP, q);
+            double qx = q[0], qy = q[1], qz = q[2], qw = q[3];
+            double *m = x->axes + 9 * t;
+            m[0] = 1 - 2 * (qy * qy + qz * qz); m[1] = 2 * (qx * qy - qz * qw); m[2] = 2 * (qx * qz + qy * qw);
+            m[3] = 2 * (qx * qy + qz * qw); m[4] = 1 - 2 * (qx * qx + qz * qz); m[5] = 2 * (qy * qz - qx * qw);
+            m[6] = 2 * (qx * qz - qy * qw); m[7] = 2 * (qy * qz + qx * qw); m[8] = 1 - 2 * (qx * qx + qy * qy);
+            x->turned[j] = (int32_t)t++;
+        }
+    }
+    /* classes */
+    r.pos = h.classes_at;
+    uint8_t tilts[NUM_BANDS];
+    read_small_ints(&r, C, 128, "channel classes", x->class_table); /* scale + 0, kept in the table's first column */
+    read_small_ints(&r, NUM_BANDS - 1, 128, "band classes", tilts + 1);
+    int tilt[NUM_BANDS];
+    tilt[0] = 0;
+    for (int b = 1; b < NUM_BANDS; ++b) tilt[b] = (int)tilts[b] - NUM_CLASSES;
+    x->dc_tilt = (int)r.data[r.pos] - NUM_CLASSES;
+    x->count_tilt = (int)r.data[r.pos + 1] - NUM_CLASSES;
+    x->gap_class = r.data[r.pos + 2];
+    x->value_class = r.data[r.pos + 3];
+    /* the class table (C x bands), built in place from the scales (last channel first: row c's scale sits at
+     * index c, row c spans c * 12 .. c * 12 + 11 >= c) */
+    for (uint32_t ch = C; ch-- > 0;) {
+        int scale = x->class_table[ch];
+        for (int b = 0; b < NUM_BANDS; ++b) x->class_table[(size_t)ch * NUM_BANDS + b] = (uint8_t)clip_class(scale + tilt[b]);
+        x->class_table[(size_t)ch * NUM_BANDS] = (uint8_t)scale; /* column 0 (the DC band) keeps the raw scale */
+    }
+    /* budgets -> steps (scratch: the values area, unused until a chunk is decoded, may be small: use the dc area) */
+    {
+        double *rotation = x->correction_step + 1; /* J values */
+        double *base_rad = x->base_step;           /* first J of C */
+        double *work = (double *)(base + l.dc);    /* dist, lever, sums: 3 J doubles: fits in S x C x 8 >= 8 C */
+        budgets(x, rotation, base_rad, work, work + J, work + 2 * J);
+        double root_cm = x->bound * x->root_share;
+        /* channel steps: root 3 x root_cm, then 3 per joint of base (written back to front over base_rad) */
+        for (uint32_t j = J; j-- > 0;) {
+            double b = base_rad[j] * x->multiplier;
+            x->base_step[3 + 3 * j] = b;
+            x->base_step[4 + 3 * j] = b;
+            x->base_step[5 + 3 * j] = b;
+        }
+        /* (writing 3 + 3j.. for j descending never overwrites base_rad[i] for i < j: 3 + 3j > j) */
+        x->base_step[0] = x->base_step[1] = x->base_step[2] = root_cm * x->multiplier;
+        double scale = 2.0 / sqrt(3.0);
+        x->correction_step[0] = root_cm * scale;
+        for (uint32_t j = 0; j < J; ++j) rotation[j] *= scale;
+    }
+    /* side unit: segment means then significance counts (differences along the segments) */
+    r.pos = h.side_at;
+    {
+        unit_t u;
+        uint64_t total = 2 * (uint64_t)S * C;
+        const char *what = "segment means and significance counts";
+        if ((s = unit_begin(&r, &u, (uint32_t)total, r.end, what))) return s;
+        for (uint32_t seg = 0; seg < S; ++seg)
+            for (uint32_t ch = 0; ch < C; ++ch) {
+                int32_t v;
+                int e = unit_next(&u, SIDE + clip_class(x->class_table[(size_t)ch * NUM_BANDS] + x->dc_tilt), &v);
+                if (e) return unit_error(&r, e, what);
+                size_t i = (size_t)seg * C + ch;
+                x->dc[i] = (seg ? x->dc[i - C] : 0) + v;
+            }
+        for (uint32_t seg = 0; seg < S; ++seg) {
+            uint32_t length = x->seg_start[seg + 1] - x->seg_start[seg];
+            for (uint32_t ch = 0; ch < C; ++ch) {
+                int32_t v;
+                int e = unit_next(&u, SIDE + clip_class(x->class_table[(size_t)ch * NUM_BANDS] + x->count_tilt), &v);
+                if (e) return unit_error(&r, e, what);
+                size_t i = (size_t)seg * C + ch;
+                int64_t value = (seg ? (int64_t)x->counts[i - C] : 0) + v;
+                if (value < 0 || value > (int64_t)length - 1)
+                    return fail(message, MESSAGE_BYTES, MCBROT_E_CORRUPT, "mcb-rot: segment %u: significance counts "
+                                "outside the segment", seg);
+                x->counts[i] = (uint16_t)value;
+            }
+        }
+        if ((s = unit_end(&r, &u, (uint32_t)total, what))) return s;
+    }
+    /* chunk sizes */
+    {
+        uint64_t at = 0;
+        size_t sizes_at = r.pos;
+        for (uint32_t k = 0; k < chunks; ++k) {
+            uint64_t size;
+            if ((s = read_varint(&r, &size, "chunk size", 10))) return s;
+            at += size;
+            if (at > c.payload_bytes) break;
+        }
+        (void)sizes_at;
+        if (r.pos + at != c.payload_bytes)
+            return fail(message, MESSAGE_BYTES, MCBROT_E_CORRUPT, "mcb-rot: the chunks end at byte %llu, the payload "
+                        "has %zu", (unsigned long long)(r.pos + at), c.payload_bytes);
+        r.pos = sizes_at;
+        uint64_t offset = 0;
+        for (uint32_t k = 0; k < chunks; ++k) {
+            uint64_t size;
+            read_varint(&r, &size, "chunk size", 10);
+            x->chunk_offset[k] = (uint32_t)offset;
+            offset += size;
+        }
+        for (uint32_t k = 0; k < chunks; ++k) x->chunk_offset[k] += (uint32_t)r.pos;
+        x->chunk_offset[chunks] = (uint32_t)c.payload_bytes;
+    }
+    x->magic = OPEN_MAGIC;
+    x->version = MCBROT_PAYLOAD_FORMAT;
+    x->message[0] = 0;
+    return MCBROT_OK;
+}
+
+/* ---------------------------------------------------------------------------------------------------------- */
+/* chunks                                                                                                      */
+
+static int check_open(const void *context) {
+    if (!context || (uintptr_t)context % MCBROT_CONTEXT_ALIGN) return MCBROT_E_ARGUMENT;
+    if (((const ctx_t *)context)->magic != OPEN_MAGIC) return MCBROT_E_NOT_OPEN;
+    return MCBROT_OK;
+}
+
+static void set_length(ctx_t *x, uint32_t n) {
+    if (x->table_length == n) return;
+    for (uint32_t m = 0; m < 4 * n; ++m) x->cosines[m] = cos(PI * (double)m / (2.0 * n));
+    for (uint32_t k = 0; k < n; ++k) {
+        x->ramp[k] = 1.0 + x->slope * (double)k / (double)n;
+        x->bands[k] = (uint8_t)(k ? band_of(k, n, x->segment_frames) : 0);
+    }
+    x->table_length = n;
+}
+
+/* Decode chunk `k` into the cache: every coefficient and correction. */
+static int load_chunk(ctx_t *x, uint32_t k) {
+    if (x->cached_chunk == (int64_t)k) return MCBROT_OK;
+    x->cached_chunk = -1;
+    char what[48];
+    snprintf(what, sizeof what, "chunk %u", k);
+    reader_t r = {x->payload, x->chunk_offset[k], x->chunk_offset[k + 1], x->message, MESSAGE_BYTES};
+    uint32_t first = x->chunk_first[k], last = x->chunk_first[k + 1], C = x->channels;
+    uint32_t frames = x->seg_start[last] - x->seg_start[first], slots = x->joints + 1;
+    uint32_t count;
+    int s;
+    if ((s = read_count(&r, &count, (uint64_t)frames * slots, "correction count"))) return s;
+    uint64_t coded = 0;
+    for (uint32_t seg = first; seg < last; ++seg)
+        for (uint32_t ch = 0; ch < C; ++ch) coded += x->counts[(size_t)seg * C + ch];
+    uint64_t total = coded + 4 * (uint64_t)count;
+    if (total > x->unit_values)
+        return fail(x->message, MESSAGE_BYTES, MCBROT_E_CORRUPT, "mcb-rot: chunk %u: %llu values, the header says at "
+                    "most %u", k, (unsigned long long)total, x->unit_values);
+    unit_t u;
+    if ((s = unit_begin(&r, &u, (uint32_t)total, r.end, what))) return s;
+    uint32_t at = 0, cell = 0;
+    for (uint32_t seg = first; seg < last; ++seg) {
+        uint32_t n = x->seg_start[seg + 1] - x->seg_start[seg];
+        set_length(x, n);
+        for (uint32_t ch = 0; ch < C; ++ch) {
+            x->coef_start[cell++] = at;
+            uint32_t kmax = x->counts[(size_t)seg * C + ch];
+            const uint8_t *row = x->class_table + (size_t)ch * NUM_BANDS;
+            for (uint32_t q = 1; q <= kmax; ++q) {
+                int e = unit_next(&u, row[x->bands[q]], &x->values[at++]);
+                if (e) return unit_error(&r, e, what);
+            }
+        }
+    }
+    x->coef_start[cell] = at;
+    int64_t flat = -1;
+    for (uint32_t i = 0; i < count; ++i) {
+        int32_t gap;
+        int e = unit_next(&u, SIDE + x->gap_class, &gap);
+        if (e) return unit_error(&r, e, what);
+        if (gap < 0)
+            return fail(x->message, MESSAGE_BYTES, MCBROT_E_CORRUPT, "mcb-rot: chunk %u: a correction gap is negative", k);
+        flat += (int64_t)gap + 1;
+        if (flat >= (int64_t)frames * slots)
+            return fail(x->message, MESSAGE_BYTES, MCBROT_E_CORRUPT, "mcb-rot: chunk %u: corrections run past the "
+                        "chunk's end", k);
+        x->corr_flat[i] = (uint32_t)flat;
+    }
+    x->corr_values_at = at;
+    for (uint32_t i = 0; i < 3 * count; ++i) {
+        int e = unit_next(&u, SIDE + x->value_class, &x->values[at++]);
+        if (e) return unit_error(&r, e, what);
+    }
+    if ((s = unit_end(&r, &u, (uint32_t)total, what))) return s;
+    if (r.pos != r.end)
+        return fail(x->message, MESSAGE_BYTES, MCBROT_E_CORRUPT, "mcb-rot: expected the end of chunk %u, found %zu "
+                    "more bytes", k, r.end - r.pos);
+    x->num_corrections = count;
+    x->cached_chunk = k;
+    return MCBROT_OK;
+}
+
+static uint32_t upper_bound(const uint32_t *array, uint32_t n, uint32_t value) {
+    uint32_t low = 0, high = n;
+    while (low < high) {
+        uint32_t mid = low + (high - low) / 2;
+        if (array[mid] <= value) low = mid + 1;
+        else high = mid;
+    }
+    return low;
+}
+
+/* The pose of frame f: rotations (J x 4), root (3). */
+static int decode_frame(ctx_t *x, uint32_t f, double *rotations, double *root) {
+    uint32_t seg = upper_bound(x->seg_start, x->segments + 1, f) - 1;
+    uint32_t chunk = upper_bound(x->chunk_first, x->chunks + 1, seg) - 1;
+    int s = load_chunk(x, chunk);
+    if (s) return s;
+    uint32_t C = x->channels, J = x->joints, n = x->seg_start[seg + 1] - x->seg_start[seg];
+    uint32_t i = f - x->seg_start[seg];
+    set_length(x, n);
+    double *signal = x->scratch + 2 * (4 * J + 3);
+    double ac_scale = sqrt(2.0 / (double)n);
+    uint32_t period = 4 * n, stride = 2 * i + 1;
+    const uint32_t *starts = x->coef_start + (size_t)(seg - x->chunk_first[chunk]) * C;
+    const int64_t *dc = x->dc + (size_t)seg * C;
+    for (uint32_t ch = 0; ch < C; ++ch) {
+        double step = x->base_step[ch];
+        double sum = 0.0;
+        uint32_t begin = starts[ch], end = starts[ch + 1];
+        uint32_t m = 0;
+        for (uint32_t q = 1; q <= end - begin; ++q) {
+            m += stride;
+            if (m >= period) m %= period;
+            sum += (double)x->values[begin + q - 1] * (step * x->ramp[q]) * x->cosines[m];
+        }
+        signal[ch] = (double)dc[ch] * (step * sqrt((double)n / (double)x->segment_frames)) / sqrt((double)n) +
+                     ac_scale * sum;
+    }
+    root[0] = signal[0];
+    root[1] = signal[1];
+    root[2] = signal[2];
+    for (uint32_t j = 0; j < J; ++j) {
+        double *v = signal + 3 + 3 * j;
+        double rx = v[0], ry = v[1], rz = v[2];
+        if (x->turned[j] >= 0) {
+            const double *a = x->axes + 9 * (size_t)x->turned[j];
+            rx = a[0] * v[0] + a[1] * v[1] + a[2] * v[2];
+            ry = a[3] * v[0] + a[4] * v[1] + a[5] * v[2];
+            rz = a[6] * v[0] + a[7] * v[1] + a[8] * v[2];
+        }
+        exp_map_tan(rx, ry, rz, rotations + 4 * j);
+    }
+    /* re-references of this segment (sorted: binary search for its first) */
+    if (x->num_overrides) {
+        uint32_t low = 0, high = x->num_overrides;
+        while (low < high) {
+            uint32_t mid = low + (high - low) / 2;
+            if (x->overrides[mid].segment < seg) low = mid + 1;
+            else high = mid;
+        }
+        for (uint32_t o = low; o < x->num_overrides && x->overrides[o].segment == seg; ++o) {
+            double *q = rotations + 4 * x->overrides[o].joint;
+            double out[4];
+            multiply(x->overrides[o].quat, q, out);
+            memcpy(q, out, sizeof out);
+        }
+    }
+    /* corrections of this frame */
+    if (x->num_corrections) {
+        uint32_t slots = J + 1;
+        uint32_t local = f - x->seg_start[x->chunk_first[chunk]];
+        uint32_t first = local * slots, last = first + slots;
+        uint32_t low = 0, high = x->num_corrections;
+        while (low < high) {
+            uint32_t mid = low + (high - low) / 2;
+            if (x->corr_flat[mid] < first) low = mid + 1;
+            else high = mid;
+        }
+        for (uint32_t c = low; c < x->num_corrections && x->corr_flat[c] < last; ++c) {
+            uint32_t slot = x->corr_flat[c] - first;
+            const int32_t *v = x->values + x->corr_values_at + 3 * (size_t)c;
+            double step = x->correction_step[slot];
+            if (slot == 0) {
+                root[0] += v[0] * step;
+                root[1] += v[1] * step;
+                root[2] += v[2] * step;
+            } else {
+                double turn[4], out[4];
+                exp_map(v[0] * step, v[1] * step, v[2] * step, turn);
+                double *q = rotations + 4 * (slot - 1);
+                multiply(q, turn, out);
+                memcpy(q, out, sizeof out);
+            }
+        }
+    }
+    return MCBROT_OK;
+}
+
+/* ---------------------------------------------------------------------------------------------------------- */
+/* the public calls                                                                                            */
+
+MCBROT_API int mcbrot_info(const void *context, mcbrot_clip_info *info) {
+    int s = check_open(context);
+    if (s) return s;
+    if (!info) return MCBROT_E_ARGUMENT;
+    const ctx_t *x = (const ctx_t *)context;
+    info->num_frames = x->frames;
+    info->num_joints = x->joints;
+    info->fps = x->fps;
+    info->duration_s = (double)(x->frames - 1) / x->fps;
+    info->eps_cm = x->eps;
+    info->payload_format = x->version;
+    info->num_segments = x->segments;
+    info->num_chunks = x->chunks;
+    info->context_bytes = x->bytes_used;
+    return MCBROT_OK;
+}
+
+MCBROT_API const char *mcbrot_message(const void *context) {
+    if (!context || (uintptr_t)context % MCBROT_CONTEXT_ALIGN) return "mcb-rot: no context";
+    return ((const ctx_t *)context)->message;
+}
+
+MCBROT_API int mcbrot_skeleton(const void *context, int32_t *parents, double *offsets) {
+    int s = check_open(context);
+    if (s) return s;
+    const ctx_t *x = (const ctx_t *)context;
+    if (parents) memcpy(parents, x->parents, 4 * (size_t)x->joints);
+    if (offsets) memcpy(offsets, x->offsets, 24 * (size_t)x->joints);
+    return MCBROT_OK;
+}
+
+MCBROT_API int mcbrot_decode_frames(void *context, uint32_t start, uint32_t count, double *rotations, double *roots) {
+    int s = check_open(context);
+    if (s) return s;
+    ctx_t *x = (ctx_t *)context;
+    x->message[0] = 0;
+    if (start > x->frames || count > x->frames - start)
+        return fail(x->message, MESSAGE_BYTES, MCBROT_E_ARGUMENT, "mcb-rot: frames %u..%llu outside the clip's %u",
+                    start, (unsigned long long)start + count, x->frames);
+    size_t J = x->joints;
+    double *pose = x->scratch, *root = x->scratch + 4 * J;
+    for (uint32_t f = 0; f < count; ++f) {
+        if ((s = decode_frame(x, start + f, pose, root))) return s;
+        if (rotations) memcpy(rotations + 4 * J * f, pose, 32 * J);
+        if (roots) memcpy(roots + 3 * (size_t)f, root, 24);
+    }
+    return MCBROT_OK;
+}
+
+MCBROT_API int mcbrot_sample(void *context, double t, int rounding, double *rotations, double *root) {
+    int s = check_open(context);
+    if (s) return s;
+    ctx_t *x = (ctx_t *)context;
+    x->message[0] = 0;
+    if (!rotations || !root || rounding < MCBROT_NEAREST || rounding > MCBROT_LINEAR)
+        return fail(x->message, MESSAGE_BYTES, MCBROT_E_ARGUMENT, "mcb-rot: NULL output or unknown rounding %d",
+                    rounding);
+    double duration = (double)(x->frames - 1) / x->fps;
+    if (!(t >= 0.0 && t <= duration))
+        return fail(x->message, MESSAGE_BYTES, MCBROT_E_TIME, "mcb-rot: t = %g s outside the clip [0, %g s]", t,
+                    duration);
+    double position = t * x->fps;
+    double last = (double)(x->frames - 1);
+    if (position > last) position = last;
+    double low = floor(position);
+    uint32_t f0 = (uint32_t)low;
+    switch (rounding) {
+    case MCBROT_NEAREST: {
+        double near = floor(position + 0.5);
+        return decode_frame(x, (uint32_t)(near > last ? last : near), rotations, root);
+    }
+    case MCBROT_FLOOR: return decode_frame(x, f0, rotations, root);
+    case MCBROT_CEIL: return decode_frame(x, (uint32_t)ceil(position), rotations, root);
+    default: break;
+    }
+    double alpha = position - low;
+    if (alpha == 0.0 || f0 + 1 >= x->frames) return decode_frame(x, f0, rotations, root);
+    size_t J = x->joints;
+    double *second = x->scratch + (4 * J + 3), *second_root = second + 4 * J;
+    if ((s = decode_frame(x, f0, rotations, root)) || (s = decode_frame(x, f0 + 1, second, second_root))) return s;
+    for (int k = 0; k < 3; ++k) root[k] += alpha * (second_root[k] - root[k]);
+    for (size_t j = 0; j < J; ++j) {
+        double *a = rotations + 4 * j, *b = second + 4 * j;
+        double dot = a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + a[3] * b[3];
+        double sign = dot < 0 ? -1.0 : 1.0, norm = 0.0;
+        for (int k = 0; k < 4; ++k) {
+            a[k] += alpha * (sign * b[k] - a[k]);
+            norm += a[k] * a[k];
+        }
+        norm = 1.0 / sqrt(norm);
+        for (int k = 0; k < 4; ++k) a[k] *= norm;
+    }
+    return MCBROT_OK;
+}
+
+MCBROT_API int mcbrot_sample_f32(void *context, double t, int rounding, float *rotations, float *root) {
+    int s = check_open(context);
+    if (s) return s;
+    ctx_t *x = (ctx_t *)context;
+    if (!rotations || !root) return fail(x->message, MESSAGE_BYTES, MCBROT_E_ARGUMENT, "mcb-rot: NULL output");
+    size_t J = x->joints;
+    /* the second pose's scratch is used by linear sampling: the outputs go through the first slot's successor */
+    double pose[4 * 64 + 3];
+    double *q = J <= 64 ? pose : NULL;
+    if (!q) {
+        /* large rigs: sample into the context's scratch area reserved for it (after the two poses) */
+        return fail(x->message, MESSAGE_BYTES, MCBROT_E_UNSUPPORTED, "mcb-rot: float32 sampling supports up to 64 "
+                    "joints in this version");
+    }
+    if ((s = mcbrot_sample(context, t, rounding, q, q + 4 * J))) return s;
+    for (size_t i = 0; i < 4 * J; ++i) rotations[i] = (float)q[i];
+    for (int k = 0; k < 3; ++k) root[k] = (float)q[4 * J + k];
+    return MCBROT_OK;
+}
