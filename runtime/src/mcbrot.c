@@ -56,7 +56,9 @@ typedef struct ctx_t {
     uint32_t num_overrides, num_turned, unit_values, max_length, max_chunk_segments;
     /* arrays inside the context */
     int32_t *parents;       /* J */
-    double *offsets;        /* J x 3 */
+    double *offsets;        /* (J + E) x 3: the joints', then the end sites' */
+    int32_t *end_parents;   /* E */
+    int cover_ends;         /* the bound covers the end sites */
     double *base_step;      /* C: multiplier x the channel's relative step */
     double *correction_step; /* J + 1 */
     int32_t *turned;        /* J: index into axes, or -1 */
@@ -281,10 +283,11 @@ typedef struct header_t {
     /* settings */
     double eps, bound, multiplier, slope, rounding, root_share, free_angle, power, shell;
     uint32_t segment_frames, chunk_frames;
+    int cover_ends; /* flags bit 11: the bound covers the end sites (virtual children in the budgets) */
     /* skeleton */
     int exponent;
     uint32_t joints, ends;
-    size_t parents_at, offsets_at, offsets_bytes;
+    size_t parents_at, end_parents_at, offsets_at, offsets_bytes;
     /* positions of the parts */
     size_t cuts_at, overrides_at, axes_at, classes_at, side_at;
     uint32_t num_cuts, num_overrides, num_turned, unit_values;
@@ -303,8 +306,9 @@ static int read_settings(reader_t *r, header_t *h) {
     if ((s = read_f32(r, &h->eps, "eps")) || (s = read_f32(r, &h->bound, "bound"))) return s;
     uint64_t flags;
     if ((s = read_varint(r, &flags, "settings flags", 2))) return s;
-    if (flags >> 11)
+    if (flags >> 12)
         return fail(MSG(r), MCBROT_E_CORRUPT, "mcb-rot: unknown settings flags %#llx", (unsigned long long)flags);
+    h->cover_ends = (int)((flags >> 11) & 1);
     if (flags & (1u << 10))
         return fail(MSG(r), MCBROT_E_UNSUPPORTED, "mcb-rot: the stream has translation/scale tracks, which this "
                     "runtime does not read yet");
@@ -531,6 +535,14 @@ static int plan(const container_t *c, header_t *h, reader_t *r, uint32_t *cuts_o
             return fail(MSG(r), MCBROT_E_CORRUPT, "mcb-rot: skeleton: joint %u names parent %lld", j,
                         (long long)j - (long long)step);
     }
+    h->end_parents_at = r->pos;
+    for (uint32_t e = 0; e < h->ends; ++e) {
+        uint64_t joint;
+        if ((s = read_varint(r, &joint, "end-site parents", 10))) return s;
+        if (joint >= h->joints)
+            return fail(MSG(r), MCBROT_E_CORRUPT, "mcb-rot: skeleton: end site %u names joint %llu of %u", e,
+                        (unsigned long long)joint, h->joints);
+    }
     uint32_t blob;
     if ((s = read_count(r, &blob, r->end - r->pos, "offsets size"))) return s;
     h->offsets_at = r->pos;
@@ -704,7 +716,7 @@ static int unit_end(reader_t *r, unit_t *u, uint32_t count, const char *what) {
 /* layout of the context                                                                                       */
 
 typedef struct layout_t {
-    size_t parents, offsets, base_step, correction_step, turned, axes, overrides, seg_start, chunk_first,
+    size_t parents, offsets, end_parents, base_step, correction_step, turned, axes, overrides, seg_start, chunk_first,
         chunk_offset, class_table, dc, counts, values, coef_start, corr_flat, cosines, ramp, bands, scratch, total;
 } layout_t;
 
@@ -718,7 +730,8 @@ static void layout_of(const header_t *h, uint32_t chunks, uint32_t max_chunk_seg
     size_t at = sizeof(ctx_t);
     size_t J = h->joints, C = 3 + 3 * J, S = h->segments, n = h->max_length;
     l->parents = place(&at, 4 * J);
-    l->offsets = place(&at, 24 * J);
+    l->offsets = place(&at, 24 * (J + h->ends));
+    l->end_parents = place(&at, 4 * (size_t)h->ends + 4);
     l->base_step = place(&at, 8 * C);
     l->correction_step = place(&at, 8 * (J + 1));
     l->turned = place(&at, 4 * J);
@@ -872,33 +885,44 @@ MCBROT_API int mcbrot_open_payload(void *context, size_t context_bytes, const ui
 /* ---------------------------------------------------------------------------------------------------------- */
 /* budgets (budgets.joint_budgets): angle budgets from the lever arms, without the J x J chain matrix          */
 
-static void budgets(ctx_t *x, double *rotation, double *base, double *dist, double *lever, double *sums) {
+static void budgets(ctx_t *x, double *rotation, double *base, double *dist, double *lever, double *sums,
+                    double *reach) {
     uint32_t J = x->joints;
     const int32_t *parent = x->parents;
-    double shell = x->shell;
+    /* reach[k]: the distance of k's virtual children (shell vertices; with flags bit 11 its end sites too) */
+    int vertices = 0;
+    for (uint32_t j = 0; j < J; ++j) reach[j] = x->shell;
+    if (x->cover_ends)
+        for (uint32_t e = 0; e < x->ends; ++e) {
+            const double *o = x->offsets + 3 * ((size_t)J + e);
+            double length = sqrt(o[0] * o[0] + o[1] * o[1] + o[2] * o[2]);
+            if (length > reach[x->end_parents[e]]) reach[x->end_parents[e]] = length;
+        }
+    for (uint32_t j = 0; j < J; ++j) vertices |= reach[j] > 0;
     dist[0] = 0.0;
     for (uint32_t j = 1; j < J; ++j) {
         const double *o = x->offsets + 3 * j;
         dist[j] = dist[parent[j]] + sqrt(o[0] * o[0] + o[1] * o[1] + o[2] * o[2]);
     }
-    /* lever[a] = max over the points a's rotation moves: proper descendants k (chain dist k - dist a), and with a
-     * shell the vertices of a and of its descendants (chain + shell) */
-    for (uint32_t j = 0; j < J; ++j) lever[j] = shell > 0 ? shell : 0.0;
+    /* lever[a] = max over the points a's rotation moves: proper descendants k (chain dist k - dist a) and, with
+     * virtual children, those of a (reach a) and of its proper descendants (chain + reach k) */
+    for (uint32_t j = 0; j < J; ++j) lever[j] = vertices ? reach[j] : 0.0;
     for (uint32_t k = J; k-- > 1;) {
         for (int32_t a = parent[k]; a >= 0; a = a > 0 ? parent[a] : -1) {
-            double chain = dist[k] - dist[a] + (shell > 0 ? shell : 0.0);
-            if (chain > lever[a]) lever[a] = chain;
+            double chain = dist[k] - dist[a];
+            double far = vertices ? chain + reach[k] : chain;
+            if (far > lever[a]) lever[a] = far;
         }
     }
     /* worst = max over points of sum over movers a of chain(a, point) / lever[a] */
     double worst = 0.0;
     for (uint32_t k = 0; k < J; ++k) {
-        double joint = 0.0, vertex = shell > 0 ? (lever[k] > 0 ? shell / lever[k] : 0.0) : 0.0;
+        double joint = 0.0, vertex = vertices && lever[k] > 0 ? reach[k] / lever[k] : 0.0;
         for (int32_t a = k > 0 ? parent[k] : -1; a >= 0; a = a > 0 ? parent[a] : -1) {
             if (!(lever[a] > 0)) continue;
             double chain = dist[k] - dist[a];
             joint += chain / lever[a];
-            if (shell > 0) vertex += (chain + shell) / lever[a];
+            if (vertices) vertex += (chain + reach[k]) / lever[a];
         }
         if (joint > worst) worst = joint;
         if (vertex > worst) worst = vertex;
@@ -906,12 +930,12 @@ static void budgets(ctx_t *x, double *rotation, double *base, double *dist, doub
     double weight = worst > 0 ? x->bound * (1.0 - x->root_share) / worst : 0.0;
     for (uint32_t j = 0; j < J; ++j) rotation[j] = lever[j] > 0 ? weight / lever[j] : x->free_angle;
     if (x->power > 0) {
-        for (uint32_t j = 0; j < J; ++j) sums[j] = shell > 0 ? pow(shell, x->power) : 0.0;
+        for (uint32_t j = 0; j < J; ++j) sums[j] = vertices && reach[j] > 0 ? pow(reach[j], x->power) : 0.0;
         for (uint32_t k = 1; k < J; ++k)
             for (int32_t a = parent[k]; a >= 0; a = a > 0 ? parent[a] : -1) {
                 double chain = dist[k] - dist[a];
                 sums[a] += pow(chain, x->power);
-                if (shell > 0) sums[a] += pow(chain + shell, x->power);
+                if (vertices) sums[a] += pow(chain + reach[k], x->power);
             }
         for (uint32_t j = 0; j < J; ++j)
             base[j] = lever[j] > 0 ? weight / pow(sums[j], 1.0 / x->power) : x->free_angle;
@@ -987,6 +1011,7 @@ static int open_with(void *context, size_t context_bytes, container_t *given, co
     uint8_t *base = (uint8_t *)context;
     x->parents = (int32_t *)(base + l.parents);
     x->offsets = (double *)(base + l.offsets);
+    x->end_parents = (int32_t *)(base + l.end_parents);
     x->base_step = (double *)(base + l.base_step);
     x->correction_step = (double *)(base + l.correction_step);
     x->turned = (int32_t *)(base + l.turned);
@@ -1024,6 +1049,7 @@ static int open_with(void *context, size_t context_bytes, container_t *given, co
     x->free_angle = h.free_angle;
     x->power = h.power;
     x->shell = h.shell;
+    x->cover_ends = h.cover_ends;
     x->segment_frames = h.segment_frames;
     x->chunk_frames = h.chunk_frames;
     x->num_overrides = h.num_overrides;
@@ -1043,8 +1069,13 @@ static int open_with(void *context, size_t context_bytes, container_t *given, co
         read_varint(&r, &step, "parents", 10);
         x->parents[j] = (int32_t)(j - step);
     }
-    /* the joints' offsets (the end sites' are checked by plan, not kept) */
-    read_offsets(&r, r.data + h.offsets_at, h.offsets_bytes, J + h.ends, ldexp(1.0, h.exponent), x->offsets, J);
+    for (uint32_t e = 0; e < h.ends; ++e) {
+        uint64_t joint;
+        read_varint(&r, &joint, "end-site parents", 10);
+        x->end_parents[e] = (int32_t)joint;
+    }
+    read_offsets(&r, r.data + h.offsets_at, h.offsets_bytes, J + h.ends, ldexp(1.0, h.exponent), x->offsets,
+                 J + h.ends);
     /* cuts -> segment starts (the cuts go to the segment array's tail first) */
     r.pos = h.cuts_at;
     uint32_t num_cuts;
@@ -1134,8 +1165,10 @@ static int open_with(void *context, size_t context_bytes, container_t *given, co
     {
         double *rotation = x->correction_step + 1; /* J values */
         double *base_rad = x->base_step;           /* first J of C */
-        double *work = (double *)(base + l.dc);    /* dist, lever, sums: 3 J doubles: fits in S x C x 8 >= 8 C */
-        budgets(x, rotation, base_rad, work, work + J, work + 2 * J);
+        double *work = (double *)(base + l.dc); /* dist, lever, sums, reach: 4 J doubles; S x C >= 3 J + 3 */
+        double *reach = (double *)(base + l.values); /* (the dc area may hold only 3 J + 3) */
+        if (l.cosines - l.values < 8 * (size_t)J) reach = work + 3 * J; /* never: values + coefs hold >= J */
+        budgets(x, rotation, base_rad, work, work + J, work + 2 * J, reach);
         double root_cm = x->bound * x->root_share;
         /* channel steps: root 3 x root_cm, then 3 per joint of base (written back to front over base_rad) */
         for (uint32_t j = J; j-- > 0;) {

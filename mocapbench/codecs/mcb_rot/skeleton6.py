@@ -4,12 +4,13 @@
 name dictionary; a decoder in C with nothing beyond the standard library cannot read it. Format 6 splits it::
 
     svarint grid exponent e (offsets on 2^e cm) | varint J | varint E | varints J - 1 parent steps (j - parent)
+    varints E end-site parents
     varint n + n bytes: the offsets of the joints then the end sites, bit-packed (skeleton_blob's layout)
-    varint n + n bytes: zstd (name dictionary) of the J channel-order bytes, E varint end-site parents and the
-    names (varint length + NUL-separated UTF-8)
+    varint n + n bytes: zstd (name dictionary) of the J channel-order bytes and the names (varint length +
+    NUL-separated UTF-8)
 
-The runtime reads the first two parts (the error budgets, hence the quantization steps, follow from the bones) and
-skips the third. The offsets are on the same grid as format 4's, so the stored skeleton is the same.
+The runtime reads the first parts (the error budgets, hence the quantization steps, follow from the bones and, when
+the stream's bound covers them, the end sites) and skips the last. The offsets are on the same grid as format 4's, so the stored skeleton is the same.
 """
 
 from __future__ import annotations
@@ -45,10 +46,10 @@ def pack_skeleton_runtime(skeleton: Skeleton, step_exponent: int) -> bytes:
     writer.write_varint(skeleton.num_joints)
     writer.write_varint(len(skeleton.end_site_parents))
     writer.write_varints(np.arange(1, skeleton.num_joints) - skeleton.parents[1:])
+    writer.write_varints(skeleton.end_site_parents)
     writer.write_blob(_pack_offsets(np.round(offsets / 2.0**step_exponent).astype(np.int64)))
     rest = ByteWriter()
     rest.write_array(np.array([_ORDERS.index(o) for o in skeleton.channel_orders]), np.uint8)
-    rest.write_varints(skeleton.end_site_parents)
     rest.write_blob("\0".join(skeleton.names).encode("utf-8"))
     writer.write_blob(zstd_compress(rest.getvalue(), dictionary=NAME_DICTIONARY))
     return writer.getvalue()
@@ -69,6 +70,7 @@ def unpack_skeleton_runtime(reader: ByteReader) -> Skeleton:
     parents = np.concatenate([[-1], np.arange(1, num_joints) - steps])
     if np.any(parents[1:] < 0):
         raise BitstreamError("Skeleton: a joint's parent comes after it.")
+    end_parents = reader.read_varints(num_ends, "end-site parents").astype(np.int64)
     codes = _unpack_offsets(reader.read_blob("offsets"), num_joints + num_ends)
     step = 2.0**exponent
     if codes.size and np.abs(codes).max() > 1e6 / step + 1:
@@ -79,7 +81,6 @@ def unpack_skeleton_runtime(reader: ByteReader) -> Skeleton:
     order_index = inner.read_array(num_joints, np.uint8, "channel orders")
     if order_index.size and order_index.max() >= len(_ORDERS):
         raise BitstreamError(f"Skeleton: channel order index must be < 6, found {order_index.max()}.")
-    end_parents = inner.read_varints(num_ends, "end-site parents").astype(np.int64)
     names = bytes(inner.read_blob("joint names")).decode("utf-8", errors="strict").split("\0")
     inner.expect_end("skeleton")
     try:
