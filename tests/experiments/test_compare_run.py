@@ -1,0 +1,168 @@
+"""compare's engine: models held out or paid for, rows kept as they finish, resumed, Ctrl-C keeps what finished."""
+
+from __future__ import annotations
+
+import io
+
+import pytest
+
+from mocapbench.experiments import compare_run
+from mocapbench.experiments.compare_progress import Progress, duration_text
+from mocapbench.experiments.compare_run import (CodecOutcome, CompareInterrupted, RowStore, compare, default_codecs,
+                                                estimate_cpu_s, format_table, setting_text)
+from mocapbench.experiments.held_out import FoldModels, models_bytes, plan_folds, skeleton_key
+from mocapbench.synthetic import rig_motion
+
+
+def _clips():
+    """Three clips of a 20-joint biped and one of a 16-joint one (short: the tests run every codec's search)."""
+    same = [rig_motion(num_joints=20, num_frames=40, fps=30.0, seed=s) for s in (1, 2, 3)]
+    alone = rig_motion(num_joints=16, num_frames=40, fps=30.0, seed=4)
+    return [*same, alone]
+
+
+def test_folds_hold_each_clip_out_of_its_own_model():
+    clips = _clips()
+    folds = plan_folds(clips)
+    assert len({skeleton_key(c) for c in clips}) == 2
+    tests = sorted(i for fold in folds for i in fold.test)
+    assert tests == [0, 1, 2, 3]  # every clip coded once
+    for fold in folds:
+        assert not set(fold.train) & set(fold.test)
+        assert all(skeleton_key(clips[i]) == fold.skeleton for i in fold.train + fold.test)
+    assert {fold.scheme for fold in folds} == {"leave-one-out", "no fit"}
+    lone = [fold for fold in folds if fold.test == (3,)][0]
+    assert lone.train == () and lone.scheme == "no fit"
+    # More clips than folds: k-fold, still disjoint.
+    many = [rig_motion(num_joints=16, num_frames=5, seed=s) for s in range(7)]
+    kfold = plan_folds(many, folds=3)
+    assert [len(f.test) for f in kfold] == [3, 2, 2] and {f.scheme for f in kfold} == {"3-fold"}
+    assert all(not set(f.train) & set(f.test) and len(f.train) + len(f.test) == 7 for f in kfold)
+    insample = plan_folds(clips, "in-sample")
+    assert all(set(f.test) <= set(f.train) for f in insample)
+    with pytest.raises(ValueError, match="model policy"):
+        plan_folds(clips, "peeking")
+
+
+def test_a_fit_that_changes_nothing_is_reported_as_the_shipped_model():
+    clips = [rig_motion(num_joints=31, num_frames=30, seed=s) for s in (1, 2)]
+    models = FoldModels("lsdt-frame", clips, plan_folds(clips))
+    assert models.fitted(0) is None  # LSDT keeps its committed 31-joint bases
+    from mocapbench.codecs import create
+
+    codec = create("lsdt-frame")
+    codec.encode(clips[0])
+    source = models.source(0, codec)
+    assert source.mode == "shipped" and source.model_bytes > 0
+
+
+def test_learned_codecs_are_fit_out_of_sample_and_their_models_counted():
+    clips = _clips()
+    outcome = compare(clips, 1.0, ["mcb-linf"])[0]
+    assert outcome.rows and not outcome.reason
+    sources = {row["clip"]: row for row in outcome.rows}
+    for clip in clips[:3]:
+        row = sources[clip.name]
+        assert row["model_source"] == "out-of-sample" and clip.name not in row["model_train_clips"]
+        assert len(row["model_train_clips"]) == 2 and row["model_bytes"] > 0
+    assert sources[clips[3].name]["model_source"] == "untrained"  # one clip of its skeleton: no fit
+    # One model per skeleton is paid for: the largest fold's.
+    fitted = [row["model_bytes"] for row in outcome.rows if row["model_source"] == "out-of-sample"]
+    assert outcome.model_bytes == max(fitted)
+    assert outcome.ratio == outcome.stream_ratio > outcome.ratio_with_models
+    table = format_table([outcome], 1.0)
+    assert "out-of-sample" in table and f"{outcome.model_bytes:,} B" in table
+
+
+def test_in_sample_models_are_paid_for_in_the_ranked_ratio():
+    clips = _clips()
+    outcome = compare(clips, 1.0, ["mcb-linf"], policy="in-sample")[0]
+    assert {row["model_source"] for row in outcome.rows} == {"in-sample"}
+    assert outcome.in_sample and outcome.ratio == outcome.ratio_with_models < outcome.stream_ratio
+    assert "(models in)" in format_table([outcome], 1.0)
+
+
+def test_rows_are_kept_as_they_finish_and_a_second_run_resumes(tmp_path):
+    clips = _clips()
+    store = RowStore(tmp_path)
+    first = compare(clips, 1.0, ["quant-delta-zstd", "svd"], store=store)
+    assert (tmp_path / "svd" / "results.jsonl").exists()
+    again = compare(clips, 1.0, ["quant-delta-zstd", "svd"], store=store)
+    assert [o.resumed for o in again] == [4, 4]
+    assert [o.stream_ratio for o in again] == [o.stream_ratio for o in first]
+    # Another bound is another measurement.
+    other = compare(clips, 2.0, ["quant-delta-zstd"], store=store)
+    assert other[0].resumed == 0
+
+
+def test_a_failed_codec_is_remembered_with_its_reason(tmp_path, monkeypatch):
+    clips = _clips()[:1]
+    store = RowStore(tmp_path)
+    calls = []
+
+    def broken(name, motion, bound, **kwargs):
+        calls.append(name)
+        raise RuntimeError("boom\nsecond line")
+
+    monkeypatch.setattr("mocapbench.ratesearch.search", broken)
+    outcome = compare(clips, 1.0, ["svd"], store=store)[0]
+    assert outcome.reason == "RuntimeError: boom second line" and not outcome.rows
+    assert compare(clips, 1.0, ["svd"], store=store)[0].reason == outcome.reason
+    assert calls == ["svd"]  # the second run took the reason from the store
+
+
+def test_ctrl_c_keeps_the_finished_codecs_and_rows(tmp_path, monkeypatch):
+    clips = _clips()[:2]
+    store = RowStore(tmp_path)
+    real = compare_run._compare_codec
+
+    def interrupting(name, *args):
+        if name == "svd":
+            raise KeyboardInterrupt
+        return real(name, *args)
+
+    monkeypatch.setattr(compare_run, "_compare_codec", interrupting)
+    with pytest.raises(CompareInterrupted) as caught:
+        compare(clips, 1.0, ["quant-delta-zstd", "svd", "raw-zstd"], store=store)
+    assert [o.codec for o in caught.value.outcomes] == ["quant-delta-zstd"] and caught.value.current == "svd"
+    assert (tmp_path / "quant-delta-zstd" / "results.jsonl").exists()
+
+
+def test_the_default_set_leaves_the_neural_codecs_on_request():
+    names = default_codecs()
+    assert "fourier-mlp-int" not in names and "fourier-mlp-dct" not in names and "mcb-rot" in names
+    clips = _clips()
+    assert estimate_cpu_s("fourier-mlp-int", clips) > 100 * estimate_cpu_s("quant-delta-zstd", clips)
+
+
+def test_settings_print_rounded():
+    assert setting_text([{"step_cm": 1.1547005372245511}]) == "step_cm=1.15"
+    assert setting_text([{"rank": 3}, {"rank": 9}]) == "rank=3..9"
+    assert setting_text([{}]) == "-"
+
+
+def test_unranked_rows_keep_their_reason():
+    table = format_table([CodecOutcome("acl", [], reason="unavailable here: no compiler")], 1.0)
+    assert "unavailable here: no compiler" in table
+
+
+def test_progress_lines_say_what_is_left():
+    out = io.StringIO()
+    progress = Progress(4, stream=out, bar=False)
+    progress.clip_start("svd", "a")
+    progress.try_started()
+    progress.try_started()
+    progress.clip_done("svd", "a")
+    progress.clip_done("svd", "b", resumed=True)
+    lines = out.getvalue().splitlines()
+    assert lines[0].startswith("[1/4] svd on a: 2 tries,") and "left" in lines[0]
+    assert lines[1].startswith("[2/4] svd on b: kept from the last run")
+    assert progress.done_in("svd") == 2
+    assert duration_text(125) == "2 min 5 s"
+
+
+def test_models_bytes_counts_one_model_per_skeleton_and_shipped_once():
+    rows = [{"model_key": "sk1/0", "model_bytes": 100}, {"model_key": "sk1/1", "model_bytes": 120},
+            {"model_key": "shipped/31", "model_bytes": 50}, {"model_key": "shipped/31", "model_bytes": 50},
+            {"model_key": "", "model_bytes": 0}]
+    assert models_bytes(rows) == 170
