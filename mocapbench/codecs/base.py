@@ -94,16 +94,28 @@ class CodecConfig:
 
     @classmethod
     def describe_fields(cls) -> str:
-        """One line per field: name, default, range/choices, unit, meaning."""
+        """One line per field: name, type, default, range or choices, unit, meaning.
+
+        ``eps_cm (float, default 1.0, in [0.001, 100] cm): ...``; a boolean says ``true or false``, a bound that is
+        not set is left out (``>= 1``), a field without either says nothing about its range.
+        """
         lines = []
         for field in dataclasses.fields(cls):
             meta = field.metadata
+            kind = type(field.default).__name__ if field.default is not dataclasses.MISSING else "value"
+            low, high = meta.get("low"), meta.get("high")
             if meta.get("choices") is not None:
-                allowed = f"one of {list(meta['choices'])}"
+                allowed = f", one of {list(meta['choices'])}"
+            elif isinstance(field.default, bool):
+                allowed = ", true or false"
+            elif low is not None and high is not None:
+                allowed = f", in [{low:g}, {high:g}]"
+            elif low is not None or high is not None:
+                allowed = f", >= {low:g}" if low is not None else f", <= {high:g}"
             else:
-                allowed = f"[{meta.get('low', '-inf')}, {meta.get('high', 'inf')}]"
-            unit = f" {meta['unit']}" if meta.get("unit") else ""
-            lines.append(f"{field.name} (default {field.default!r}, {allowed}{unit}): {meta.get('doc', '')}")
+                allowed = ""
+            unit = f" {meta['unit']}" if meta.get("unit") and allowed else (f", {meta['unit']}" if meta.get("unit") else "")
+            lines.append(f"{field.name} ({kind}, default {field.default!r}{allowed}{unit}): {meta.get('doc', '')}")
         return "\n".join(lines)
 
 
