@@ -166,3 +166,25 @@ def test_models_bytes_counts_one_model_per_skeleton_and_shipped_once():
             {"model_key": "shipped/31", "model_bytes": 50}, {"model_key": "shipped/31", "model_bytes": 50},
             {"model_key": "", "model_bytes": 0}]
     assert models_bytes(rows) == 170
+
+
+def test_the_report_pools_what_the_table_pools():
+    from mocapbench.experiments.aggregate import curve_points
+    from mocapbench.experiments.compare_report import pooled_rows
+
+    import pandas as pd
+
+    clips = _clips()
+    outcomes = compare(clips, 1.0, ["svd", "quant-delta-zstd"])
+    pooled = pooled_rows(outcomes, 1.0)
+    rows = pd.DataFrame([row for codec_rows in pooled.values() for row in codec_rows])
+    points = curve_points(rows)
+    assert len(points) == 2 and points["complete"].all()  # one configuration per codec, over every clip
+    svd = points[points["codec"] == "svd"].iloc[0]
+    outcome = [o for o in outcomes if o.codec == "svd"][0]
+    assert svd["compression_ratio"] == pytest.approx(outcome.stream_ratio)
+    ranks = sorted({s["rank"] for s in outcome.settings})
+    expected = f"{ranks[0]}..{ranks[-1]} (rate search per clip)" if len(ranks) > 1 else str(ranks[0])
+    assert svd["param_rank"] == expected
+    # Fields at their default are not printed: svd's factor format stays at its default.
+    assert "param_factor_format" not in pooled["svd"][0]
