@@ -228,6 +228,7 @@ def _compare_codec(name: str, motions: Sequence[Motion], plan: _Plan, store: Row
         progress.skip(name, len(motions))
         return outcome
     models = FoldModels(name, motions, folds)
+    clip = None
     try:
         for clip, motion in enumerate(motions):
             stored = store.find(name, keys[clip])
@@ -262,13 +263,25 @@ def _compare_codec(name: str, motions: Sequence[Motion], plan: _Plan, store: Row
             outcome.latency_frames = int(result.codec.latency_frames)
             progress.clip_done(name, motion.name)
     except Exception as error:  # noqa: BLE001 - a codec that fails gets its row and reason; the others go on
-        outcome.reason = _one_line(error)
+        outcome.reason = _one_line(error) + _unfit_note(models, folds, clip)
     if outcome.reason:
         outcome.rows = []
         store.add_failure(name, run_key, outcome.reason)
         progress.skip(name, len(motions) - progress.done_in(name))
     outcome.seconds = time.perf_counter() - start
     return outcome
+
+
+def _unfit_note(models: FoldModels, folds, clip: int | None) -> str:
+    """Why a learned codec had no model of its own for ``clip``: the only clip of its skeleton (else "")."""
+    if clip is None or not models.learns:
+        return ""
+    fold = next(f for f in folds if clip in f.test)
+    if fold.scheme != "no fit":
+        return ""
+    motion = models.motions[clip]
+    return (f" ({motion.name} is the only clip of its {motion.num_joints}-joint skeleton: no other clip to fit a "
+            f"model on out of sample; --in-sample fits one on it and counts its bytes)")
 
 
 class _Quiet:

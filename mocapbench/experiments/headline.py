@@ -159,6 +159,7 @@ def headline_table(
         # Measured on another dataset of this report but not on this one (left out of this dataset's sweep).
         not_run = sorted(everywhere - set(measured))
         failed_only = sorted({c for (d, c) in failures if d in (dataset, "") and c not in measured})
+        previous = None  # (bound, the ranked codecs and configs) of the last bound
         for bound in bounds:
             ranked, unranked = [], []
             for codec in measured:
@@ -194,6 +195,14 @@ def headline_table(
                                      "config": f"unavailable here: {reason}"})
             ranked.sort(key=lambda r: -float(r["CR"]))
             _equal_error_columns(ranked, ds, bound)
+            same = [(row["codec"], row["config"], float(row["CR"])) for row in ranked]
+            if ranked and previous is not None and previous[1] == same:
+                # A wider bound that admits no other config repeats the table: one line says so instead.
+                out.append({"dataset": dataset, "L∞ bound": f"< {bound:g} cm", "rank": "–", "codec": "",
+                            "config": f"the same codecs and configs as under {previous[0]:g} cm (no codec has a "
+                                      f"config between {previous[0]:g} and {bound:g} cm)"})
+                continue
+            previous = (bound, same)
             for rank, row in enumerate(ranked, 1):
                 out.append({"dataset": dataset, "L∞ bound": f"< {bound:g} cm", "rank": rank, **row})
             for row in unranked:
@@ -263,6 +272,9 @@ def winner_sentences(table: pd.DataFrame) -> list[str]:
     for (dataset, bound), group in table.groupby(["dataset", "L∞ bound"], sort=False):
         ranked = group[group["rank"] != "–"]
         where = f"{dataset}, L∞ {bound}"
+        if ranked.empty and len(group) == 1 and group["codec"].iloc[0] == "":
+            sentences.append(f"{where}: {group['config'].iloc[0]}.")
+            continue
         if ranked.empty:
             sentences.append(f"{where}: no codec stays under the bound.")
             continue

@@ -123,3 +123,17 @@ def test_the_margin_over_the_runner_up_is_taken_at_equal_error_on_each_curve():
     wide = headline_table(points, (3.0,), unavailable={})
     assert wide["equal L∞ cm"].iloc[1] == 1.2
     assert np.isnan(wide.loc[wide["codec"] == "b", "CR at L∞ = bound"].item())
+
+
+def test_a_wider_bound_that_admits_nothing_new_does_not_repeat_the_table():
+    points = pd.DataFrame([_point("a", 10.0, 0.5), _point("b", 20.0, 0.8)])
+    table = headline_table(points, (1.0, 3.0), unavailable={})
+    three = table[table["L∞ bound"] == "< 3 cm"]
+    assert len(three) == 1 and three["codec"].item() == ""
+    assert "the same codecs and configs as under 1 cm" in three["config"].item()
+    sentences = winner_sentences(table)
+    assert sentences[1] == ("cmu_test, L∞ < 3 cm: the same codecs and configs as under 1 cm (no codec has a config "
+                            "between 1 and 3 cm).")
+    # A config that only the wider bound admits gives the wider bound its own table.
+    wider = headline_table(pd.concat([points, pd.DataFrame([_point("b", 40.0, 2.0)])]), (1.0, 3.0), unavailable={})
+    assert list(wider.loc[wider["L∞ bound"] == "< 3 cm", "codec"]) == ["b", "a"]
