@@ -21,7 +21,7 @@ from pathlib import Path
 
 from mocapbench.io.units import parse_units, parse_up_axis
 
-__all__ = ["SIDECAR_SUFFIX", "UnitChoice", "read_sidecar", "sidecar_path"]
+__all__ = ["SIDECAR_SUFFIX", "UnitChoice", "read_sidecar", "sidecar_path", "verdict"]
 
 SIDECAR_SUFFIX = ".units"
 _SIDECAR_MAX_BYTES = 4096  # a sidecar is a line or two; anything longer is not one
@@ -145,3 +145,20 @@ class UnitChoice:
         paths = [Path(p) for p in paths]
         return [file for file, _ in self.per_file
                 if not any(UnitChoice(per_file=((file, "cm"),))._match(path) for path in paths)]
+
+
+def verdict(path: str | Path, motion, unit_source: str, up_source: str | None, warnings: list[str]) -> str:
+    """One line on how a file was read: its unit and where it came from, its up axis and why, its height or warning.
+
+    ``walk.bvh: inch (sidecar walk.bvh.units), z up (detected: ...), 162 cm tall: ok``. ``up_source`` is None when
+    the axis was detected (the reason is measured here), else where it came from (``"--up"``, ``"the file"``).
+    """
+    from mocapbench.io.units import body_shape, detect_up_axis, rest_up_axis, unit_label
+
+    if up_source is None:
+        up = f"{motion.up_axis} up (detected: {detect_up_axis(motion)[1]})"
+    else:
+        up = f"{motion.up_axis} up ({up_source})"
+    height = body_shape(motion.skeleton, rest_up_axis(motion)).stature_cm
+    status = "ok" if not warnings else "WARNING " + "; ".join(w.split(": ", 1)[-1] for w in warnings)
+    return f"{Path(path).name}: {unit_label(motion.source_unit_cm)} ({unit_source}), {up}, {height:.0f} cm tall: {status}"
