@@ -125,9 +125,10 @@ def _acl_points(motions: list[Motion], fps: float) -> tuple[list[dict], str]:
     return points, "ACL 2.1 measured in this run (level highest, with and without its pre-processing)"
 
 
-def _rd_section(motions: list[Motion], label: str, sweep_points: list[dict]) -> None:
+def _rd_section(motions: list[Motion], label: str, sweep_points: list[dict], epsilons=EPSILONS_CM,
+                others_too: bool = True) -> None:
     print(f"\n## {label}: {len(motions)} clips, {sum(m.num_frames for m in motions)} frames at {motions[0].fps:g} fps")
-    ours = rd_points("mcb-rot", motions, "eps_cm", EPSILONS_CM, shell=True)
+    ours = rd_points("mcb-rot", motions, "eps_cm", epsilons, shell=True)
     print("\n### mcb-rot: rate and the bound (margin = max over clips of L-inf - eps, must be <= 0)")
     _table(["eps cm", "ratio", "L-inf cm", "mean cm", "shell max cm (3 cm)", "bound margin cm"],
            [[p["eps_cm"], p["ratio"], p["linf_cm"], p["mean_cm"], p["shell_max_cm"], p["bound_margin_cm"]]
@@ -159,7 +160,8 @@ def _rd_section(motions: list[Motion], label: str, sweep_points: list[dict]) -> 
                              "met" if p["ratio"] / other >= 1.5 else ("not met" if np.isfinite(other) else "-")])
             _table(["eps cm", "mcb-rot ratio", "shell max cm", "ACL ratio at that shell error", "x ACL", "target 1.5x"],
                    rows)
-            shelled = rd_points("mcb-rot", motions, "eps_cm", EPSILONS_CM, shell=True, shell_cm=SHELL_CM)
+        if shell3 and others_too:  # mcb-rot's shell variant: a second mcb-rot curve
+            shelled = rd_points("mcb-rot", motions, "eps_cm", epsilons, shell=True, shell_cm=SHELL_CM)
             print(f"\n### On ACL's metric, mcb-rot with shell_cm={SHELL_CM:g} (the bound also on the vertices)")
             rows = []
             for p in shelled:
@@ -171,7 +173,8 @@ def _rd_section(motions: list[Motion], label: str, sweep_points: list[dict]) -> 
         print("\nACL points: " + "; ".join(f"p {a.get('precision_cm', '-')}/s {a['shell_cm']:g}"
                                           f"{'/pre' if a.get('pre_process') else ''}: {a['ratio']:.2f} "
                                           f"(buffer {a['ratio_buffer']:.2f}) at {a['linf_cm']:.3g} cm" for a in acl))
-    others = {name: rd_points(name, motions, key, values) for name, (key, values) in OTHERS.items() if name in CODECS}
+    others = {name: rd_points(name, motions, key, values) for name, (key, values) in OTHERS.items()
+              if name in CODECS and others_too}
     for point in sweep_points:
         others.setdefault(point["codec"], []).append(point)
     if acl:
@@ -327,13 +330,17 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--ablation", action="store_true")
     parser.add_argument("--no-rd", action="store_true", help="skip the rate-distortion sections")
     parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--eps", type=float, nargs="+", default=list(EPSILONS_CM), help="mcb-rot's bounds, cm")
+    parser.add_argument("--no-others", action="store_true",
+                        help="mcb-rot and ACL only (not quant-*, mcb-linf: the sweep's headline has those)")
     args = parser.parse_args(argv)
     motions = _load(args.dataset, args.data_dir)
     print(f"# mcb-rot on {args.dataset} (load average {os.getloadavg()[0]:.1f})")
     sweep_points = _sweep_points(args.sweep)
     if not args.no_rd:
         for step in args.every:
-            _rd_section(every(motions, step), f"{args.dataset}, every {step}. frame", sweep_points if step == 1 else [])
+            _rd_section(every(motions, step), f"{args.dataset}, every {step}. frame", sweep_points if step == 1 else [],
+                        tuple(args.eps), not args.no_others)
     if args.speed:
         _speed(motions, args.repeats)
     if args.discontinuities:

@@ -167,6 +167,13 @@ def _longest_chain_cm(skeleton, translations=None, scales=None) -> float:
     return float(max(reach.max(), ends.max(initial=0.0)))
 
 
+class TrackRefusal(ValueError):
+    """A rotation codec cannot carry a game rig's translation or scale track: the message names the joint.
+
+    A refusal, not a failure: the motion is valid and other codecs code it (the benchmark records it as the codec's
+    one-line reason on that dataset)."""
+
+
 class Codec(abc.ABC):
     """Base class of every codec. Subclasses set ``name`` and ``Config`` and implement the payload methods.
 
@@ -270,22 +277,22 @@ class Codec(abc.ABC):
             )
 
     def check_tracks(self, motion: Motion) -> None:
-        """Refuse, in one ``ValueError`` line naming the joint, a rotation codec's motion with a translation or scale
-        track the codec does not carry (:attr:`carries_tracks`)."""
+        """Refuse, in one :class:`TrackRefusal` line naming the joint, a rotation codec's motion with a translation or
+        scale track the codec does not carry (:attr:`carries_tracks`)."""
         if not self.codes_rotations:
             return
         names = motion.skeleton.names
         if motion.translations is not None and "translations" not in self.carries_tracks:
             joint = int(motion.moving_joints()[0])
-            raise ValueError(
-                f"{self.name}: joint {names[joint]!r} of {motion.name or 'the motion'!r} moves relative to its parent "
+            raise TrackRefusal(
+                f"{self.name}: joint {names[joint]!r} moves relative to its parent "
                 f"(a translation track, as a game rig's pelvis); {self.name} codes rotations on fixed bones and "
                 "cannot carry it (acl, mcb-rot and quant-rot-zstd can, as can every codec of joint positions)."
             )
         if motion.scales is not None and "scales" not in self.carries_tracks:
             joint = int(motion.scaled_joints()[0])
-            raise ValueError(
-                f"{self.name}: joint {names[joint]!r} of {motion.name or 'the motion'!r} is scaled (a scale track); "
+            raise TrackRefusal(
+                f"{self.name}: joint {names[joint]!r} is scaled (a scale track); "
                 f"{self.name} codes rotations of unscaled bones and cannot carry it (acl and quant-rot-zstd can, as "
                 "can every codec of joint positions)."
             )

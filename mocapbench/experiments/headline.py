@@ -107,7 +107,9 @@ def failure_reasons(errors: pd.DataFrame) -> dict[tuple[str, str], str]:
         counts = group["_message"].value_counts()
         reason = counts.index[0]
         more = f" (+{len(counts) - 1} other error(s))" if len(counts) > 1 else ""
-        out[(str(dataset), str(codec))] = f"failed {len(group)}x: {reason}{more}"
+        # A codec that cannot carry a rig's tracks refused the clips (TrackRefusal): its reason, not a failure.
+        refused = "stage" in group and bool((group["stage"] == "refused").all())
+        out[(str(dataset), str(codec))] = f"{'refused' if refused else 'failed'} {len(group)}x: {reason}{more}"
     return out
 
 

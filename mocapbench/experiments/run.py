@@ -131,6 +131,14 @@ def run_job(cfg: Any, output_dir: Path, fitted_dir: Path | None = None) -> dict[
                   context["config"], record["error"])
         append_row(output_dir / ERRORS_FILE, record)
 
+    def refuse(error: BaseException, clip: str) -> None:
+        """A codec's refusal of a game rig's track (:class:`~mocapbench.codecs.base.TrackRefusal`): recorded beside
+        the failures as its one-line reason, without failing the job."""
+        record = {**context, "clip": clip, "stage": "refused", "error": f"{type(error).__name__}: {error}"}
+        log.info("refused: codec=%s clip=%s: %s", context["codec"], clip, error)
+        append_row(output_dir / ERRORS_FILE, record)
+
+    from mocapbench.codecs.base import TrackRefusal
     from mocapbench.experiments.evaluate import TimingSettings
 
     timing = TimingSettings(**OmegaConf.to_container(cfg.timing, resolve=True)) if cfg.get("timing") else None
@@ -167,6 +175,9 @@ def run_job(cfg: Any, output_dir: Path, fitted_dir: Path | None = None) -> dict[
                     if keep_worst and row["max_err_cm"] > worst:
                         save_worst(output_dir, motion, reference, decoded.positions, row)
                         worst = row["max_err_cm"]
+                except TrackRefusal as error:  # the codec cannot carry this rig's tracks: its reason, not a failure
+                    refuse(error, motion.name)
+                    continue
                 except Exception as error:  # noqa: BLE001 - every failure is recorded and the job goes on
                     fail("evaluate", error, motion.name)
                     continue

@@ -41,7 +41,7 @@ def _carries(name: str, track: str) -> bool:
 def test_a_game_rig_round_trips_or_is_refused_naming_the_joint(name, rig, training):
     codec = create(name, **CODECS[name].smoke_params)
     if not _carries(name, "translations"):
-        with pytest.raises(ValueError, match=rf"^{name}: joint 'Hips' of 'game-rig-seed0' moves relative to its parent"):
+        with pytest.raises(ValueError, match=rf"^{name}: joint 'Hips' moves relative to its parent"):
             codec.encode(rig)
         return
     codec.fit(training)
@@ -59,7 +59,7 @@ def test_a_scale_track_is_carried_or_refused_naming_the_joint(name, training):
     motion = game_rig_motion(60, seed=1, scaled=True)
     codec = create(name, **CODECS[name].smoke_params)
     if not _carries(name, "translations") or not _carries(name, "scales"):
-        with pytest.raises(ValueError, match=rf"^{name}: joint '(Hips|LowerArm_L)' of 'game-rig-seed1' "):
+        with pytest.raises(ValueError, match=rf"^{name}: joint '(Hips|LowerArm_L)' (moves|is scaled)"):
             codec.encode(motion)
         return
     codec.fit(training)

@@ -137,3 +137,16 @@ def test_a_wider_bound_that_admits_nothing_new_does_not_repeat_the_table():
     # A config that only the wider bound admits gives the wider bound its own table.
     wider = headline_table(pd.concat([points, pd.DataFrame([_point("b", 40.0, 2.0)])]), (1.0, 3.0), unavailable={})
     assert list(wider.loc[wider["L∞ bound"] == "< 3 cm", "codec"]) == ["b", "a"]
+
+
+def test_a_codec_that_refuses_a_rigs_tracks_shows_its_reason_not_a_failure():
+    from mocapbench.experiments.headline import failure_reasons
+
+    message = "TrackRefusal: svd: joint 'Hips' moves relative to its parent (a translation track)"
+    errors = pd.DataFrame([{"dataset": "bandai_test", "codec": "svd", "stage": "refused", "error": message,
+                            "clip": f"clip{i}"} for i in range(3)]
+                          + [{"dataset": "bandai_test", "codec": "pga-ik", "stage": "evaluate", "error": "boom",
+                              "clip": "clip0"}])
+    reasons = failure_reasons(errors)
+    assert reasons[("bandai_test", "svd")] == f"refused 3x: {message}"
+    assert reasons[("bandai_test", "pga-ik")] == "failed 1x: boom"
