@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fbx_ascii import write_fbx_ascii
+from mocapbench.io.fbx_ascii import write_fbx_ascii
 from mocapbench import metrics
 from mocapbench.cli import main
 from mocapbench.io import read_bvh

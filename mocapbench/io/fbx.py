@@ -281,12 +281,20 @@ def _baked_tracks(ufbx, scene, anim_stack, bones: _Bones, times: np.ndarray, rat
 
 
 def _sampled_keys(keys, rest, times: np.ndarray, rotation: bool) -> np.ndarray:
-    """One baked track (ufbx key list, or None: the static ``rest`` value) at ``times``, (F, 3) or (F, 4)."""
+    """One baked track (ufbx key list, or None: the static ``rest`` value) at ``times``, (F, 3) or (F, 4).
+
+    A track baked at the sampling rate has one key per sample time: its values are the result (the key times are
+    not read one by one, half the cost of a key); a constant track has a key or two, interpolated.
+    """
     keys = list(keys) if keys is not None else []
     if not keys:
         return np.broadcast_to(np.array(list(rest), dtype=np.float64), (len(times), 4 if rotation else 3))
+    values = np.array([key.value for key in keys], dtype=np.float64)  # ufbx's Vec3 and Quat are tuples
+    on_grid = (len(keys) == len(times) and abs(keys[0].time - times[0]) <= 1e-9
+               and abs(keys[-1].time - times[-1]) <= 1e-9)
+    if on_grid:
+        return values
     key_times = np.array([key.time for key in keys], dtype=np.float64)
-    values = np.array([list(key.value) for key in keys], dtype=np.float64)
     return sample_keys(key_times, values, "LINEAR", times, rotation)
 
 

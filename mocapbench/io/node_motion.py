@@ -145,13 +145,21 @@ def _rest_frames(rest_rotations: np.ndarray, parents: np.ndarray, above_rotation
 
 
 def _rebased_rotations(rotations: np.ndarray, rest_global: np.ndarray, parent_rest: np.ndarray) -> np.ndarray:
-    """``R'_j = G_parent R_j G_j^-1`` for every frame, (F, J, 4)."""
-    shape = rotations.shape
-    return (
-        Rotation.from_quat(np.broadcast_to(parent_rest, shape).reshape(-1, 4))
-        * Rotation.from_quat(rotations.reshape(-1, 4))
-        * Rotation.from_quat(np.broadcast_to(Rotation.from_quat(rest_global).inv().as_quat(), shape).reshape(-1, 4))
-    ).as_quat().reshape(shape)
+    """``R'_j = G_parent R_j G_j^-1`` for every frame, (F, J, 4), as Hamilton products in numpy."""
+    inverse_rest = rest_global * [-1.0, -1.0, -1.0, 1.0]  # the conjugate of a unit quaternion is its inverse
+    return _quaternion_product(_quaternion_product(parent_rest, rotations), inverse_rest)
+
+
+def _quaternion_product(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Hamilton product ``a b`` of scalar-last quaternions (..., 4), broadcasting (the rotation ``a`` after ``b``)."""
+    ax, ay, az, aw = np.moveaxis(a, -1, 0)
+    bx, by, bz, bw = np.moveaxis(b, -1, 0)
+    return np.stack([
+        aw * bx + ax * bw + ay * bz - az * by,
+        aw * by - ax * bz + ay * bw + az * bx,
+        aw * bz + ax * by - ay * bx + az * bw,
+        aw * bw - ax * bx - ay * by - az * bz,
+    ], axis=-1)
 
 
 def _rebased_scales(scales: np.ndarray, rest_global: np.ndarray, names: Sequence[str], error) -> np.ndarray | None:

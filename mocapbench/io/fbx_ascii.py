@@ -1,11 +1,12 @@
-"""A minimal ASCII FBX 7.4 writer: the FBX test files (no FBX writer installs here; ufbx only reads).
+"""A minimal ASCII FBX 7.4 writer: FBX files of a motion for tests, fuzzing and the reader benchmarks.
 
-Writes a skeleton as ``LimbNode`` models with ``Lcl Translation`` = the offsets and one animation stack with
-``Lcl Rotation`` curves (Euler XYZ degrees, the FBX default ``RotationOrder`` 0) on every joint, ``Lcl
-Translation`` curves on the root and on the joints that move, ``Lcl Scaling`` curves on the joints that scale, one
-key per frame. Optionally the static ``Lcl Rotation`` of every bone is a frame of the motion (as Blender saves the
-current frame) and a ``BindPose`` holds the rest pose. Units: ``UnitScaleFactor`` = cm per file unit; axes from
-``up_axis``. A test fixture builder, not a product format writer.
+mocapbench reads FBX through ufbx and has no product FBX writer (``write_motion`` writes BVH and glTF; Blender's
+importer refuses ASCII FBX). This module writes what the FBX reader is checked on: a skeleton as ``LimbNode`` models
+with ``Lcl Translation`` = the offsets and one animation stack with ``Lcl Rotation`` curves (Euler XYZ degrees, the
+FBX default ``RotationOrder`` 0) on every joint, ``Lcl Translation`` curves on the root and on the joints that move,
+``Lcl Scaling`` curves on the joints that scale, one linear key per frame. Optionally the static ``Lcl Rotation`` of
+every bone is a frame of the motion (as Blender saves the current frame) and a ``BindPose`` holds the rest pose.
+Units: ``UnitScaleFactor`` = cm per file unit; axes from ``up_axis``. End sites are not written.
 """
 
 from __future__ import annotations
@@ -15,7 +16,10 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from mocapbench.io.safe_output import write_bytes
 from mocapbench.motion import Motion
+
+__all__ = ["write_fbx_ascii"]
 
 _TICKS_PER_SECOND = 46_186_158_000
 
@@ -35,11 +39,13 @@ def write_fbx_ascii(
     saved_frame: int | None = None,
     bind_pose: bool = False,
     declared_fps: float | None = None,
+    overwrite: bool = False,
 ) -> Path:
     """Write ``motion`` (cm) as an ASCII FBX in ``unit_cm`` cm per unit; ``moving_joint`` also animates that
     joint's translation by up to 5 units along x; ``saved_frame`` makes that frame's rotations the bones' static
     ``Lcl Rotation``; ``bind_pose`` writes a ``BindPose`` of the rest pose (identity rotations, the offsets);
-    ``declared_fps`` is the ``CustomFrameRate`` written (default the motion's)."""
+    ``declared_fps`` is the ``CustomFrameRate`` written (default the motion's). Written atomically through
+    :mod:`mocapbench.io.safe_output`; an existing file is replaced only with ``overwrite``."""
     skeleton = motion.skeleton
     num_frames, num_joints = motion.num_frames, motion.num_joints
     up = {"y": (1, 2), "z": (2, -1)}[motion.up_axis]  # (UpAxis, FrontAxisSign-ish) as Maya/Max export
@@ -133,6 +139,4 @@ def write_fbx_ascii(
         "\t}\n}\n"
     )
     text = header + "Objects:  {\n" + "".join(objects) + "}\nConnections:  {\n" + "".join(connections) + "}\n"
-    path = Path(path)
-    path.write_text(text, encoding="utf-8")
-    return path
+    return write_bytes(path, text.encode("utf-8"), force=overwrite)
