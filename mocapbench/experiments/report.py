@@ -28,8 +28,8 @@ from mocapbench.experiments import plots
 from mocapbench.experiments.aggregate import aggregate, curve_points, read_errors
 from mocapbench.experiments.bdrate import DEFAULT_ANCHOR, bd_rate_table
 from mocapbench.experiments.document import Document, markdown_table
-from mocapbench.experiments.headline import (DEFAULT_BOUNDS_CM, bounds_with, headline_table, synthetic_only_note,
-                                             winner_sentences)
+from mocapbench.experiments.headline import (DEFAULT_BOUNDS_CM, EQUAL_AT, EQUAL_CR, EQUAL_FACTOR, bounds_with,
+                                             headline_table, is_synthetic, synthetic_only_note, winner_sentences)
 from mocapbench.experiments.reproduction import reproduction_sections
 from mocapbench.experiments.run import EXAMPLE_FILE
 from mocapbench.io.safe_output import check_name, write_text
@@ -122,8 +122,8 @@ def headline_text(rows: pd.DataFrame, points: pd.DataFrame, errors: pd.DataFrame
     if note:
         lines += [note, ""]
     lines += [f"- {sentence}" for sentence in winner_sentences(table)]
-    shown = ["rank", "codec", "config", "CR", "bits/joint/frame", "L∞ cm", "decode frames/s", "rotations (BVH/glTF)",
-             "needs model", "latency frames"]
+    shown = ["rank", "codec", "config", "CR", EQUAL_FACTOR, EQUAL_AT, "bits/joint/frame", "L∞ cm", "decode frames/s",
+             "rotations (BVH/glTF)", "needs model", "latency frames"]
     for (dataset, bound), group in table.groupby(["dataset", "L∞ bound"], sort=False):
         notes = ["note"] if group["note"].fillna("").astype(str).str.len().gt(0).any() else []
         lines += ["", f"{dataset}, L∞ {bound}:", "", markdown_table(group[shown + notes])]
@@ -310,7 +310,10 @@ def build_report(
                   "Speeds in frames per CPU second (see Data and method). Rotations: the decoder returns joint "
                   "rotations, so the clip can be written as BVH/glTF; needs model: decoding needs learned state fit "
                   "for this skeleton (model bytes, not in the rate); latency: frames the encoder must see before it "
-                  "emits a frame. Codecs without a rank keep their row with the reason.")
+                  "emits a frame. Codecs without a rank keep their row with the reason. A ratio between two codecs "
+                  f"is taken at one L∞, read off each codec's curve (log-log on its Pareto front): '{EQUAL_CR}' is "
+                  f"a codec's ratio at exactly the bound, '{EQUAL_FACTOR}' rank 1's ratio over this codec's at the "
+                  f"L∞ of '{EQUAL_AT}' (the bound, or the largest L∞ below it that both curves reach).")
     shown = [c for c in headline.columns if c not in ("dataset", "L∞ bound")]
     for (dataset, bound), group in headline.groupby(["dataset", "L∞ bound"], sort=False):
         doc.heading(f"{dataset}, L∞ {bound}", 3)
@@ -363,12 +366,7 @@ def build_report(
     for error in ("max_err_cm", "mean_err_cm"):
         doc.table(bd_rate_table(points, anchor=anchor, error=error), caption=f"quality = -log({error})")
 
-    doc.heading("Reproduction of the papers' claims")
-    for title, note_text, table in reproduction_sections(rows):
-        doc.heading(title, 3)
-        if note_text:
-            doc.paragraph(note_text)
-        doc.table(table)
+    _reproduction_section(doc, rows)
 
     doc.heading("Pictures")
     for dataset in datasets:
@@ -455,6 +453,21 @@ def build_report(
     write_text(out / "report.md", doc.markdown())
     write_text(out / "index.html", doc.html())
     return out
+
+
+def _reproduction_section(doc: Document, rows: pd.DataFrame) -> None:
+    """The papers' claims, checked on CMU clips (and on the synthetic fixture as a sanity check); left out for
+    other clips (a user's own), on which no paper made a claim."""
+    cmu = rows["cmu_data"].fillna(False).astype(bool) if "cmu_data" in rows else pd.Series(False, index=rows.index)
+    applies = rows[cmu | is_synthetic(rows)]
+    if applies.empty:
+        return
+    doc.heading("Reproduction of the papers' claims")
+    for title, note_text, table in reproduction_sections(applies):
+        doc.heading(title, 3)
+        if note_text:
+            doc.paragraph(note_text)
+        doc.table(table)
 
 
 def _report_name(text: str) -> str:

@@ -188,3 +188,19 @@ def test_the_report_pools_what_the_table_pools():
     assert svd["param_rank"] == expected
     # Fields at their default are not printed: svd's factor format stays at its default.
     assert "param_factor_format" not in pooled["svd"][0]
+
+
+def test_the_papers_cmu_claims_are_left_out_on_a_users_clips():
+    import pandas as pd
+
+    from mocapbench.experiments.document import Document
+    from mocapbench.experiments.report import _reproduction_section
+
+    pooled = compare(_clips()[:2], 1.0, ["quant-delta-zstd"], dataset="studio")
+    rows = pd.DataFrame(pooled[0].rows)
+    doc = Document("t")
+    _reproduction_section(doc, rows)
+    assert "Reproduction" not in doc.markdown()
+    rows["cmu_data"] = True
+    _reproduction_section(doc, rows)
+    assert "Reproduction of the papers' claims" in doc.markdown()
