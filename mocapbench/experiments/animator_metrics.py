@@ -7,8 +7,10 @@
 ``end_site_max_err_cm``, ``end_site_mean_err_cm``
     L∞ and mean Euclidean error of the BVH end sites (finger, toe and head tips), cm; NaN for a codec that
     returns joint positions only (it returns no end site) and for a skeleton without end sites.
-``accel_rms_err_cm_s2``, ``accel_max_err_cm_s2``
-    RMS and max over joints and inner frames of the acceleration error, cm/s² (:mod:`mocapbench.metrics.acceleration`).
+``accel_rms_err_cm_s2``, ``accel_max_err_cm_s2``, ``accel_rms_ref_cm_s2``
+    RMS and max over joints and inner frames of the acceleration error, cm/s² (:mod:`mocapbench.metrics.acceleration`),
+    and the RMS acceleration of the original itself (its motion and its capture noise), the scale the error is
+    judged against.
 ``foot_contacts``, ``foot_slide_mean_cm``, ``foot_slide_max_cm``, ``foot_slide_ref_mean_cm``, ``foot_slide_ref_max_cm``
     The original's foot contacts and the decoded (``foot_slide_*``) and original (``foot_slide_ref_*``) foot's
     horizontal travel per contact, mean and max, cm (:mod:`mocapbench.metrics.foot_sliding`); NaN without contacts.
@@ -29,7 +31,7 @@ from typing import Any, Sequence
 import numpy as np
 import pandas as pd
 
-from mocapbench.metrics.acceleration import acceleration_error
+from mocapbench.metrics.acceleration import acceleration_error, accelerations
 from mocapbench.metrics.bones import bone_length_deviation
 from mocapbench.metrics.distortion import joint_errors
 from mocapbench.metrics.foot_sliding import foot_sliding
@@ -46,6 +48,7 @@ _POOLING: dict[str, Any] = {
     "end_site_mean_err_cm": ("mean", "frames"),
     "accel_rms_err_cm_s2": ("rms", "_inner_frames"),
     "accel_max_err_cm_s2": "max",
+    "accel_rms_ref_cm_s2": ("rms", "_inner_frames"),
     "foot_contacts": "sum",
     "foot_slide_mean_cm": ("mean", "foot_contacts"),
     "foot_slide_max_cm": "max",
@@ -96,6 +99,8 @@ def animator_columns(motion: Motion, decoded_positions: np.ndarray, decoded_moti
     reference = motion.positions() if reference_positions is None else reference_positions
     skeleton = motion.skeleton
     rms, worst = acceleration_error(reference, decoded_positions, motion.fps)
+    own = accelerations(reference, motion.fps)
+    own_rms = float(np.sqrt(np.mean(np.einsum("fjk,fjk->fj", own, own)))) if own.size else _NAN
     sliding = foot_sliding(reference, decoded_positions, motion.fps, skeleton.names, skeleton.parents,
                            motion.up_axis)
     contacts = len(sliding.contacts)
@@ -104,6 +109,7 @@ def animator_columns(motion: Motion, decoded_positions: np.ndarray, decoded_moti
         **_end_site_columns(motion, decoded_motion),
         "accel_rms_err_cm_s2": rms,
         "accel_max_err_cm_s2": worst,
+        "accel_rms_ref_cm_s2": own_rms,
         "foot_contacts": contacts,
         "foot_slide_mean_cm": float(sliding.decoded_cm.mean()) if contacts else _NAN,
         "foot_slide_max_cm": float(sliding.decoded_cm.max()) if contacts else _NAN,

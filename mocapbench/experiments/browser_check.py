@@ -34,8 +34,8 @@ from pathlib import Path
 
 __all__ = ["find_chromium", "check_report", "BrowserCheck", "ChromiumNotFound", "SECTIONS"]
 
-SECTIONS = ("headline-which-codec-to-pick", "rate-distortion", "distributions-over-clips", "pictures",
-            "all-rate-distortion-points", "data-and-method")
+SECTIONS = ("headline-which-codec-to-pick", "rate-distortion", "distributions-over-clips", "what-animators-see",
+            "pictures", "all-rate-distortion-points", "data-and-method")
 MIN_TEXT_PX = 10.0
 SMALLEST_FIGURE_FONT_PT = 10.0
 

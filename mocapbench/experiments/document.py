@@ -147,6 +147,10 @@ class Document:
     def code(self, text: str) -> None:
         self.blocks.append(("code", text))
 
+    def link(self, href: str, text: str) -> None:
+        """A paragraph that is one link (``href`` relative to the report, e.g. a page beside it)."""
+        self.blocks.append(("link", (href, text)))
+
     def markdown(self) -> str:
         out = [f"# {self.title}", ""]
         for kind, value in self.blocks:
@@ -166,6 +170,8 @@ class Document:
                 out += [f"![{value[1]}]({value[0]})", "", f"*{value[1]}* ([SVG]({svg}))", ""]
             elif kind == "code":
                 out += ["```", value, "```", ""]
+            elif kind == "link":
+                out += [f"[{value[1]}]({value[0]})", ""]
         return "\n".join(out)
 
     def html(self) -> str:
@@ -193,4 +199,6 @@ class Document:
                                "caption": value[1]})
             elif kind == "code":
                 blocks.append({"kind": kind, "text": value})
+            elif kind == "link":
+                blocks.append({"kind": kind, "href": value[0], "text": value[1]})
         return env.get_template("report.html.j2").render(title=self.title, toc=toc, blocks=blocks)

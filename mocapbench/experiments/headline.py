@@ -18,6 +18,8 @@ from typing import Iterable, Sequence
 import numpy as np
 import pandas as pd
 
+from mocapbench.experiments.animator_report import FLAG_COLUMN, HEADLINE_COLUMNS, animator_flag, headline_values
+
 __all__ = ["DEFAULT_BOUNDS_CM", "TRAIT_COLUMNS", "EQUAL_CR", "EQUAL_FACTOR", "EQUAL_AT", "headline_table", "winner_sentences", "synthetic_only_note",
            "is_synthetic", "failure_reasons"]
 
@@ -139,8 +141,9 @@ def headline_table(
     Returns
     -------
     DataFrame
-        ``dataset, L∞ bound, rank, codec, config, CR, bits/joint/frame, L∞ cm, mean cm, encode frames/s,
-        decode frames/s, rotations (BVH/glTF), needs model, model bytes, latency frames, random access, family,
+        ``dataset, L∞ bound, rank, codec, config, CR, bits/joint/frame, L∞ cm``, what animators see
+        (:data:`mocapbench.experiments.animator_report.HEADLINE_COLUMNS` and the ``animators`` flag: a flagged
+        codec keeps its rank), ``mean cm, encode frames/s, decode frames/s, rotations (BVH/glTF), needs model, model bytes, latency frames, random access, family,
         clips, note``; ranked rows first (rank 1 = highest ratio), then the rows without a rank, whose ``config``
         cell says why (no config under the bound, failed, not run on this dataset, unavailable here); ``note`` holds failures of ranked
         codecs' other jobs.
@@ -180,6 +183,7 @@ def headline_table(
                 row = {"codec": codec, "config": config_text(best)}
                 row.update({label: best[column] for column, label in _METRICS.items() if column in best.index})
                 row.update(_traits(codec, best))
+                row.update({**headline_values(best), FLAG_COLUMN: animator_flag(best)})
                 row["model bytes"] = int(best["model_bytes"]) if _present(best.get("model_bytes")) else 0
                 row["clips"] = int(best["clips"])
                 row["note"] = failures.get((dataset, codec)) or failures.get(("", codec), "")
@@ -212,13 +216,15 @@ def headline_table(
     # What decides first (rate, error, rotations, model, latency), then speeds and the rest: the leading
     # columns fit a laptop screen, the others scroll.
     columns = ["dataset", "L∞ bound", "rank", "codec", "config", "CR", EQUAL_CR, EQUAL_FACTOR, EQUAL_AT,
-               "bits/joint/frame", "L∞ cm",
+               "bits/joint/frame", "L∞ cm", *HEADLINE_COLUMNS.values(), FLAG_COLUMN,
                "rotations (BVH/glTF)", "needs model", "latency frames", "random access", "decode frames/s",
                "encode frames/s", "mean cm", "model bytes", "family", "clips", "note"]
     table = pd.DataFrame(out)
     for column in columns:
         if column not in table:
-            table[column] = np.nan if column in (*_METRICS.values(), EQUAL_CR, EQUAL_FACTOR, EQUAL_AT) else ""
+            table[column] = (np.nan if column in (*_METRICS.values(), EQUAL_CR, EQUAL_FACTOR, EQUAL_AT,
+                                                  *HEADLINE_COLUMNS.values()) else "")
+    table[FLAG_COLUMN] = table[FLAG_COLUMN].fillna("")
     return table[columns]
 
 
@@ -300,6 +306,8 @@ def winner_sentences(table: pd.DataFrame) -> list[str]:
                 best = rotations.iloc[0]
                 text += (f"; it outputs joint positions only: the best codec that outputs rotations (BVH/glTF) is "
                          f"{best['codec']} at {_ratio(float(best['CR']))}")
+        if first[FLAG_COLUMN]:
+            text += f"; flagged for animators ({first[FLAG_COLUMN]})"
         if first["needs model"] == "yes":
             text += "; the winner needs a model fit for this skeleton"
         sentences.append(text + ".")

@@ -300,28 +300,32 @@ def rd_per_clip_figure(rows: pd.DataFrame, dataset: str, path: Path, max_clips: 
     return _save(fig, path)
 
 
-def clip_distribution_figure(per_clip: pd.DataFrame, dataset: str, bound: float, path: Path) -> Path | None:
+def clip_distribution_figure(per_clip: pd.DataFrame, dataset: str, bound: float, path: Path,
+                             panels: Sequence[tuple[str, str, bool]] | None = None) -> Path | None:
     """Distributions over clips at one bound: ratio per clip, max error per clip, share of samples under it.
 
     Parameters
     ----------
     per_clip : DataFrame
         One row per (codec, clip) of each codec's headline config under ``bound``: ``codec``, ``clip``,
-        ``compression_ratio``, ``max_err_cm``, ``share_under_bound`` (0-1).
+        ``compression_ratio``, ``max_err_cm``, ``share_under_bound`` (0-1), or the columns of ``panels``.
+    panels : sequence of (column, axis label, log scale), optional
+        The panels, left to right (default: the three above); a clip whose value is NaN is left out.
     """
     if per_clip.empty:
         return None
     codecs = sorted(per_clip["codec"].unique(), key=lambda c: -per_clip.loc[per_clip["codec"] == c,
                                                                               "compression_ratio"].median())
-    panels = (("compression_ratio", "ratio per clip (log)", True),
-              ("max_err_cm", "max error per clip (cm)", False),
-              ("share_under_bound", f"share of samples under {bound:g} cm (%)", False))
-    fig, axes = plt.subplots(1, 3, figsize=(MAX_WIDTH_IN, 0.45 * len(codecs) + 2.2), layout="constrained",
+    panels = panels or (("compression_ratio", "ratio per clip (log)", True),
+                        ("max_err_cm", "max error per clip (cm)", False),
+                        ("share_under_bound", f"share of samples under {bound:g} cm (%)", False))
+    fig, axes = plt.subplots(1, len(panels), figsize=(MAX_WIDTH_IN, 0.45 * len(codecs) + 2.2), layout="constrained",
                              sharey=True)
     rng = np.random.default_rng(0)
     for ax, (column, label, log) in zip(axes, panels):
         for y, codec in enumerate(codecs):
             values = per_clip.loc[per_clip["codec"] == codec, column].to_numpy(float)
+            values = values[np.isfinite(values)]
             if column == "share_under_bound":
                 values = 100 * values
             style = codec_style(codec)

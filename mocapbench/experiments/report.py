@@ -26,6 +26,8 @@ import pandas as pd
 
 from mocapbench.experiments import plots
 from mocapbench.experiments.aggregate import aggregate, curve_points, read_errors
+from mocapbench.experiments.animator_report import add_animator_section
+from mocapbench.experiments.animator_report import method_bullets as animator_method_bullets
 from mocapbench.experiments.bdrate import DEFAULT_ANCHOR, bd_rate_table
 from mocapbench.experiments.document import Document, markdown_table
 from mocapbench.experiments.headline import (DEFAULT_BOUNDS_CM, EQUAL_AT, EQUAL_CR, EQUAL_FACTOR, bounds_with,
@@ -359,6 +361,8 @@ def build_report(
                 continue
             doc.image(path.relative_to(out).as_posix(), f"{dataset}: over clips at L∞ < {bound:g} cm")
 
+    add_animator_section(doc, rows, points, bounds, out, lambda p: _config_text(p, _swept_params(points)[p["codec"]]))
+
     doc.heading(f"BD-rate against {anchor}")
     doc.paragraph("Bjontegaard-delta rate (bjontegaard package, pchip): average extra rate (%) a codec needs for the "
                   "same quality as the anchor; negative = fewer bits. Quality = -log(error cm), rate = bits per joint "
@@ -424,6 +428,7 @@ def build_report(
     ]
     for _, r in train.iterrows():
         bullets.append(f"Learned state for {r['dataset']}: fit on {r['train_set']}.")
+    bullets += animator_method_bullets()
     doc.bullets(bullets)
     doc.paragraph("Machine:")
     doc.bullets(_machine())
