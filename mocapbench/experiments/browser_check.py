@@ -32,7 +32,8 @@ import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 
-__all__ = ["find_chromium", "check_report", "BrowserCheck", "ChromiumNotFound", "SECTIONS"]
+__all__ = ["find_chromium", "check_report", "BrowserCheck", "ChromiumNotFound", "SECTIONS", "player_facts",
+           "player_screenshot", "pixels_near", "colour_share"]
 
 SECTIONS = ("headline-which-codec-to-pick", "rate-distortion", "distributions-over-clips", "what-animators-see",
             "pictures", "all-rate-distortion-points", "data-and-method")
@@ -215,6 +216,67 @@ def check_report(report: str | Path, shots: str | Path | None = None,
         else:
             check.screenshots.append(target)
     return check
+
+
+def _page_uri(page: Path, fragment: str) -> str:
+    return Path(page).resolve().as_uri() + (f"#{fragment}" if fragment else "")
+
+
+def player_facts(page: str | Path, fragment: str = "", width: int = 1100) -> dict:
+    """What a player page (:mod:`mocapbench.experiments.player`) shows after it loads at ``#fragment``.
+
+    Returns the JSON the page's script writes into ``<pre id="facts">``: ``entry``, ``frame``, ``worstFrame``,
+    ``worstJoint``, ``worstPage`` (the decoded worst joint's centre in page pixels, on the whole-body view),
+    ``worstColour``, ``original`` and ``decoded`` (the skeletons' colours).
+    """
+    result = _chromium(find_chromium(), f"--window-size={width},1000", "--virtual-time-budget=10000", "--dump-dom",
+                       _page_uri(page, fragment))
+    match = re.search(r'<pre id="facts">(.*?)</pre>', result.stdout, re.S)
+    if not match or not match.group(1).strip():
+        tail = (result.stderr or "").strip().splitlines()[-3:]
+        raise RuntimeError(f"Chromium returned no player facts for {page}: {' | '.join(tail)}")
+    return json.loads(html.unescape(match.group(1)))
+
+
+def player_screenshot(page: str | Path, png: str | Path, fragment: str = "", width: int = 1100,
+                      height: int = 1000) -> Path:
+    """Screenshot (PNG, ``width`` x ``height`` px, the top of the page) of a player page loaded at ``#fragment``."""
+    png = Path(png)
+    png.parent.mkdir(parents=True, exist_ok=True)
+    result = _chromium(find_chromium(), f"--window-size={width},{height}", "--virtual-time-budget=10000",
+                       f"--screenshot={png.resolve()}", _page_uri(page, fragment))
+    if not png.exists():
+        raise RuntimeError(f"screenshot {png} was not written: {result.stderr.strip()[-200:]}")
+    return png
+
+
+def _rgb(colour: str) -> tuple[int, int, int]:
+    """``#rrggbb`` or ``rgb(r,g,b)`` as integers."""
+    if colour.startswith("#"):
+        return tuple(int(colour[i:i + 2], 16) for i in (1, 3, 5))
+    return tuple(int(v) for v in re.findall(r"\d+", colour)[:3])
+
+
+def _pixels(png: str | Path):
+    import matplotlib.image
+
+    image = matplotlib.image.imread(str(png))  # (H, W, 3 or 4) floats in [0, 1]
+    return (image[..., :3] * 255).round().astype(int)
+
+
+def pixels_near(png: str | Path, xy: tuple[float, float], colour: str, radius: int = 3, tolerance: int = 40) -> int:
+    """How many pixels within ``radius`` px of ``xy`` (page pixels, as the screenshot) are within ``tolerance`` of
+    ``colour`` on every channel."""
+    pixels = _pixels(png)
+    x, y = int(round(xy[0])), int(round(xy[1]))
+    box = pixels[max(0, y - radius):y + radius + 1, max(0, x - radius):x + radius + 1]
+    return int((abs(box - _rgb(colour)) <= tolerance).all(axis=-1).sum())
+
+
+def colour_share(png: str | Path, colour: str, tolerance: int = 12) -> float:
+    """Share of the screenshot's pixels within ``tolerance`` of ``colour`` on every channel."""
+    pixels = _pixels(png)
+    return float((abs(pixels - _rgb(colour)) <= tolerance).all(axis=-1).mean())
 
 
 def main(argv: list[str] | None = None) -> int:
