@@ -103,7 +103,7 @@ def test_report_writes_tables_and_figures_and_never_overwrites(sweep_dir, tmp_pa
     assert "not run" in markdown  # the paper codecs are absent from this fixture
     assert CMU_ACKNOWLEDGEMENT not in markdown  # no CMU clip was used
     figures = sorted(p.name for p in (first / "figures").glob("*.png"))
-    assert figures == ["clips_synthetic_1cm.png", "clips_synthetic_3cm.png", "heatmap_synthetic.png",
+    assert figures == ["animators_synthetic_1cm.png", "animators_synthetic_3cm.png", "clips_synthetic_1cm.png", "clips_synthetic_3cm.png", "heatmap_synthetic.png",
                        "overlay_synthetic.png", "rd_kg_percent_synthetic.png", "rd_max_err_cm_synthetic.png",
                        "rd_mean_err_cm_synthetic.png", "rd_per_clip_synthetic.png",
                        "rd_shell_max_err_cm_synthetic.png"]  # ACL's shell error: quant-rot-zstd returns rotations
