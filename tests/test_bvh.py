@@ -409,3 +409,16 @@ def test_drop_first_frame_needs_two_frames(tmp_path):
 def test_bad_length_unit():
     with pytest.raises(ValueError, match="`length_unit_cm` must be a finite number > 0, got 0"):
         read_bvh(CHAIN, length_unit_cm=0)
+
+
+def test_frames_times_joints_over_the_decode_limits_is_one_line(tmp_path):
+    """The reader checks the motion it would build against the current decode limits before allocating it."""
+    from mocapbench.codecs.limits import DecodeLimits, using_limits
+
+    path = write_bvh(sinusoidal_motion(num_frames=50, seed=1), tmp_path / "m.bvh")
+    with using_limits(DecodeLimits(max_output_bytes=50 * 31 * 56 - 1)):
+        with pytest.raises(MotionFormatError, match=r"m.bvh: line \d+: the file asks for 50 frames x 31 joints, .* over "
+                                                    r"the limit output_bytes=.*--limit output_bytes=N"):
+            read_bvh(path)
+    with using_limits(DecodeLimits(max_output_bytes=50 * 31 * 56 + 24 * 50)):
+        assert read_bvh(path).num_frames == 50

@@ -129,3 +129,25 @@ def test_cli_compresses_fbx(tmp_path, capsys):
     assert metrics.max_joint_error(case.motion.positions(), back.positions()) < 1.0
     assert main(["inspect", str(source)]) == 0
     assert "z (from the file)" in capsys.readouterr().out
+
+
+def test_frames_times_bones_over_the_decode_limits_is_refused_before_baking(tmp_path):
+    """Key times stretched 10,000 times ask for 10,000x the frames: checked as frames x bones against the decode
+    limits before ufbx bakes anything."""
+    from mocapbench.codecs.limits import DecodeLimits, using_limits
+
+    path = write_fbx_ascii(rig_motion(num_joints=15, num_frames=6, fps=30.0), tmp_path / "long.fbx")
+    head, *curves = path.read_text().split("KeyTime: ")
+    rebuilt = head
+    for curve in curves:
+        count, rest = curve.split(" {\n\t\t\ta: ", 1)
+        numbers, tail = rest.split("\n", 1)
+        rebuilt += f"KeyTime: {count} {{\n\t\t\ta: " + ",".join(str(int(v) * 10_000) for v in numbers.split(","))
+        rebuilt += "\n" + tail
+    stop = 5 * 46_186_158_000 // 30
+    path.write_text(rebuilt.replace(f'"",{stop}\n', f'"",{stop * 10_000}\n'))
+    with using_limits(DecodeLimits(max_output_bytes=10_000_000)):
+        with pytest.raises(MotionFormatError, match=r"long.fbx: the file asks for 50,001 frames at 30 fps x 15 joints, "
+                                                    r".* over the limit output_bytes=10,000,000"):
+            read_fbx(path)
+    assert read_fbx(path).num_frames == 50_001  # within the default limits: read, at a cost per frame and bone

@@ -45,6 +45,7 @@ import numpy as np
 from mocapbench.lazy_imports import Rotation
 
 from mocapbench.io import MotionFileNotFoundError
+from mocapbench.io.read_limits import check_motion_size
 from mocapbench.io.safe_output import check_output, open_output
 from mocapbench.motion import Motion, MotionFormatError, OwnedQuaternions, Skeleton
 
@@ -544,6 +545,8 @@ def _read(path: Path, handle: BinaryIO, length_unit_cm: float, drop_first_frame:
             f"{len(joints)} joints but only {num_channels} channels: {capacity} frames would take "
             f"{capacity * len(joints) * frame_joint_bytes:,} bytes of tracks for a {reader.size:,}-byte file.",
         )
+    # The decode limits too (--limit raises them), so that a reader and a decoder refuse the same sizes alike.
+    check_motion_size(max(capacity, 1), len(joints), lambda message: reader.error(frames_line, message + "."))
     block = _MotionBlock(reader, joints, max(capacity, 1))
     row, line, data_lines, last_data_line = 0, first_data_line, 0, 0
     carry = b""
