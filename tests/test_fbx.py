@@ -151,3 +151,22 @@ def test_frames_times_bones_over_the_decode_limits_is_refused_before_baking(tmp_
                                                     r".* over the limit output_bytes=10,000,000"):
             read_fbx(path)
     assert read_fbx(path).num_frames == 50_001  # within the default limits: read, at a cost per frame and bone
+
+
+@pytest.mark.parametrize("value", ["inf", "nan"])
+def test_a_non_finite_key_is_refused_naming_bone_and_frame(tmp_path, value):
+    motion = rig_motion(num_joints=15, num_frames=10, fps=30.0)
+    text = write_fbx_ascii(motion, tmp_path / "bad.fbx").read_text()
+    # Curves in file order: joint 0's rotation (3) and translation (3), then joint 1's rotation: key 4 of its X
+    # curve becomes ``value``.
+    curves = text.split("KeyValueFloat: *10 {\n\t\t\ta: ")
+    index = 1 + 3 * 2
+    values = curves[index].split("\n", 1)[0].split(",")
+    values[4] = value
+    curves[index] = ",".join(values) + "\n" + curves[index].split("\n", 1)[1]
+    path = tmp_path / "bad.fbx"
+    path.write_text("KeyValueFloat: *10 {\n\t\t\ta: ".join(curves))
+    with pytest.raises(MotionFormatError, match=r"bad.fbx: bone '.*' has the rotation \[nan, nan, nan, nan\] at frame 4; "
+                                                r"expected a rotation") as error:
+        read_fbx(path)
+    assert "\n" not in str(error.value)

@@ -269,6 +269,15 @@ def _baked_tracks(ufbx, scene, anim_stack, bones: _Bones, times: np.ndarray, rat
             (scales, None if baked is None else baked.scale_keys, local.scale, False),
         ):
             out[:, j] = _sampled_keys(keys, rest, times, rotation)
+    for what, track in (("translation", translations), ("rotation", rotations), ("scale", scales)):
+        finite = np.isfinite(track).all(axis=2)
+        if what == "rotation":
+            finite &= np.einsum("fjq,fjq->fj", np.nan_to_num(track), np.nan_to_num(track)) > 1e-12
+        if not finite.all():
+            frame, joint = (int(i) for i in np.argwhere(~finite)[0])
+            expected = "a rotation (finite, not zero)" if what == "rotation" else "finite numbers"
+            raise error(f"bone {bones.order[joint].name!r} has the {what} {track[frame, joint].tolist()} at frame "
+                        f"{frame}; expected {expected}")
     bad = ~(scales > 0).all(axis=2)
     if bad.any():
         frame, joint = (int(i) for i in np.argwhere(bad)[0])
