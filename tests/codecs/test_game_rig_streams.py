@@ -68,3 +68,30 @@ def test_every_byte_of_quant_rot_zstds_track_section_is_checked():
             except BitstreamError:
                 continue
             assert np.all(np.isfinite(result.positions))
+
+
+def test_every_byte_of_mcb_rots_tracks_header_is_checked():
+    """mcb-rot's tracks header (format 6, flags bit 10; located by its bytes in the stream): each byte changed (CRC
+    restamped) decodes to finite positions or is a BitstreamError, never another exception."""
+    from mocapbench.codecs.mcb_rot.classes import fit_single
+    from mocapbench.codecs.mcb_rot.tracks import plan_tracks
+    from mocapbench.entropy.bitio import ByteWriter
+    from mocapbench.fuzz import restamp
+
+    motion = game_rig_motion(40, seed=8)
+    codec = create("mcb-rot", eps_cm=0.5)
+    stream = codec.encode(motion)
+    writer = ByteWriter()
+    plan_tracks(motion, 0.1 * 0.5, lambda values: fit_single(values, 0.5)).write(writer)
+    header = writer.getvalue()
+    start = stream.find(header)
+    assert start > 0 and stream.count(header) == 1
+    for offset in range(start, start + len(header)):
+        for value in (0, 1, 0x40, 0x7F, 0xFF):
+            data = bytearray(stream)
+            data[offset] = value
+            try:
+                result = codec.decode(restamp(bytes(data)), limits=LIMITS)
+            except BitstreamError:
+                continue
+            assert np.all(np.isfinite(result.positions))
