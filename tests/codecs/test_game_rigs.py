@@ -69,3 +69,21 @@ def test_a_scale_track_is_carried_or_refused_naming_the_joint(name, training):
     # The hand's end site is carried by the stretched forearm's children: within the bound only if the scale is.
     ends = np.linalg.norm(motion.end_site_positions() - decoded.motion.end_site_positions(), axis=-1)
     assert ends[:, 1].max() <= 2 * CODECS[name].smoke_max_error_cm + 0.5
+
+
+@pytest.mark.parametrize("name", ["mcb-rot", "acl", "quant-rot-zstd"])
+def test_a_game_rig_bvh_with_position_channels_on_every_joint(name, tmp_path):
+    """The rig as a MotionBuilder export writes it (``CHANNELS 6`` on every joint), read back and coded: the joints
+    whose channels repeat their OFFSET cost nothing, the pelvis is carried, the bound holds."""
+    from mocapbench.io.bvh import read_bvh, write_bvh
+
+    if name not in CODECS:
+        pytest.skip(f"{name} is unavailable here")
+    path = write_bvh(game_rig_motion(60, seed=9), tmp_path / "rig.bvh", position_channels="all")
+    assert path.read_text().count("CHANNELS 6") == 22
+    motion = read_bvh(path)
+    assert list(motion.moving_joints()) == [1]
+    codec = create(name, **CODECS[name].smoke_params)
+    decoded = codec.decode(codec.encode(motion))
+    assert metrics.max_joint_error(motion.positions(), decoded.positions) <= CODECS[name].smoke_max_error_cm
+    assert list(decoded.motion.moving_joints()) == [1]
