@@ -163,22 +163,23 @@ def describe_training(spec: Mapping[str, Any]) -> str:
     return _describe(_inherit(spec, train))
 
 
-def cmu_used(spec: Mapping[str, Any]) -> bool:
-    """Whether ``spec`` (or its training set) reads CMU clips, so the report must carry CMU's acknowledgement."""
+def _kinds(spec: Mapping[str, Any]) -> set:
+    """The ``kind`` of ``spec`` and of its training set."""
     spec = _plain(spec)
     kinds = {spec.get("kind")}
     if isinstance(spec.get("train"), Mapping):
         kinds.add(spec["train"].get("kind", spec.get("kind")))
-    return bool(kinds & {"cmu", "cmu_tree"})
+    return kinds
+
+
+def cmu_used(spec: Mapping[str, Any]) -> bool:
+    """Whether ``spec`` (or its training set) reads CMU clips, so the report must carry CMU's acknowledgement."""
+    return bool(_kinds(spec) & {"cmu", "cmu_tree"})
 
 
 def bandai_used(spec: Mapping[str, Any]) -> bool:
     """Whether ``spec`` (or its training set) reads the Bandai Namco dataset, so the report must cite it."""
-    spec = _plain(spec)
-    kinds = {spec.get("kind")}
-    if isinstance(spec.get("train"), Mapping):
-        kinds.add(spec["train"].get("kind", spec.get("kind")))
-    return "bandai" in kinds
+    return "bandai" in _kinds(spec)
 
 
 def _inherit(parent: Mapping[str, Any], train: Any) -> dict[str, Any]:
