@@ -170,6 +170,7 @@ def test_real_clip_layout(cmu_fixture_dir):
     assert set(full.skeleton.channel_orders) == {"ZYX"}
     np.testing.assert_array_equal(dropped.rotations, full.rotations[1:])
     assert full.name == "09_06"
+    assert full.translations is None and full.scales is None  # position channels on the root only: no track
 
 
 # --- malformed input -------------------------------------------------------------------------------------
