@@ -185,31 +185,29 @@ def _broken(tmp_path, edit, name="broken.glb"):
     return path
 
 
-def _moving_translation(gltf):
+def _add_channel(gltf, node: int, path: str, values: np.ndarray) -> None:
+    """Append a LINEAR ``path`` channel on ``node`` with ``values`` (one row per key of the first sampler)."""
     blob = bytearray(gltf.binary_blob())
-    moving = np.zeros((8, 3))
-    moving[:, 1] = np.linspace(0.1, 0.3, 8)
     animation = gltf.animations[0]
     animation.samplers.append(pygltflib.AnimationSampler(input=animation.samplers[0].input,
-                                                         output=_append(gltf, blob, moving, "VEC3")))
+                                                         output=_append(gltf, blob, values, "VEC3")))
     animation.channels.append(pygltflib.AnimationChannel(
-        sampler=len(animation.samplers) - 1, target=pygltflib.AnimationChannelTarget(node=3, path="translation")))
+        sampler=len(animation.samplers) - 1, target=pygltflib.AnimationChannelTarget(node=node, path=path)))
     gltf.buffers[0].byteLength = len(blob)
     gltf.set_binary_blob(bytes(blob))
+
+
+def _moving_translation(gltf):
+    moving = np.zeros((8, 3))
+    moving[:, 1] = np.linspace(0.1, 0.3, 8)
+    _add_channel(gltf, 3, "translation", moving)
 
 
 def _scale_track(gltf, value):
     """A scale channel on node 3 whose key 3 has ``value`` along Y."""
-    blob = bytearray(gltf.binary_blob())
     scales = np.ones((8, 3))
     scales[3, 1] = value
-    animation = gltf.animations[0]
-    animation.samplers.append(pygltflib.AnimationSampler(input=animation.samplers[0].input,
-                                                         output=_append(gltf, blob, scales, "VEC3")))
-    animation.channels.append(pygltflib.AnimationChannel(
-        sampler=len(animation.samplers) - 1, target=pygltflib.AnimationChannelTarget(node=3, path="scale")))
-    gltf.buffers[0].byteLength = len(blob)
-    gltf.set_binary_blob(bytes(blob))
+    _add_channel(gltf, 3, "scale", scales)
 
 
 def _two_roots(gltf):
@@ -326,16 +324,9 @@ def test_scales_on_joints_with_rest_rotations(tmp_path):
     for uniform in (True, False):
         gltf = pygltflib.GLTF2.load(str(write_gltf(motion, tmp_path / "plain.glb", force=True)))
         gltf.nodes[3].rotation = Rotation.from_euler("xyz", [30, 40, 50], degrees=True).as_quat().tolist()
-        blob = bytearray(gltf.binary_blob())
         scales = np.ones((8, 3))
         scales[2:] = [1.5, 1.5, 1.5] if uniform else [1.5, 1.0, 1.0]
-        animation = gltf.animations[0]
-        animation.samplers.append(pygltflib.AnimationSampler(input=animation.samplers[0].input,
-                                                             output=_append(gltf, blob, scales, "VEC3")))
-        animation.channels.append(pygltflib.AnimationChannel(
-            sampler=len(animation.samplers) - 1, target=pygltflib.AnimationChannelTarget(node=3, path="scale")))
-        gltf.buffers[0].byteLength = len(blob)
-        gltf.set_binary_blob(bytes(blob))
+        _add_channel(gltf, 3, "scale", scales)
         path = tmp_path / f"scaled{uniform}.glb"
         gltf.save_binary(str(path))
         if uniform:
