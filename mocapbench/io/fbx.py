@@ -28,7 +28,9 @@ release of the bindings: FBX is read where it installs, and ``read_fbx`` says in
 
 from __future__ import annotations
 
+import itertools
 import math
+import operator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -295,15 +297,17 @@ def _sampled_keys(keys, rest, times: np.ndarray, rotation: bool) -> np.ndarray:
     A track baked at the sampling rate has one key per sample time: its values are the result (the key times are
     not read one by one, half the cost of a key); a constant track has a key or two, interpolated.
     """
-    keys = list(keys) if keys is not None else []
-    if not keys:
-        return np.broadcast_to(np.array(list(rest), dtype=np.float64), (len(times), 4 if rotation else 3))
-    values = np.array([key.value for key in keys], dtype=np.float64)  # ufbx's Vec3 and Quat are tuples
-    on_grid = (len(keys) == len(times) and abs(keys[0].time - times[0]) <= 1e-9
-               and abs(keys[-1].time - times[-1]) <= 1e-9)
-    if on_grid:
+    count = 0 if keys is None else len(keys)
+    width = 4 if rotation else 3
+    if not count:
+        return np.broadcast_to(np.array(list(rest), dtype=np.float64), (len(times), width))
+    # ufbx's Vec3 and Quat are tuples: one flat pass over the values, no per-key Python list or array.
+    values = np.fromiter(itertools.chain.from_iterable(map(operator.attrgetter("value"), keys)), np.float64,
+                         count * width).reshape(count, width)
+    first, last = keys[0].time, keys[count - 1].time
+    if count == len(times) and abs(first - times[0]) <= 1e-9 and abs(last - times[-1]) <= 1e-9:
         return values
-    key_times = np.array([key.time for key in keys], dtype=np.float64)
+    key_times = np.fromiter(map(operator.attrgetter("time"), keys), np.float64, count)
     return sample_keys(key_times, values, "LINEAR", times, rotation)
 
 
