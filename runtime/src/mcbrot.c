@@ -74,6 +74,7 @@ typedef struct ctx_t {
     int64_t cached_chunk;
     int32_t *values;        /* unit_values: coefficients (segment, channel, k), gaps, correction values */
     uint32_t *coef_start;   /* max_chunk_segments x C + 1: where each (segment, channel) starts in values */
+    uint32_t *longest;      /* max_chunk_segments: the most coefficients of a channel in each segment of the chunk */
     uint32_t *corr_flat;    /* unit_values / 4: corrections as frame * (J + 1) + slot, from the chunk's first frame */
     uint32_t num_corrections, corr_values_at;
     /* per segment length tables */
@@ -717,7 +718,7 @@ static int unit_end(reader_t *r, unit_t *u, uint32_t count, const char *what) {
 
 typedef struct layout_t {
     size_t parents, offsets, end_parents, base_step, correction_step, turned, axes, overrides, seg_start, chunk_first,
-        chunk_offset, class_table, dc, counts, values, coef_start, corr_flat, cosines, ramp, bands, scratch, total;
+        chunk_offset, class_table, dc, counts, values, coef_start, longest, corr_flat, cosines, ramp, bands, scratch, total;
 } layout_t;
 
 static size_t place(size_t *at, size_t bytes) {
@@ -745,11 +746,12 @@ static void layout_of(const header_t *h, uint32_t chunks, uint32_t max_chunk_seg
     l->counts = place(&at, 2 * S * C);
     l->values = place(&at, 4 * (size_t)h->unit_values);
     l->coef_start = place(&at, 4 * ((size_t)max_chunk_segments * C + 1));
+    l->longest = place(&at, 4 * (size_t)max_chunk_segments);
     l->corr_flat = place(&at, 4 * ((size_t)h->unit_values / 4 + 1));
     l->cosines = place(&at, 8 * 4 * n);
     l->ramp = place(&at, 8 * n);
     l->bands = place(&at, n);
-    l->scratch = place(&at, 8 * (2 * (4 * J + 3) + C));
+    l->scratch = place(&at, 8 * (2 * (4 * J + 3) + C + n + 1));
     l->total = (at + 15) & ~(size_t)15;
 }
 
@@ -956,16 +958,47 @@ static void exp_map(double x, double y, double z, double *q) {
     q[3] = cos(0.5 * angle);
 }
 
-/* The decoder's map (stream.assemble): sin and cos of the half angle from u = tan(theta / 4). */
-static void exp_map_tan(double x, double y, double z, double *q) {
-    double angle = sqrt(x * x + y * y + z * z);
-    double u = tan(angle * 0.25);
-    double ratio = 2.0 / (u * u + 1.0);
-    double scale = angle < 1e-6 ? 0.5 - angle * angle / 48.0 : u * ratio / angle;
+/* The decoder's map (stream.assemble computes sin and cos of the half angle from tan(theta / 4); the same
+ * values up to float rounding): for half angles up to pi / 2 by their Taylor series in h^2 (11 terms each: the
+ * remainder is below 1e-16 there), beyond by libm. sin(h) / theta = 0.5 sin(h) / h. */
+static void exp_map_fast(double x, double y, double z, double *q) {
+    double squared = x * x + y * y + z * z;
+    double h2 = 0.25 * squared; /* (theta / 2)^2 */
+    double scale, w;
+    if (h2 <= 2.4674011002723395) { /* (pi / 2)^2 */
+        double s = 1.0 / 51090942171709440000.0, c;                   /* sin h / h = sum (-h2)^n / (2n + 1)! */
+        s = 1.0 / 121645100408832000.0 - h2 * s;
+        s = 1.0 / 355687428096000.0 - h2 * s;
+        s = 1.0 / 1307674368000.0 - h2 * s;
+        s = 1.0 / 6227020800.0 - h2 * s;
+        s = 1.0 / 39916800.0 - h2 * s;
+        s = 1.0 / 362880.0 - h2 * s;
+        s = 1.0 / 5040.0 - h2 * s;
+        s = 1.0 / 120.0 - h2 * s;
+        s = 1.0 / 6.0 - h2 * s;
+        s = 1.0 - h2 * s;
+        c = 1.0 / 2432902008176640000.0;                              /* cos h = sum (-h2)^n / (2n)! */
+        c = 1.0 / 6402373705728000.0 - h2 * c;
+        c = 1.0 / 20922789888000.0 - h2 * c;
+        c = 1.0 / 87178291200.0 - h2 * c;
+        c = 1.0 / 479001600.0 - h2 * c;
+        c = 1.0 / 3628800.0 - h2 * c;
+        c = 1.0 / 40320.0 - h2 * c;
+        c = 1.0 / 720.0 - h2 * c;
+        c = 1.0 / 24.0 - h2 * c;
+        c = 0.5 - h2 * c;
+        c = 1.0 - h2 * c;
+        scale = 0.5 * s;
+        w = c;
+    } else {
+        double angle = sqrt(squared);
+        scale = sin(0.5 * angle) / angle;
+        w = cos(0.5 * angle);
+    }
     q[0] = x * scale;
     q[1] = y * scale;
     q[2] = z * scale;
-    q[3] = ratio - 1.0;
+    q[3] = w;
 }
 
 static void multiply(const double *a, const double *b, double *out) {
@@ -1025,6 +1058,7 @@ static int open_with(void *context, size_t context_bytes, container_t *given, co
     x->counts = (uint16_t *)(base + l.counts);
     x->values = (int32_t *)(base + l.values);
     x->coef_start = (uint32_t *)(base + l.coef_start);
+    x->longest = (uint32_t *)(base + l.longest);
     x->corr_flat = (uint32_t *)(base + l.corr_flat);
     x->cosines = (double *)(base + l.cosines);
     x->ramp = (double *)(base + l.ramp);
@@ -1289,15 +1323,18 @@ static int load_chunk(ctx_t *x, uint32_t k) {
     for (uint32_t seg = first; seg < last; ++seg) {
         uint32_t n = x->seg_start[seg + 1] - x->seg_start[seg];
         set_length(x, n);
+        uint32_t most = 0;
         for (uint32_t ch = 0; ch < C; ++ch) {
             x->coef_start[cell++] = at;
             uint32_t kmax = x->counts[(size_t)seg * C + ch];
+            if (kmax > most) most = kmax;
             const uint8_t *row = x->class_table + (size_t)ch * NUM_BANDS;
             for (uint32_t q = 1; q <= kmax; ++q) {
                 int e = unit_next(&u, row[x->bands[q]], &x->values[at++]);
                 if (e) return unit_error(&r, e, what);
             }
         }
+        x->longest[seg - first] = most;
     }
     x->coef_start[cell] = at;
     int64_t flat = -1;
@@ -1347,22 +1384,32 @@ static int decode_frame(ctx_t *x, uint32_t f, double *rotations, double *root) {
     uint32_t i = f - x->seg_start[seg];
     set_length(x, n);
     double *signal = x->scratch + 2 * (4 * J + 3);
-    double ac_scale = sqrt(2.0 / (double)n);
-    uint32_t period = 4 * n, stride = 2 * i + 1;
+    double *row = signal + C; /* (ramp k) cos(pi (2 i + 1) k / 2 n), k = 0 .. n - 1: shared by every channel */
     const uint32_t *starts = x->coef_start + (size_t)(seg - x->chunk_first[chunk]) * C;
+    uint32_t longest = x->longest[seg - x->chunk_first[chunk]];
+    uint32_t period = 4 * n, stride = 2 * i + 1, m = 0;
+    for (uint32_t q = 1; q <= longest; ++q) {
+        m += stride;
+        if (m >= period) m -= period;
+        row[q] = x->ramp[q] * x->cosines[m];
+    }
+    double ac_scale = sqrt(2.0 / (double)n), dc_scale = 1.0 / sqrt((double)x->segment_frames);
     const int64_t *dc = x->dc + (size_t)seg * C;
+    const int32_t *values = x->values;
     for (uint32_t ch = 0; ch < C; ++ch) {
-        double step = x->base_step[ch];
-        double sum = 0.0;
-        uint32_t begin = starts[ch], end = starts[ch + 1];
-        uint32_t m = 0;
-        for (uint32_t q = 1; q <= end - begin; ++q) {
-            m += stride;
-            if (m >= period) m %= period;
-            sum += (double)x->values[begin + q - 1] * (step * x->ramp[q]) * x->cosines[m];
+        uint32_t begin = starts[ch], count = starts[ch + 1] - begin;
+        const int32_t *v = values + begin;
+        const double *r = row + 1;
+        double s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
+        uint32_t q = 0;
+        for (; q + 4 <= count; q += 4) {
+            s0 += (double)v[q] * r[q];
+            s1 += (double)v[q + 1] * r[q + 1];
+            s2 += (double)v[q + 2] * r[q + 2];
+            s3 += (double)v[q + 3] * r[q + 3];
         }
-        signal[ch] = (double)dc[ch] * (step * sqrt((double)n / (double)x->segment_frames)) / sqrt((double)n) +
-                     ac_scale * sum;
+        for (; q < count; ++q) s0 += (double)v[q] * r[q];
+        signal[ch] = x->base_step[ch] * ((double)dc[ch] * dc_scale + ac_scale * ((s0 + s1) + (s2 + s3)));
     }
     root[0] = signal[0];
     root[1] = signal[1];
@@ -1376,7 +1423,7 @@ static int decode_frame(ctx_t *x, uint32_t f, double *rotations, double *root) {
             ry = a[3] * v[0] + a[4] * v[1] + a[5] * v[2];
             rz = a[6] * v[0] + a[7] * v[1] + a[8] * v[2];
         }
-        exp_map_tan(rx, ry, rz, rotations + 4 * j);
+        exp_map_fast(rx, ry, rz, rotations + 4 * j);
     }
     /* re-references of this segment (sorted: binary search for its first) */
     if (x->num_overrides) {
