@@ -1199,10 +1199,8 @@ static int open_with(void *context, size_t context_bytes, container_t *given, co
     {
         double *rotation = x->correction_step + 1; /* J values */
         double *base_rad = x->base_step;           /* first J of C */
-        double *work = (double *)(base + l.dc); /* dist, lever, sums, reach: 4 J doubles; S x C >= 3 J + 3 */
-        double *reach = (double *)(base + l.values); /* (the dc area may hold only 3 J + 3) */
-        if (l.cosines - l.values < 8 * (size_t)J) reach = work + 3 * J; /* never: values + coefs hold >= J */
-        budgets(x, rotation, base_rad, work, work + J, work + 2 * J, reach);
+        double *work = x->scratch; /* dist, lever, sums, reach: 4 J doubles (the scratch holds 10 J + 9) */
+        budgets(x, rotation, base_rad, work, work + J, work + 2 * J, work + 3 * J);
         double root_cm = x->bound * x->root_share;
         /* channel steps: root 3 x root_cm, then 3 per joint of base (written back to front over base_rad) */
         for (uint32_t j = J; j-- > 0;) {

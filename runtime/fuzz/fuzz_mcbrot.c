@@ -1,0 +1,88 @@
+/* libFuzzer target of the runtime (built with ASan and UBSan: `make -C runtime fuzz`).
+ *
+ * Input: one mode byte, then a whole `.mcb` stream. Mode bit 0 clear: the stream goes through mcbrot_open (container,
+ * CRC, payload). Mode bit 0 set: its payload goes through mcbrot_open_payload with the frame count, joint count and
+ * frame rate its header names (clamped into range), skipping the CRC, so that mutations reach the payload parser
+ * and the entropy decoder instead of stopping at the checksum. An opened clip is then sampled: its first frames,
+ * its last, and times taken from the input with every rounding mode. Contexts above 64 MiB are not allocated (an
+ * engine checks mcbrot_context_size against its budget the same way).
+ */
+#include <math.h>
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "mcbrot.h"
+
+#define MAX_CONTEXT (64u << 20)
+
+static uint32_t le32(const uint8_t *p) {
+    return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24;
+}
+
+static void exercise(void *context, const uint8_t *data, size_t size) {
+    mcbrot_clip_info info;
+    if (mcbrot_info(context, &info) != MCBROT_OK) abort();
+    size_t joints = info.num_joints;
+    double *rotations = malloc(sizeof(double) * (4 * joints * 4 + 12));
+    double *roots = rotations + 4 * joints * 4;
+    if (!rotations) return;
+    uint32_t count = info.num_frames < 4 ? info.num_frames : 4;
+    (void)mcbrot_decode_frames(context, 0, count, rotations, roots);
+    (void)mcbrot_decode_frames(context, info.num_frames - 1, 1, rotations, roots);
+    (void)mcbrot_decode_frames(context, info.num_frames, 1, rotations, roots); /* outside: an error */
+    for (int k = 0; k < 4 && size >= 8 * (size_t)(k + 1); ++k) {
+        uint32_t bits = le32(data + size - 4 * (k + 1));
+        double t = info.duration_s * (double)(bits & 0xffff) / 65535.0;
+        (void)mcbrot_sample(context, t, (int)(bits >> 16) & 3, rotations, roots);
+    }
+    (void)mcbrot_sample(context, -1.0, MCBROT_LINEAR, rotations, roots);
+    (void)mcbrot_sample(context, NAN, MCBROT_NEAREST, rotations, roots);
+    (void)mcbrot_sample(context, info.duration_s, MCBROT_CEIL, rotations, roots);
+    float f32[4 * 64 + 3];
+    if (joints <= 64) (void)mcbrot_sample_f32(context, 0.5 * info.duration_s, MCBROT_LINEAR, f32, f32 + 4 * 64);
+    free(rotations);
+}
+
+int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
+    if (size < 1) return 0;
+    int payload_mode = data[0] & 1;
+    const uint8_t *stream = data + 1;
+    size_t bytes = size - 1;
+    size_t context_bytes = 0;
+    char message[256];
+    if (!payload_mode) {
+        if (mcbrot_context_size(stream, bytes, &context_bytes, message, sizeof message) != MCBROT_OK) return 0;
+        if (context_bytes > MAX_CONTEXT) return 0;
+        void *context = aligned_alloc(MCBROT_CONTEXT_ALIGN, (context_bytes + 15) & ~(size_t)15);
+        if (!context) return 0;
+        if (mcbrot_open(context, context_bytes, stream, bytes) == MCBROT_OK) exercise(context, data, size);
+        /* a context one byte short must be refused */
+        if (context_bytes > 256 && mcbrot_open(context, context_bytes - 16, stream, bytes) != MCBROT_E_CONTEXT_SMALL)
+            abort();
+        free(context);
+        return 0;
+    }
+    /* payload mode: find the payload after the container header without checking the CRC */
+    if (bytes < 10 || memcmp(stream, "MCB\0", 4) != 0) return 0;
+    uint32_t version = stream[4], name = stream[9];
+    size_t fields = version == 1 ? 18 : 23, fixed = 10 + name + fields;
+    if (bytes < fixed) return 0;
+    const uint8_t *f = stream + 10 + name;
+    uint32_t frames = le32(f), joints = (uint32_t)f[4] | (uint32_t)f[5] << 8;
+    if (frames < 1 || frames > 100000) frames = frames % 100000 + 1;
+    if (joints < 1 || joints > 4096) joints = joints % 4096 + 1;
+    double fps = 120.0;
+    const uint8_t *payload = stream + fixed;
+    size_t payload_bytes = bytes - fixed;
+    if (mcbrot_payload_context_size(payload, payload_bytes, frames, joints, fps, &context_bytes, message,
+                                    sizeof message) != MCBROT_OK)
+        return 0;
+    if (context_bytes > MAX_CONTEXT) return 0;
+    void *context = aligned_alloc(MCBROT_CONTEXT_ALIGN, (context_bytes + 15) & ~(size_t)15);
+    if (!context) return 0;
+    if (mcbrot_open_payload(context, context_bytes, payload, payload_bytes, frames, joints, fps) == MCBROT_OK)
+        exercise(context, data, size);
+    free(context);
+    return 0;
+}

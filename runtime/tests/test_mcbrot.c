@@ -1,0 +1,149 @@
+/* Tests of the runtime on streams given on the command line (`make test`: the repository's golden streams; built
+ * with ASan and UBSan). Every stream: the right status for what it is (format 6 mcb-rot opens; older mcb-rot
+ * formats, other codecs refused); every format 6 stream: every frame decodes to unit quaternions, the sampling
+ * modes agree with the frames, and every hostile variant (each truncation, flipped bytes, a context too small,
+ * times outside the clip) is refused with a status and a message. Prints one line per stream; exit 1 on failure. */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "mcbrot.h"
+
+static int failures = 0;
+#define CHECK(cond, ...)                                                                                           \
+    do {                                                                                                           \
+        if (!(cond)) {                                                                                             \
+            ++failures;                                                                                            \
+            printf("FAIL %s:%d: ", __FILE__, __LINE__);                                                            \
+            printf(__VA_ARGS__);                                                                                   \
+            printf("\n");                                                                                          \
+        }                                                                                                          \
+    } while (0)
+
+static unsigned char *read_file(const char *path, size_t *n) {
+    FILE *f = fopen(path, "rb");
+    if (!f) return NULL;
+    fseek(f, 0, SEEK_END);
+    long size = ftell(f);
+    fseek(f, 0, SEEK_SET);
+    unsigned char *data = malloc((size_t)size + 1);
+    *n = fread(data, 1, (size_t)size, f);
+    fclose(f);
+    return data;
+}
+
+static void *open_clip(const unsigned char *data, size_t n, int *status, size_t *size) {
+    char message[256];
+    *status = mcbrot_context_size(data, n, size, message, sizeof message);
+    if (*status) return NULL;
+    void *context = aligned_alloc(16, (*size + 15) & ~(size_t)15);
+    *status = mcbrot_open(context, *size, data, n);
+    if (*status) {
+        free(context);
+        return NULL;
+    }
+    return context;
+}
+
+static void test_hostile(const unsigned char *data, size_t n) {
+    unsigned char *copy = malloc(n);
+    size_t size;
+    int status;
+    for (size_t cut = 0; cut < n; cut += 1 + cut / 64) { /* every truncation is refused */
+        memcpy(copy, data, cut);
+        void *context = open_clip(copy, cut, &status, &size);
+        CHECK(context == NULL && status != MCBROT_OK, "a stream cut at %zu of %zu bytes opened", cut, n);
+        free(context);
+    }
+    for (size_t at = 0; at < n; at += 1 + at / 32) { /* a flipped byte: the CRC (or the header) catches it */
+        memcpy(copy, data, n);
+        copy[at] ^= 0x5a;
+        void *context = open_clip(copy, n, &status, &size);
+        CHECK(context == NULL && status != MCBROT_OK, "a stream with byte %zu flipped opened", at);
+        free(context);
+    }
+    free(copy);
+}
+
+static void test_stream(const char *path, const unsigned char *data, size_t n) {
+    size_t size;
+    int status;
+    void *context = open_clip(data, n, &status, &size);
+    int is_rot = n > 17 && data[9] == 7 && memcmp(data + 10, "mcb-rot", 7) == 0;
+    size_t header = 9 + 1 + data[9] + 23;
+    int format = is_rot && n > header ? data[header] : -1;
+    if (!is_rot) {
+        CHECK(status == MCBROT_E_NOT_MCBROT, "%s: another codec's stream gave status %d", path, status);
+        printf("ok %s: another codec's stream refused\n", path);
+        free(context);
+        return;
+    }
+    if (format != MCBROT_PAYLOAD_FORMAT) {
+        CHECK(status == MCBROT_E_FORMAT, "%s: format %d gave status %d", path, format, status);
+        printf("ok %s: payload format %d refused\n", path, format);
+        free(context);
+        return;
+    }
+    CHECK(status == MCBROT_OK, "%s: status %d (%s)", path, status, context ? mcbrot_message(context) : "");
+    if (!context) return;
+    mcbrot_clip_info info;
+    CHECK(mcbrot_info(context, &info) == MCBROT_OK, "info");
+    size_t J = info.num_joints, F = info.num_frames;
+    double *rotations = malloc(sizeof(double) * 4 * J * F), *roots = malloc(sizeof(double) * 3 * F);
+    CHECK(mcbrot_decode_frames(context, 0, (uint32_t)F, rotations, roots) == MCBROT_OK, "%s: decode: %s", path,
+          mcbrot_message(context));
+    for (size_t i = 0; i < J * F; ++i) {
+        double *q = rotations + 4 * i;
+        double norm = q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3];
+        CHECK(fabs(norm - 1.0) < 1e-9, "%s: quaternion %zu has norm %g", path, i, norm);
+        if (fabs(norm - 1.0) >= 1e-9) break;
+    }
+    /* sampling: nearest / floor / ceil at frame times give the frames; linear halfway lies between */
+    double pose[4 * 256 + 3], root[3];
+    for (size_t f = 0; f < F && J <= 256; f += 1 + F / 17) {
+        double t = (double)f / info.fps;
+        for (int mode = 0; mode < 3; ++mode) {
+            CHECK(mcbrot_sample(context, t, mode, pose, root) == MCBROT_OK, "sample");
+            CHECK(memcmp(pose, rotations + 4 * J * f, 32 * J) == 0 && memcmp(root, roots + 3 * f, 24) == 0,
+                  "%s: sample mode %d at frame %zu differs from the frame", path, mode, f);
+        }
+        if (f + 1 < F) {
+            CHECK(mcbrot_sample(context, (f + 0.5) / info.fps, MCBROT_LINEAR, pose, root) == MCBROT_OK, "linear");
+            double low = fmin(roots[3 * f], roots[3 * f + 3]), high = fmax(roots[3 * f], roots[3 * f + 3]);
+            CHECK(root[0] >= low - 1e-9 && root[0] <= high + 1e-9, "%s: linear root outside its frames", path);
+        }
+    }
+    float f32[4 * 64 + 3];
+    if (J <= 64) CHECK(mcbrot_sample_f32(context, 0.0, MCBROT_NEAREST, f32, f32 + 4 * J) == MCBROT_OK, "f32");
+    /* bad calls */
+    CHECK(mcbrot_sample(context, NAN, MCBROT_NEAREST, pose, root) == MCBROT_E_TIME, "NaN time accepted");
+    CHECK(mcbrot_sample(context, -1e-9, MCBROT_NEAREST, pose, root) == MCBROT_E_TIME, "negative time accepted");
+    CHECK(mcbrot_sample(context, info.duration_s * 1.001 + 1e-6, MCBROT_FLOOR, pose, root) == MCBROT_E_TIME,
+          "a time past the end accepted");
+    CHECK(strlen(mcbrot_message(context)) > 10, "no message for a bad time");
+    CHECK(mcbrot_decode_frames(context, (uint32_t)F, 1, pose, root) == MCBROT_E_ARGUMENT, "a frame past the end");
+    void *small = aligned_alloc(16, size);
+    CHECK(mcbrot_open(small, size - 16, data, n) == MCBROT_E_CONTEXT_SMALL, "a small context accepted");
+    CHECK(strstr(mcbrot_message(small), "needs") != NULL, "the message says what it needs");
+    CHECK(mcbrot_sample(small, 0.0, MCBROT_NEAREST, pose, root) == MCBROT_E_NOT_OPEN, "a failed open samples");
+    free(small);
+    test_hostile(data, n);
+    printf("ok %s: %zu frames, %zu joints, context %zu bytes (+ %zu stream)\n", path, F, J, info.context_bytes, n);
+    free(rotations);
+    free(roots);
+    free(context);
+}
+
+int main(int argc, char **argv) {
+    CHECK(mcbrot_abi_version() == MCBROT_ABI_VERSION, "ABI");
+    for (int i = 1; i < argc; ++i) {
+        size_t n;
+        unsigned char *data = read_file(argv[i], &n);
+        CHECK(data != NULL, "cannot read %s", argv[i]);
+        if (data) test_stream(argv[i], data, n);
+        free(data);
+    }
+    printf("%d failure(s)\n", failures);
+    return failures ? 1 : 0;
+}
