@@ -26,7 +26,7 @@ import pandas as pd
 
 from mocapbench.experiments import plots
 from mocapbench.experiments.aggregate import aggregate, curve_points, read_errors
-from mocapbench.experiments.animator_report import add_animator_section
+from mocapbench.experiments.animator_report import FLAG_COLUMN, add_animator_section
 from mocapbench.experiments.animator_report import method_bullets as animator_method_bullets
 from mocapbench.experiments.bdrate import DEFAULT_ANCHOR, bd_rate_table
 from mocapbench.experiments.document import Document, markdown_table
@@ -127,7 +127,7 @@ def headline_text(rows: pd.DataFrame, points: pd.DataFrame, errors: pd.DataFrame
     shown = ["rank", "codec", "config", "CR", EQUAL_FACTOR, EQUAL_AT, "bits/joint/frame", "L∞ cm", "decode frames/s",
              "rotations (BVH/glTF)", "needs model", "latency frames"]
     for (dataset, bound), group in table.groupby(["dataset", "L∞ bound"], sort=False):
-        notes = ["note"] if group["note"].fillna("").astype(str).str.len().gt(0).any() else []
+        notes = [c for c in (FLAG_COLUMN, "note") if group[c].fillna("").astype(str).str.len().gt(0).any()]
         lines += ["", f"{dataset}, L∞ {bound}:", "", markdown_table(group[shown + notes])]
     return "\n".join(lines)
 
