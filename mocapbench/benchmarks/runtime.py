@@ -95,8 +95,7 @@ def _streams(motions, eps: float, folder: Path, tag: str) -> tuple[list[str], di
     return lines, pooled
 
 
-def _run(program: Path, lines: list[str], folder: Path, repeats: int) -> list[dict]:
-    manifest = folder / "manifest.txt"
+def _run(program: Path, lines: list[str], manifest: Path, repeats: int) -> list[dict]:
     manifest.write_text("\n".join(lines) + "\n")
     result = subprocess.run([str(program), str(manifest), str(repeats)], capture_output=True, text=True, check=True)
     rows = []
@@ -133,6 +132,8 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--eps", type=float, nargs="+", default=[0.1, 0.5, 1.0])
     parser.add_argument("--every", type=int, nargs="+", default=[1, 5], help="frame steps (1: 120 fps, 5: 24 fps)")
     parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--keep", default=None, help="folder to keep the streams and manifests in (else a temporary "
+                        "one): rerun the harness on them with `<harness> <folder>/<case>.txt REPEATS`")
     args = parser.parse_args(argv)
     from mocapbench.datasets.cmu import load_split
 
@@ -141,14 +142,16 @@ def main(argv: list[str] | None = None) -> None:
     print(f"# the mcb-rot runtime beside ACL 2.1 on {args.dataset} ({len(motions)} clips; load average "
           f"{os.getloadavg()[0]:.1f}; flags {' '.join(_FLAGS)})")
     with tempfile.TemporaryDirectory() as tmp:
-        folder = Path(tmp)
+        folder = Path(args.keep or tmp)
+        folder.mkdir(parents=True, exist_ok=True)
+        print(f"(harness: {program})")
         for step in args.every:
             clips = [m.every(step) for m in motions] if step > 1 else motions
             fps = clips[0].fps
             for eps in args.eps:
                 wall, cpu = time.perf_counter(), time.process_time()
                 lines, pooled = _streams(clips, eps, folder, f"e{step}-{eps:g}")
-                rows = _run(program, lines, folder, args.repeats)
+                rows = _run(program, lines, folder / f"e{step}-{eps:g}.txt", args.repeats)
                 _table(rows, pooled, f"{args.dataset} at {fps:g} fps, ε = {eps:g} cm")
                 print(f"({time.perf_counter() - wall:.0f} s wall, {time.process_time() - cpu:.0f} s CPU of this "
                       f"process beside the harness; load average {os.getloadavg()[0]:.1f})")
