@@ -183,6 +183,18 @@ static int read_count(reader_t *r, uint32_t *out, uint64_t limit, const char *wh
     return MCBROT_OK;
 }
 
+/* A byte count that must fit in what follows it (checked after its own bytes are read). */
+static int read_size(reader_t *r, uint32_t *out, const char *what) {
+    uint64_t value;
+    int s = read_varint(r, &value, what, 10);
+    if (s) return s;
+    if (value > r->end - r->pos)
+        return fail(MSG(r), MCBROT_E_TRUNCATED, "mcb-rot: the %s says %llu bytes, only %zu are left", what,
+                    (unsigned long long)value, r->end - r->pos);
+    *out = (uint32_t)value;
+    return MCBROT_OK;
+}
+
 /* ---------------------------------------------------------------------------------------------------------- */
 /* CRC32 (zlib's polynomial), bitwise with a 16-entry table: no global state                                   */
 
@@ -545,12 +557,12 @@ static int plan(const container_t *c, header_t *h, reader_t *r, uint32_t *cuts_o
                         (unsigned long long)joint, h->joints);
     }
     uint32_t blob;
-    if ((s = read_count(r, &blob, r->end - r->pos, "offsets size"))) return s;
+    if ((s = read_size(r, &blob, "offsets size"))) return s;
     h->offsets_at = r->pos;
     h->offsets_bytes = blob;
     if ((s = read_offsets(r, r->data + r->pos, blob, h->joints + h->ends, ldexp(1.0, h->exponent), NULL, 0))) return s;
     r->pos += blob;
-    if ((s = read_count(r, &blob, r->end - r->pos, "skeleton names size"))) return s;
+    if ((s = read_size(r, &blob, "skeleton names size"))) return s;
     r->pos += blob; /* zstd: names and channel orders, not needed to sample */
     /* cuts */
     h->cuts_at = r->pos;
