@@ -356,8 +356,10 @@ def compare(
             current = name
             if name in UNAVAILABLE and name not in CODECS:
                 outcomes.append(CodecOutcome(name, [], reason=f"unavailable here: {UNAVAILABLE[name]}"))
+                progress.skip(name, len(motions))
             elif name not in CODECS:
-                outcomes.append(CodecOutcome(name, [], reason=f"unknown codec; `mocapbench codecs` lists them"))
+                outcomes.append(CodecOutcome(name, [], reason="unknown codec; `mocapbench codecs` lists them"))
+                progress.skip(name, len(motions))
             else:
                 outcomes.append(_compare_codec(name, motions, plan, store, progress))
             current = None
