@@ -148,7 +148,8 @@ def test_units_per_file_on_the_command_line(tmp_path):
     assert choice.units_for(b) == ("cmu", "--units b.bvh:cmu")
     assert choice.units_for(c) == (None, "sidecar c.bvh.units")  # read_motion reads it
     assert choice.units_for(tmp_path / "d.bvh") == ("cm", "--units")
-    assert UnitChoice.parse(None).units_for(a) == (None, "the format's default")
+    assert UnitChoice.parse(None).units_for(a) == (None, "default; --units to change")  # BVH declares no unit
+    assert UnitChoice.parse(None).units_for(tmp_path / "d.fbx") == (None, "declared by the file's UnitScaleFactor")
     assert UnitChoice.parse("a.bvh:inch,typo.bvh:m").unmatched([a, b]) == ["typo.bvh"]
 
 

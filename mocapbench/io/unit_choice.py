@@ -138,7 +138,9 @@ class UnitChoice:
             return None, f"sidecar {sidecar_path(path).name}"
         if self.default_units is not None:
             return self.default_units, "--units"
-        return None, "the format's default"
+        from mocapbench.io.formats import default_unit_source
+
+        return None, default_unit_source(path)
 
     def unmatched(self, paths: Iterable[str | Path]) -> list[str]:
         """``FILE`` parts of ``--units FILE:UNIT`` that name none of ``paths`` (a typo the user must hear about)."""
