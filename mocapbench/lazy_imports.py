@@ -6,7 +6,7 @@ therefore take :data:`Rotation` from here instead of ``scipy.spatial.transform``
 real class the first time it is called, an attribute is read (``Rotation.from_quat``) or it is used in
 ``isinstance``. ``scipy.fft`` needs no stand-in: ``import scipy`` is cheap and ``scipy.fft`` loads on first access.
 
-Torch, pandas, matplotlib and Hydra are imported inside the functions that use them (see ``mocapbench/cli.py``).
+Torch, pandas, matplotlib and Hydra are imported inside the functions that use them (see :mod:`mocapbench.cli`).
 """
 
 from __future__ import annotations

@@ -147,7 +147,7 @@ def test_model_files_round_trip_and_are_checked(tmp_path):
 
 
 def test_compare_ranks_the_codecs_at_the_bound_and_names_the_failures(tmp_path, capsys):
-    from mocapbench.compare import compare, format_table
+    from mocapbench.cli.compare import compare, format_table
 
     clips = [sinusoidal_motion(num_frames=80, seed=seed) for seed in (1, 2)]
     outcomes = compare(clips, 1.0, ["quant-delta-zstd", "mcb-linf", "dct-spatial-clip", "raw-zstd", "nonsense"])

@@ -13,7 +13,7 @@ from mocapbench.io.fbx import read_fbx
 from mocapbench.io.formats import read_motion
 from mocapbench.motion import MotionFormatError
 from mocapbench.synthetic import rig_motion, user_case
-from mocapbench.synthetic_game import game_rig_motion
+from mocapbench.synthetic.game import game_rig_motion
 
 
 @pytest.mark.parametrize("case", ["biped-22-zup-mm-xyz", "biped-52-yup-inch-mixed", "random-33-yup-cmu-yzx"])

@@ -15,7 +15,7 @@ from mocapbench.io import read_bvh
 from mocapbench.io.gltf import read_gltf, write_gltf
 from mocapbench.motion import MotionFormatError
 from mocapbench.synthetic import rig_motion, user_case, write_case_bvh
-from mocapbench.synthetic_game import game_rig_motion
+from mocapbench.synthetic.game import game_rig_motion
 
 _DTYPES = {5126: np.float32, 5123: np.uint16, 5125: np.uint32}
 _WIDTHS = {"SCALAR": 1, "VEC3": 3, "VEC4": 4, "MAT4": 16}

@@ -17,7 +17,7 @@ from mocapbench.benchmarks.rig_io import (
 )
 from mocapbench.io.bvh import read_bvh
 from mocapbench.io.gltf import write_gltf
-from mocapbench.synthetic_game import game_rig_motion
+from mocapbench.synthetic.game import game_rig_motion
 
 
 def test_the_judges_agree_with_the_motion_model(tmp_path):

@@ -16,7 +16,7 @@ from mocapbench.synthetic import (
     with_tpose_first_frame,
     write_case_bvh,
 )
-from mocapbench.synthetic_rigs import EULER_ORDERS, TOPOLOGIES, USER_CASE_NAMES, UNITS_CM, RigConfig, rotate_to_z_up
+from mocapbench.synthetic.rigs import EULER_ORDERS, TOPOLOGIES, USER_CASE_NAMES, UNITS_CM, RigConfig, rotate_to_z_up
 
 
 @pytest.mark.parametrize("topology", TOPOLOGIES)

@@ -178,8 +178,8 @@ def main(argv: list[str] | None = None) -> int:
         parser.error("--repeats must be at least 1")
     trees = {}
     if args.old is not None:
-        if not (args.old / "mocapbench" / "cli.py").is_file():
-            parser.error(f"--old {args.old}: no mocapbench/cli.py there")
+        if not any((args.old / "mocapbench" / cli).exists() for cli in ("cli", "cli.py")):
+            parser.error(f"--old {args.old}: no mocapbench/cli there")
         trees["old"] = args.old.resolve()
     trees["new"] = (args.new or this_checkout()).resolve()
     print(format_table(run(trees, repeats=args.repeats, clip=args.clip, python=args.python)))

@@ -6,7 +6,7 @@
 Prints, as markdown (and writes to ``--out`` if given):
 
 1. **codec x case**: the compression ratio (float32 positions / stream bytes) at L-inf <= ``bound`` (1 cm) on each
-   synthetic case of :func:`mocapbench.synthetic_rigs.user_cases` (15-70 joints, Y/Z-up, mm/m/inch/CMU units, every
+   synthetic case of :func:`mocapbench.synthetic.rigs.user_cases` (15-70 joints, Y/Z-up, mm/m/inch/CMU units, every
    Euler order, 2 frames, a T-pose first frame, two takes; ``--long`` adds the 20,000-frame case), found by the rate
    search (:mod:`mocapbench.ratesearch`); or the one-line reason a codec cannot. Learned codecs appear twice: as
    shipped (no fit: ``mcb-linf`` then runs untrained on other skeletons, the LSDT codecs say they need a model) and
@@ -197,7 +197,7 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--data-dir", help="CMU data folder (default: found as usual)")
     parser.add_argument("--out", help="also write the tables to this markdown file")
     args = parser.parse_args(argv)
-    from mocapbench.synthetic_rigs import user_case, user_cases
+    from mocapbench.synthetic.rigs import user_case, user_cases
 
     codecs = args.codecs.split(",") if args.codecs else sorted(CODECS) + sorted(UNAVAILABLE)
     lines = [f"mocapbench.benchmarks.own_data, bound {args.bound_cm:g} cm, load average at start "

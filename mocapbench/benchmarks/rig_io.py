@@ -208,7 +208,7 @@ def _sources(bandai_dir: str | None, cmu_dir: str | None, limit: int | None) -> 
 def cost_rows(num_frames: int, repeats: int, folder: Path) -> list[dict]:
     """CPU and wall microseconds per frame and joint of each reader on one synthetic game rig of ``num_frames``."""
     from mocapbench.io.gltf import read_gltf
-    from mocapbench.synthetic_game import game_rig_motion
+    from mocapbench.synthetic.game import game_rig_motion
 
     motion = game_rig_motion(num_frames=num_frames, fps=30.0, stretch_cm=2.0, seed=0)
     files = {

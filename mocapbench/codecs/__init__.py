@@ -1,8 +1,10 @@
 """Codecs: one interface (:class:`Codec`), one registry (:data:`CODECS`, :func:`create`).
 
-Importing this package imports every codec module in it so that the registry is full (a new codec module
-only needs ``@register_codec``). Codecs live inside the ``mocapbench`` package because a top-level ``codecs``
-package would shadow Python's standard ``codecs`` module.
+Every codec family is a sub-package; the modules beside them are the machinery the families share (interface,
+registry, container, limits, segments, windows, skeleton blob, model file). Importing this package imports every
+sub-package so that the registry is full: a new family only needs a folder whose ``__init__`` imports its
+``@register_codec`` classes. Codecs live inside the ``mocapbench`` package because a top-level ``codecs`` package
+would shadow Python's standard ``codecs`` module.
 """
 
 import importlib
@@ -20,9 +22,8 @@ from mocapbench.codecs.registry import (
     register_unavailable,
 )
 
-_INFRASTRUCTURE = {"base", "registry", "container", "skeleton_blob", "limits", "windows"}
 for _module in pkgutil.iter_modules(__path__):
-    if _module.name not in _INFRASTRUCTURE and not _module.name.startswith("_"):
+    if _module.ispkg and not _module.name.startswith("_"):
         importlib.import_module(f"{__name__}.{_module.name}")
 
 __all__ = [

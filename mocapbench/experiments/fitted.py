@@ -82,13 +82,13 @@ _MCB_FIT_FIELDS = ("representation", "clip_frames", "frequency_slope", "root_ste
 
 
 def _mcb_needs_fit(codec: Codec) -> bool:
-    from mocapbench.codecs import mcb_linf
+    from mocapbench.codecs.mcb_linf import codec as mcb_linf
 
     return mcb_linf._needs_model(codec.config.representation, codec.config.entropy)
 
 
 def _mcb_shipped(codec: Codec, train: Mapping[str, Any]) -> bool:
-    """The shipped model was fit by ``train_mcb_linf`` with the default fit settings on ``cmu_train``."""
+    """The shipped model was fit by ``benchmarks.mcb_linf.train`` with the default settings on ``cmu_train``."""
     defaults = type(codec.config)()
     same = all(getattr(codec.config, f) == getattr(defaults, f) for f in _MCB_FIT_FIELDS)
     return same and codec.config.representation == "pca" and _is_cmu_train(train)

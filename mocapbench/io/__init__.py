@@ -6,11 +6,9 @@ was expected when the input is malformed; a missing file raises :class:`MotionFi
 is both a ``MotionFormatError`` and a ``FileNotFoundError``.
 """
 
-from __future__ import annotations
-
-from pathlib import Path
-
-from mocapbench.motion import MotionFormatError
+from mocapbench.io.asf_amc import CMU_CM_PER_UNIT, AsfSkeleton, find_asf, read_amc, read_asf
+from mocapbench.io.bvh import read_bvh, write_bvh
+from mocapbench.io.text import MotionFileNotFoundError, read_text
 
 __all__ = [
     "MotionFileNotFoundError",
@@ -23,44 +21,3 @@ __all__ = [
     "find_asf",
     "CMU_CM_PER_UNIT",
 ]
-
-
-class MotionFileNotFoundError(MotionFormatError, FileNotFoundError):
-    """A motion or skeleton file does not exist (catchable as ``MotionFormatError`` or ``FileNotFoundError``)."""
-
-
-def read_text(path: str | Path, what: str) -> str:
-    """The whole text of ``path``, with every failure as a :class:`MotionFormatError` naming the file.
-
-    Parameters
-    ----------
-    path : str or Path
-    what : str
-        The kind of file for messages, e.g. ``"BVH file"``.
-
-    Raises
-    ------
-    MotionFileNotFoundError
-        ``path`` does not exist.
-    MotionFormatError
-        ``path`` is a folder, cannot be read, is not UTF-8 text, or is empty (only whitespace).
-    """
-    path = Path(path)
-    if not path.exists():
-        raise MotionFileNotFoundError(f"{path}: {what} does not exist.")
-    if path.is_dir():
-        raise MotionFormatError(f"{path}: expected a {what}, got a folder.")
-    try:
-        text = path.read_text(encoding="utf-8")
-    except UnicodeDecodeError as error:
-        raise MotionFormatError(f"{path}: expected a {what} as text, got undecodable bytes ({error.reason}).") from None
-    except OSError as error:
-        raise MotionFormatError(f"{path}: cannot read the {what}: {error.strerror or error}.") from None
-    if not text.strip():
-        raise MotionFormatError(f"{path}: the {what} is empty.")
-    return text
-
-
-# The readers import the helpers above, so they come after them.
-from mocapbench.io.asf_amc import CMU_CM_PER_UNIT, AsfSkeleton, find_asf, read_amc, read_asf  # noqa: E402
-from mocapbench.io.bvh import read_bvh, write_bvh  # noqa: E402

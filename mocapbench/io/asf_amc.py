@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 from mocapbench.lazy_imports import Rotation
 
-from mocapbench.io import read_text
+from mocapbench.io.text import read_text
 from mocapbench.motion import Motion, MotionFormatError, Skeleton
 
 __all__ = ["CMU_LENGTH_SCALE", "CMU_CM_PER_UNIT", "AsfSkeleton", "read_asf", "read_amc"]

@@ -44,7 +44,7 @@ from typing import BinaryIO
 import numpy as np
 from mocapbench.lazy_imports import Rotation
 
-from mocapbench.io import MotionFileNotFoundError
+from mocapbench.io.text import MotionFileNotFoundError
 from mocapbench.io.read_limits import check_motion_size
 from mocapbench.io.safe_output import check_output, open_output
 from mocapbench.motion import Motion, MotionFormatError, OwnedQuaternions, Skeleton

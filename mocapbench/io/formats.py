@@ -18,36 +18,18 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from mocapbench.io import MotionFileNotFoundError
+from mocapbench.io.format_table import READ_SUFFIXES, WRITE_SUFFIXES, default_unit_source
+from mocapbench.io.text import MotionFileNotFoundError
 from mocapbench.io.units import parse_units, rest_height_warning, with_source
 from mocapbench.motion import Motion, MotionFormatError
 
 __all__ = ["READ_SUFFIXES", "WRITE_SUFFIXES", "UnitCheckError", "default_unit_source", "read_motion", "write_motion"]
 
-READ_SUFFIXES = (".bvh", ".amc", ".gltf", ".glb", ".fbx")
-WRITE_SUFFIXES = (".bvh", ".gltf", ".glb")
 _GLTF_UNIT_CM = 100.0  # glTF 2.0: "the units for all linear distances are meters"
 
 
 class UnitCheckError(MotionFormatError):
     """Under ``--strict``, a file whose body is not a body's size in the unit it is read with."""
-
-
-# Where the unit of a file read without --units comes from, by suffix: only BVH has no unit of its own.
-_DEFAULT_UNIT_SOURCES = {
-    ".bvh": "default; --units to change",
-    ".amc": "declared by the ASF's :units length",
-    ".gltf": "the glTF standard: metres",
-    ".glb": "the glTF standard: metres",
-    ".fbx": "declared by the file's UnitScaleFactor",
-}
-
-
-def default_unit_source(path: str | Path) -> str:
-    """Where :func:`read_motion` takes a file's unit from when no ``--units`` or sidecar says it, for reports:
-    ``"declared by the file's UnitScaleFactor"`` for FBX, ``"default; --units to change"`` for BVH (the one format
-    that declares no unit), ...; ``"the format's default"`` for another suffix."""
-    return _DEFAULT_UNIT_SOURCES.get(Path(path).suffix.lower(), "the format's default")
 
 
 def read_motion(

@@ -19,6 +19,7 @@ import dataclasses
 from collections.abc import Iterable
 from pathlib import Path
 
+from mocapbench.io.format_table import default_unit_source
 from mocapbench.io.units import parse_units, parse_up_axis
 
 __all__ = ["SIDECAR_SUFFIX", "UnitChoice", "read_sidecar", "sidecar_path", "verdict"]
@@ -138,8 +139,6 @@ class UnitChoice:
             return None, f"sidecar {sidecar_path(path).name}"
         if self.default_units is not None:
             return self.default_units, "--units"
-        from mocapbench.io.formats import default_unit_source
-
         return None, default_unit_source(path)
 
     def unmatched(self, paths: Iterable[str | Path]) -> list[str]:

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from mocapbench.codecs import CODECS, create
-from mocapbench.codecs.baselines import RawZstdCodec
+from mocapbench.codecs.baselines.codecs import RawZstdCodec
 from mocapbench.fuzz import memory_motion, traced_decode_peak
 
 FRAMES = 5000

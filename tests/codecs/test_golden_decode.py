@@ -59,7 +59,7 @@ def test_a_stream_written_before_decodes_as_it_did(case):
 
 def test_the_comparison_sees_a_misplaced_coefficient():
     """One coefficient off by one step (a misplaced or misread value) moves the positions far past the tolerance."""
-    import mocapbench.codecs.mcb_linf as mcb_linf
+    import mocapbench.codecs.mcb_linf.codec as mcb_linf
 
     data = (GOLDEN / "mcb-linf-trained.mcb").read_bytes()
     record = json.loads((GOLDEN / "mcb-linf-trained.json").read_text())

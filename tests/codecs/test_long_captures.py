@@ -19,7 +19,7 @@ def _error(codec, motion, stream):
 
 
 def test_mcb_linf_codes_a_long_capture_window_by_window_and_keeps_its_bound(monkeypatch):
-    from mocapbench.codecs import mcb_linf
+    from mocapbench.codecs.mcb_linf import codec as mcb_linf
 
     motion = sinusoidal_motion(num_frames=1000, seed=4)
     whole = create("mcb-linf", eps_cm=0.5).encode(motion)
@@ -39,7 +39,7 @@ def test_mcb_linf_codes_a_long_capture_window_by_window_and_keeps_its_bound(monk
 @settings(max_examples=300, deadline=None)
 @given(st.integers(7681, 2_000_000), st.sampled_from([2, 257, 1025, 1000, 2049, 7681]), st.integers(0, 10))
 def test_pga_ik_windows_of_a_long_capture_end_on_a_kept_trajectory_sample(num_frames, window_frames, dropped):
-    from mocapbench.codecs.pga import _long_extents
+    from mocapbench.codecs.pga.codec import _long_extents
 
     grid = 1 << dropped
     extents = _long_extents(num_frames, window_frames, grid)
@@ -55,7 +55,7 @@ def test_pga_ik_windows_of_a_long_capture_end_on_a_kept_trajectory_sample(num_fr
 
 
 def test_pga_ik_codes_each_window_of_a_long_capture_as_a_clip_of_its_own(monkeypatch):
-    from mocapbench.codecs import pga
+    from mocapbench.codecs.pga import codec as pga
     from mocapbench.codecs.windows import encode_windows, split_windows
 
     motion = sinusoidal_motion(num_frames=600, seed=4)
@@ -83,7 +83,7 @@ def test_pga_ik_codes_each_window_of_a_long_capture_as_a_clip_of_its_own(monkeyp
 
 
 def test_pga_ik_fits_one_pose_model_per_window(monkeypatch):
-    from mocapbench.codecs import pga
+    from mocapbench.codecs.pga import codec as pga
 
     motion = sinusoidal_motion(num_frames=600, seed=4)
     codec = create("pga-ik", num_geodesics=12, root_levels_dropped=0, end_levels_dropped=0, window_frames=257)
@@ -106,7 +106,7 @@ def test_pga_ik_fits_one_pose_model_per_window(monkeypatch):
 
 
 def test_svd_of_a_long_capture_uses_the_gram_matrix_with_the_same_result(monkeypatch):
-    from mocapbench.codecs import svd
+    from mocapbench.codecs.neural_fourier import svd
 
     motion = sinusoidal_motion(num_frames=900, seed=4)
     direct = create("svd", rank=16)
@@ -129,7 +129,7 @@ SPATIAL_TRANSFORM_CODECS = ["lsdt-frame", "lsdt-clip", "dct-spatial-frame", "dct
 
 @pytest.mark.parametrize("name", SPATIAL_TRANSFORM_CODECS)
 def test_spatial_transform_codecs_code_a_long_capture_window_by_window(name, monkeypatch):
-    from mocapbench.codecs import lsdt
+    from mocapbench.codecs.lsdt import pipeline as lsdt
 
     motion = sinusoidal_motion(num_frames=1100, seed=4)
     short = motion.slice(0, 300)
@@ -154,7 +154,7 @@ def test_spatial_transform_codecs_code_a_long_capture_window_by_window(name, mon
 
 @pytest.mark.parametrize("name", ["lsdt-frame", "dct-spatial-frame"])
 def test_frame_codecs_restart_their_closed_loop_per_window_within_the_bound(name, monkeypatch):
-    from mocapbench.codecs import lsdt
+    from mocapbench.codecs.lsdt import pipeline as lsdt
 
     motion = sinusoidal_motion(num_frames=1000, seed=8)
     config = {"step_cm": 0.5, "threshold_steps": 2.0}  # a hard threshold wider than the dead zone: the loop matters
@@ -172,7 +172,7 @@ def test_frame_codecs_restart_their_closed_loop_per_window_within_the_bound(name
 
 
 def test_clip_codec_windows_are_whole_clips_of_any_length(monkeypatch):
-    from mocapbench.codecs import lsdt
+    from mocapbench.codecs.lsdt import pipeline as lsdt
 
     motion = sinusoidal_motion(num_frames=1000, seed=2)
     codec = create("lsdt-clip", clip_length=100)
@@ -188,7 +188,7 @@ def test_clip_codec_windows_are_whole_clips_of_any_length(monkeypatch):
 
 
 def test_windowed_spatial_stream_with_a_hostile_window_length_is_refused(monkeypatch):
-    from mocapbench.codecs import lsdt
+    from mocapbench.codecs.lsdt import pipeline as lsdt
 
     motion = sinusoidal_motion(num_frames=600, seed=1)
     monkeypatch.setattr(lsdt, "WINDOW_FRAMES", 256)

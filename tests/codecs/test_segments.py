@@ -12,7 +12,7 @@ from mocapbench.codecs import BitstreamError, create
 from mocapbench.codecs.segments import find_cuts, read_cuts, segment_bounds, window_lengths, write_cuts
 from mocapbench.entropy.bitio import ByteReader, ByteWriter
 from mocapbench.synthetic import sinusoidal_motion
-from mocapbench.synthetic_rigs import concatenate_takes, with_tpose_first_frame
+from mocapbench.synthetic.rigs import concatenate_takes, with_tpose_first_frame
 
 
 def _two_takes(first, second, shift_cm=(300.0, 0.0, 0.0)):

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from mocapbench.codecs import create
-from mocapbench.codecs.mcb_linf_model import load_default_model
+from mocapbench.codecs.mcb_linf.model import load_default_model
 from mocapbench.experiments import fitted
 from mocapbench.synthetic import sinusoidal_motion
 

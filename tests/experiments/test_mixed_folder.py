@@ -8,7 +8,7 @@ from mocapbench.experiments.results import read_rows
 from mocapbench.experiments.run import run_job
 from mocapbench.io import write_bvh
 from mocapbench.synthetic import sinusoidal_motion
-from mocapbench.synthetic_rigs import rig_motion
+from mocapbench.synthetic.rigs import rig_motion
 
 
 @pytest.mark.parametrize("codec, overrides", [

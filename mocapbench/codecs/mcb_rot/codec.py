@@ -33,7 +33,7 @@ Design::
          has finished, as the walk would); the walk then reads them (the same streams; 6.3-6.8 attempts per clip
          at 24 fps instead of 4.2-5.5 one by one, in 1-2 passes); the batched closed loop gives an attempt up once it
          exceeds the budget the walk would give it next (:func:`_walk_limit`). Speeds: ``python -m
-         mocapbench.benchmarks.mcb_rot --no-rd --speed`` (the README quotes a run). Segment means (DC) and the
+         mocapbench.benchmarks.mcb_rot.rd --no-rd --speed`` (the README quotes a run). Segment means (DC) and the
          significance counts are coded as differences along the segments
          in one small track that random access reads whole.
       └─ compensated quantization (:mod:`.compensate`, encoder only): joints are quantized level by level down the
@@ -68,7 +68,7 @@ which also writes the output rotations: 1.0 ms of numpy calls per 465-frame clip
 batched decode speed measured side by side in one process. Random access (``decode_frames(data, t, t + 1)``)
 entropy decodes its chunk and sends only the frames asked for through the exponential map, the corrections and
 forward kinematics; the first frame of a clip also parses its header. Speeds: ``python -m
-mocapbench.benchmarks.mcb_rot --no-rd --speed`` (the README quotes a run).
+mocapbench.benchmarks.mcb_rot.rd --no-rd --speed`` (the README quotes a run).
 
 Long captures (:mod:`.windowed`): a capture of more than 7,680 frames is coded as independent, about equal windows
 of at most that many frames, each a self-contained payload with its own rate search, closed loop and check of the

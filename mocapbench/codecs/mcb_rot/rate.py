@@ -16,7 +16,7 @@ The estimate is the ideal code length of what :func:`mocapbench.codecs.mcb_rot.s
   correction gaps and correction values: each stream under its best single class, plus raw bits.
 
 Header bytes common to all attempts of a stream (skeleton, cuts, axes, class bytes) are left out: the estimate
-compares attempts of one stream, it is not a stream size. ``tests/codecs/test_mcb_rot_rate.py`` checks that it
+compares attempts of one stream, it is not a stream size. ``tests/codecs/mcb_rot/test_mcb_rot_rate.py`` checks that it
 ranks attempts as their real sizes do.
 """
 

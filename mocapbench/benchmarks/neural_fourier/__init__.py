@@ -1,0 +1,1 @@
+"""Benchmarks of the neural Fourier codecs and ``svd``: :mod:`.paper` reproduces the paper's results."""

@@ -1,0 +1,7 @@
+"""``python -m mocapbench.cli``: the ``mocapbench`` command."""
+
+import sys
+
+from mocapbench.cli.main import main
+
+sys.exit(main())

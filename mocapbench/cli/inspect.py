@@ -1,0 +1,75 @@
+"""``mocapbench inspect IN``: a bitstream's header, sizes and codec parameters, or a motion file's unit and up axis."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from mocapbench.cli.arguments import add_motion_arguments, codec_for_stream, load_motion
+
+__all__ = ["add_parser", "run"]
+
+
+def inspect_motion(args) -> None:
+    """``inspect`` of a motion file: size, unit, up axis (and why), rest height."""
+    from mocapbench.io.units import detect_up_axis, rest_height_cm, unit_label
+
+    motion = load_motion(args)
+    axis, reason = detect_up_axis(motion)
+    from_file = Path(args.input).suffix.lower() in (".gltf", ".glb", ".fbx")  # these formats say their up axis
+    facts = {
+        "frames": motion.num_frames,
+        "joints": motion.num_joints,
+        "fps": motion.fps,
+        "source unit": unit_label(motion.source_unit_cm) + ("" if args.units else " (default; --units to change)"),
+        "up axis": f"{motion.up_axis} (given)" if args.up else f"{motion.up_axis} (from the file)" if from_file
+        else f"{axis} (detected: {reason})",
+        "rest height": f"{rest_height_cm(motion.skeleton, motion.up_axis):.1f} cm",
+    }
+    width = max(len(key) for key in facts)
+    for key, value in facts.items():
+        print(f"{key:<{width}}  {value}")
+
+
+def run(args) -> None:
+    """Print the facts of a stream, or of a motion file (by its suffix)."""
+    from mocapbench.codecs.container import read_header
+    from mocapbench.io.formats import READ_SUFFIXES
+    from mocapbench.io.units import unit_label
+    from mocapbench.metrics import bits_per_joint_frame, compression_ratio, raw_position_bytes
+
+    if Path(args.input).suffix.lower() in READ_SUFFIXES:
+        inspect_motion(args)
+        return
+    data = Path(args.input).read_bytes()
+    header, payload = read_header(data)
+    codec, _ = codec_for_stream(data)
+    raw = raw_position_bytes(header.num_joints, header.num_frames)
+    facts = {
+        "codec": header.codec,
+        "format version": header.version,
+        "frames": header.num_frames,
+        "joints": header.num_joints,
+        "fps": header.fps,
+        "source unit": unit_label(header.source_unit_cm) if header.version > 1 else "cm (format version 1)",
+        "up axis": {"?": "unknown"}.get(header.up_axis, header.up_axis),
+        "bytes": len(data),
+        "header bytes": header.header_bytes,
+        "payload bytes": header.payload_bytes,
+        "compression ratio (float32 positions)": f"{compression_ratio(raw, len(data)):.2f}",
+        "bits per joint per frame": f"{bits_per_joint_frame(len(data), header.num_joints, header.num_frames):.3f}",
+    }
+    facts.update(codec.describe_payload(header, payload))
+    width = max(len(key) for key in facts)
+    for key, value in facts.items():
+        print(f"{key:<{width}}  {value}")
+
+
+def add_parser(commands) -> None:
+    """Register ``inspect`` on the CLI's sub-parsers."""
+    inspect = commands.add_parser(
+        "inspect", help="print a bitstream's header, sizes and codec parameters, or a motion file's unit and up axis"
+    )
+    inspect.add_argument("input", help="IN.mcb, or a motion file (.bvh, .amc, .gltf, .glb, .fbx)")
+    add_motion_arguments(inspect)
+    inspect.add_argument("--asf", help="skeleton of an AMC input (default: the .asf beside it)")
+    inspect.set_defaults(run=run)

@@ -1,0 +1,724 @@
+"""``mcb-linf``: mocapbench's own codec, with a guaranteed L-infinity bound on every joint of every frame.
+
+None of the three papers bounds the worst-case joint error: they control a mean error (LSDT), a parameter count
+(neural Fourier) or a distortion rate (PGA). Users who ship animation ask for "no joint ever moves more than
+ε cm". This codec takes ε as its one main knob and guarantees ``max_joint_error <= eps_cm``: the encoder runs the
+decoder on the stream it is about to return and refuses to return one that breaks the bound. A second, optional
+knob, ``mean_cm``, sets the quality of the base layer by a mean-error target (the bound still holds).
+
+Design (two layers, in the spirit of near-lossless image coding such as JPEG-LS)::
+
+    positions (F, J, 3) cm
+      └─ spatial decorrelation (``representation``): by default ``"pca"``, the root position plus the other
+         joints' root-relative positions projected on an orthonormal PCA basis learned from training motions.
+         ``"bone"`` (child − parent vectors) and ``"absolute"`` need no basis.
+      └─ base layer: orthonormal DCT-II along time on clips of L frames (the LSDT paper's clip scheme, eq. 4; L =
+         480 frames by default, 4 s at 120 fps: 3-5 % smaller than 240 on cmu_test, 960 gains 1-2 % more),
+         dead-zone quantization (rounding offset 0.45) with a step that grows with frequency,
+         Δ_k = Δ (1 + 2 k / L) (a quantization matrix, as in JPEG), and a finer step on the root's channels
+         (``root_step_rel``, 0.2): a root error moves all J joints, so in mean squared error it weighs J times a
+         single joint's (the MSE-optimal root step is Δ / sqrt(J), 0.18 Δ for 31 joints).
+         Δ is chosen per stream: with ``mean_cm`` = 0, by a rate search over multiples of ε (the smallest stream
+         wins); with ``mean_cm`` > 0, as the coarsest step whose decoded mean error is <= ``mean_cm``.
+      └─ refinement layer: r = P − P̂_base on absolute positions; joints with ||r|| <= ε are left alone, the others
+         get r quantized to the nearest point of a body-centred cubic (BCC) lattice whose covering radius is ε,
+         so every joint ends within ε. BCC is the best lattice covering of 3-D space: its cells hold 1.86× the
+         volume of the cube inscribed in the same ε-ball (0.9 bit per corrected joint saved over a cubic grid).
+      └─ entropy coding of the DCT coefficients (``entropy``):
+         ``"trained"`` (default): each coefficient's distribution is known from training: the learned model holds
+         the mean magnitude of every (frequency band, channel) on the training motions; a coefficient's class is
+         the quarter-octave of (that magnitude / its quantization step), and each class has a token distribution
+         counted on the training motions. The encoder may shift the classes of six channel groups in each clip
+         window (one byte each) to fit the motion. Tokens are coded with an ANS coder
+         (:mod:`mocapbench.entropy.ans`), so the near-certain zeros of high frequencies cost a fraction of a bit.
+         ``"bands"``: no training; each frequency band is coded with its own canonical Huffman table or with zstd,
+         whichever is smaller (tables travel in the stream).
+         The refinement positions are coded as Huffman-coded gaps between corrected joints; each lattice point
+         as its index among the BCC points ordered by distance, by ANS with a trained index distribution
+         (``"trained"``, about 4.3 bits a point on cmu_test) or as a parity bit and Huffman-coded coordinates
+         (``"bands"``, about 6 bits).
+
+Learned state (``fit`` or the package's model, fit on ``cmu_train`` for 31-joint CMU skeletons with the default
+``clip_frames``) is reported as ``model_bytes``; every stream carries the model's CRC32, and a decoder holding
+another model refuses the stream.
+
+The decoder is a handful of vectorized numpy/scipy calls (ANS decoding in Rust by ``constriction``, one call per
+class; a batched inverse DCT; one scatter-add), so one core decodes over 100,000 frames per second (120,000-170,000
+on cmu_test).
+
+Departures from the issue's sketch, and why: the entropy coder is not adaptive during decoding but
+*trained* (static per-class distributions learned offline, plus a per-stream shift): adaptive models need a
+sequential per-symbol loop that numpy cannot vectorize, and on clips of a few hundred frames they would spend
+most of the stream learning what the training set already knows.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from mocapbench.codecs.base import Codec, CodecConfig, Header, NotFittedError, param
+from mocapbench.codecs.mcb_linf.layers import (
+    BAND_EDGES,
+    CHANNEL_GROUP_STARTS,
+    band_of,
+    base_positions,
+    base_positions_into,
+    channel_group,
+    LayoutSlices,
+    bcc_quantize,
+    CoefficientLayout,
+    dead_zone_quantize,
+    forward_dct,
+    lattice_points,
+    lattice_symbols,
+    quantization_steps,
+    REPRESENTATIONS,
+    to_signal,
+)
+from mocapbench.codecs.mcb_linf.model import (
+    base_classes,
+    fit_model,
+    load_default_model,
+    NUM_CLASSES,
+    shifted_classes,
+    TrainedModel,
+)
+from mocapbench.codecs.registry import register_codec
+from mocapbench.codecs.segments import find_cuts, read_cuts, write_cuts
+from mocapbench.entropy.ans import TOKEN_COUNT, ClassTables, decode_classed, encode_classed, tokenize
+from mocapbench.entropy.backend import zstd_pack_ints, zstd_unpack_ints
+from mocapbench.codecs.windows import WINDOW_FRAMES, encode_windows, split_windows
+from mocapbench.entropy.bitio import ByteReader, ByteWriter
+from mocapbench.entropy.errors import BitstreamError
+from mocapbench.entropy.huffman import decode_symbols, encode_symbols
+from mocapbench.motion import Motion
+
+__all__ = ["McbLinfCodec", "TrainedModel", "bcc_quantize", "fit_model", "load_default_model"]
+
+_ENTROPY_CODERS = ("bands", "trained")  # stream codes 0, 1: append only
+
+
+# Set on the entropy-coder byte when a cut list follows the settings (streams without cuts are unchanged).
+_CUTS_FLAG = 0x80
+
+
+# What to do when the settings need a model and none is held for the motion's skeleton.
+_ON_MISSING_MODEL = ("untrained", "error")
+
+
+# The untrained mode: child - parent vectors (no basis to learn) and per-band tables carried in the stream.
+_UNTRAINED_REPRESENTATION, _UNTRAINED_ENTROPY = "bone", "bands"
+
+
+# Base-layer steps tried by the rate search, as multiples of eps: 0.5 to 4 in quarter octaves (on cmu_test the
+# chosen step is 1-3 eps; the quarter-octave grid gains about 1 % over a half-octave one).
+_RDO_STEPS = tuple(2.0 ** (i / 4) for i in range(-4, 9))
+
+
+# Base-layer steps searched for a mean-error target, as multiples of mean_cm: 1 to 1024 in quarter octaves (on
+# cmu_test the mean error is 0.1-0.2 of the step).
+_MEAN_TARGET_STEPS = tuple(2.0 ** (i / 4) for i in range(0, 41))
+
+
+# The refinement works to eps * (1 - margin) so that float rounding in the decoder can never cross eps.
+_SAFETY_MARGIN = 1e-6
+
+
+
+
+_CODING_HUFFMAN, _CODING_ZSTD, _CODING_EMPTY = 0, 1, 2
+
+
+_MAX_SHIFT = 8
+
+
+def _write_symbols(writer: ByteWriter, symbols: np.ndarray, zstd_level: int) -> None:
+    """Code an int array with canonical Huffman or zstd, whichever is smaller (1 byte says which)."""
+    if symbols.size == 0:
+        writer.write_u8(_CODING_EMPTY)
+        return
+    huffman = encode_symbols(symbols)
+    packed = zstd_pack_ints(symbols, level=zstd_level)
+    if len(huffman) <= len(packed):
+        writer.write_u8(_CODING_HUFFMAN)
+        writer.write_bytes(huffman)
+    else:
+        writer.write_u8(_CODING_ZSTD)
+        writer.write_blob(packed)
+
+
+def _read_symbols(reader: ByteReader, payload: memoryview, count: int, what: str) -> np.ndarray:
+    """Read ``count`` ints written by :func:`_write_symbols`."""
+    coding = reader.read_u8(f"coding of {what}")
+    if coding == _CODING_EMPTY:
+        symbols = np.zeros(0, dtype=np.int64)
+    elif coding == _CODING_HUFFMAN:
+        symbols, end = decode_symbols(payload, reader.offset, expected_count=count, max_count=max(count, 1))
+        reader.read_bytes(end - reader.offset, what)
+    elif coding == _CODING_ZSTD:
+        symbols = zstd_unpack_ints(reader.read_blob(what), count, f"mcb-linf: {what}")
+    else:
+        raise BitstreamError(f"mcb-linf: {what}: expected coding 0, 1 or 2, found {coding}.")
+    if symbols.size != count:
+        raise BitstreamError(f"mcb-linf: {what}: expected {count} symbols, found {symbols.size}.")
+    return symbols.astype(np.int64)
+
+
+def _write_bands(writer: ByteWriter, coefficients: np.ndarray, layout: "CoefficientLayout", zstd_level: int) -> None:
+    """Entropy ``"bands"``: each frequency band with its own Huffman table or zstd."""
+    sorted_coefficients = coefficients[layout.band_order]
+    for band in range(len(BAND_EDGES)):
+        selected = sorted_coefficients[layout.sorted_bands == band]
+        if selected.size:
+            _write_symbols(writer, selected, zstd_level)
+
+
+def _read_bands(reader: ByteReader, payload: memoryview, layout: "LayoutSlices") -> np.ndarray:
+    """Inverse of :func:`_write_bands`: the coefficients (F·C,) int64.
+
+    Each band's values go to its coefficients in flattened order, one slice of the layout at a time: memory is
+    the coefficients, one band's values and a slice (the F·C sort permutation is never built).
+    """
+    bands = np.empty(layout.size, dtype=np.uint8)
+    for start, stop in layout.ranges():
+        bands[start:stop] = band_of(layout.slice(start, stop)[0])
+    counts = np.bincount(bands, minlength=len(BAND_EDGES))
+    coefficients = np.empty(layout.size, dtype=np.int64)
+    for band, count in enumerate(counts):
+        if not count:
+            continue
+        values, used = _read_symbols(reader, payload, int(count), f"band {band}"), 0
+        for start, stop in layout.ranges():
+            selected = bands[start:stop] == band
+            taken = int(np.count_nonzero(selected))
+            coefficients[start:stop][selected] = values[used : used + taken]
+            used += taken
+        del values
+    return coefficients
+
+
+def _best_shifts(base_classes, groups: np.ndarray, num_groups: int, tokens, tables: ClassTables) -> np.ndarray:
+    """The class shift of each shift group that minimizes the ideal code length of its tokens, (G,) int64.
+
+    One histogram of (group, class, token) over all coefficients, then the cost of every (group, shift) as one
+    matrix product: linear in the number of coefficients, whatever the number of groups.
+    """
+    histogram = np.bincount(
+        (groups * NUM_CLASSES + base_classes) * TOKEN_COUNT + tokens, minlength=num_groups * NUM_CLASSES * TOKEN_COUNT
+    ).reshape(num_groups, NUM_CLASSES * TOKEN_COUNT)
+    classes = np.arange(NUM_CLASSES)
+    shifted_log_probabilities = np.stack(
+        [
+            tables.log2_probabilities[np.clip(classes + shift, 0, NUM_CLASSES - 1)].ravel()
+            for shift in range(-_MAX_SHIFT, _MAX_SHIFT)
+        ]
+    )  # (2 _MAX_SHIFT, K T)
+    costs = -histogram @ shifted_log_probabilities.T  # (G, 2 _MAX_SHIFT), bits
+    return np.argmin(costs, axis=1).astype(np.int64) - _MAX_SHIFT
+
+
+def _write_trained(writer: ByteWriter, coefficients, layout: "CoefficientLayout", steps, model: TrainedModel) -> None:
+    """Entropy ``"trained"``: per-group class shifts (one byte each), then the ANS-coded coefficients."""
+    base = base_classes(model, layout.frequencies, layout.channels, steps)
+    tokens, _, _ = tokenize(coefficients)
+    shifts = _best_shifts(base, layout.shift_groups, layout.num_shift_groups, tokens, model.tables)
+    writer.write_bytes((shifts + _MAX_SHIFT).astype(np.uint8).tobytes())
+    encode_classed(writer, coefficients, shifted_classes(base, layout.shift_groups, shifts), model.tables)
+
+
+def _read_trained(reader: ByteReader, layout: "LayoutSlices", quantizer: tuple, model: TrainedModel) -> np.ndarray:
+    """Inverse of :func:`_write_trained`; ``quantizer`` is ``(step, slope, root_step_rel, clip_frames)``.
+
+    The classes (one byte per coefficient) are computed one slice of the layout at a time, with the very
+    arithmetic of the encoder's :func:`base_classes` / :func:`shifted_classes` on the whole layout.
+    """
+    shifts = np.frombuffer(reader.read_bytes(layout.num_shift_groups, "class shifts"), dtype=np.uint8)
+    if shifts.size and shifts.max() >= 2 * _MAX_SHIFT:
+        raise BitstreamError(f"mcb-linf: class shifts must be < {2 * _MAX_SHIFT}, found {shifts.max()}.")
+    shifts = shifts.astype(np.int64) - _MAX_SHIFT
+    classes = np.empty(layout.size, dtype=np.uint8)
+    groups = len(CHANNEL_GROUP_STARTS)
+    for start, stop in layout.ranges():
+        frequencies, channels, windows = layout.slice(start, stop)
+        steps = quantization_steps(frequencies, channels, *quantizer)
+        base = base_classes(model, frequencies, channels, steps)
+        classes[start:stop] = shifted_classes(base, windows * groups + channel_group(channels), shifts)
+    return decode_classed(reader, classes, model.tables, "mcb-linf: coefficients")
+
+
+def _write_lattice(writer: ByteWriter, lattice: np.ndarray, model: TrainedModel | None, zstd_level: int) -> None:
+    """The refinement's lattice points (N, 3), half-cell units.
+
+    With a trained model: each point's index (:func:`lattice_symbols`) coded by ANS with the trained index
+    distribution, then the coordinates of out-of-reach points. Without: one packed parity bit per point and the
+    halved coordinates, Huffman or zstd.
+    """
+    if model is not None:
+        symbols, outside = lattice_symbols(lattice)
+        encode_classed(writer, symbols, np.zeros(len(symbols), dtype=np.uint8), model.lattice_tables)
+        _write_symbols(writer, outside.ravel(), zstd_level)
+        return
+    parity = lattice[:, 0] & 1
+    writer.write_bytes(np.packbits(parity.astype(np.uint8)).tobytes())
+    _write_symbols(writer, ((lattice - parity[:, None]) // 2).ravel(), zstd_level)
+
+
+def _read_lattice(reader: ByteReader, payload: memoryview, count: int, model: TrainedModel | None) -> np.ndarray:
+    """Inverse of :func:`_write_lattice`: (count, 3) int64."""
+    if model is not None:
+        points, _ = lattice_points()
+        symbols = decode_classed(reader, np.zeros(count, dtype=np.uint8), model.lattice_tables, "mcb-linf: lattice")
+        if count and symbols.max() > len(points):
+            raise BitstreamError(f"mcb-linf: lattice point indices must be <= {len(points)}, found {symbols.max()}.")
+        escaped = symbols == len(points)
+        lattice = np.empty((count, 3), dtype=np.int64)
+        lattice[~escaped] = points[symbols[~escaped]]
+        lattice[escaped] = _read_symbols(
+            reader, payload, 3 * int(escaped.sum()), "out-of-reach lattice points"
+        ).reshape(-1, 3)
+        return lattice
+    parity = np.unpackbits(
+        np.frombuffer(reader.read_bytes((count + 7) // 8, "lattice parities"), dtype=np.uint8)
+    )[:count].astype(np.int64)
+    halves = _read_symbols(reader, payload, 3 * count, "lattice coordinates").reshape(-1, 3)
+    return 2 * halves + parity[:, None]
+
+
+@dataclass(frozen=True, eq=False)
+class _Stream:
+    """What one encode codes with: the effective representation and entropy coder, the model, the cuts (N,)."""
+
+    representation: str
+    entropy: str
+    model: TrainedModel | None
+    cuts: np.ndarray
+
+
+@dataclass(frozen=True)
+class _Candidate:
+    """One base-layer step tried by the encoder: its payload and the mean error it decodes to."""
+
+    payload: bytes
+    step: float
+    mean_error: float
+    corrected_joints: int
+
+
+@register_codec
+class McbLinfCodec(Codec):
+    """Guaranteed-L∞ codec: temporal-DCT base layer on a learned spatial basis + BCC-lattice refinement.
+
+    See the module docstring for the design. The bound holds on the decoder's output for every joint of every
+    frame: ``max_joint_error(original, decoded) <= eps_cm``. Learned state (the PCA basis and the trained entropy
+    model) comes from :meth:`fit` or, for 31-joint skeletons with ``representation="pca"``, from the package's
+    model fit on ``cmu_train``. Every stream carries the model's CRC32 tag, so a decoder holding another model
+    refuses the stream instead of decoding garbage.
+    """
+
+    name = "mcb-linf"
+    family = "mocapbench"
+    smoke_params = {"eps_cm": 0.5}
+    smoke_max_error_cm = 0.5
+
+    @dataclass(frozen=True)
+    class Config(CodecConfig):
+        eps_cm: float = param(1.0, low=1e-3, high=100.0, unit="cm", doc="guaranteed L-inf bound on every joint")
+        mean_cm: float = param(
+            0.0, low=0.0, high=100.0, unit="cm",
+            doc="mean-error target of the base layer (0: off, the step minimizing the rate under the bound)",
+        )
+        clip_frames: int = param(480, low=4, high=4096, unit="frames", doc="DCT clip length L (the latency)")
+        representation: str = param("pca", choices=REPRESENTATIONS, doc="spatial decorrelation before the DCT")
+        entropy: str = param(
+            "trained", choices=_ENTROPY_CODERS, doc="coefficient coder: trained classes + ANS, or per-band Huffman/zstd"
+        )
+        rdo: bool = param(True, doc="search the base-layer step (else use base_step_rel)")
+        base_step_rel: float = param(2.0, low=0.05, high=64.0, unit="x eps", doc="base step when rdo is off")
+        frequency_slope: float = param(
+            2.0, low=0.0, high=64.0, doc="step of DCT frequency k is step * (1 + slope k / L): coarser high frequencies"
+        )
+        root_step_rel: float = param(0.2, low=0.01, high=1.0, unit="x step", doc="step of the root's channels")
+        rounding: float = param(
+            0.45, low=0.0, high=0.5, doc="rounding offset of the base quantizer (0.5: nearest; less: a dead zone)"
+        )
+        zstd_level: int = param(19, low=1, high=22, doc="zstd level of the bands coded with zstd")
+        cut_detection: bool = param(
+            True, doc="split the DCT windows at discontinuities (a T-pose frame, a cut between takes, a teleport)"
+        )
+        on_missing_model: str = param(
+            "untrained", choices=_ON_MISSING_MODEL,
+            doc="settings that need a model, on a skeleton with none: 'untrained' codes with representation='bone' "
+                "and entropy='bands' (no training; the encode stats say so), 'error' raises NotFittedError",
+        )
+
+    def __init__(self, config=None) -> None:
+        super().__init__(config)
+        self._model: TrainedModel | None = None  # the main model (the skeleton with the most training frames)
+        self._models: dict[int, TrainedModel] = {}  # every fitted model, by joint count
+        self._untrained_reason = ""  # why the last encode used the untrained mode ("" if it did not)
+        self._used_joints: int | None = None  # joint count of the last encoded motion
+
+    # -- learned state ---------------------------------------------------------------------------------
+    def fit(self, motions: Sequence[Motion]) -> "McbLinfCodec":
+        """Learn the basis (``representation="pca"``) and the trained entropy model from ``motions``.
+
+        Motions of several skeletons (joint counts) get one model each; a motion is coded with its skeleton's.
+        Any number of motions of any length (1 frame upwards) fits.
+        """
+        config = self.config
+        if not motions:
+            raise ValueError("mcb-linf: fit needs at least one training motion, got none.")
+        groups: dict[int, list[Motion]] = {}
+        for motion in motions:
+            groups.setdefault(motion.num_joints, []).append(motion)
+        self._models = {
+            joints: fit_model(
+                group, config.representation, config.clip_frames, config.frequency_slope, config.root_step_rel,
+                config.rounding,
+            )
+            for joints, group in groups.items()
+        }
+        main = max(groups, key=lambda joints: sum(motion.num_frames for motion in groups[joints]))
+        self._model = self._models[main]
+        return self
+
+    def model_state(self) -> dict[str, np.ndarray]:
+        """The fitted models as arrays, for a model file or a sweep's shared state (:mod:`mocapbench.codecs.model_file`).
+
+        The main model's arrays as stored; the models of other skeletons under ``j<joints>__`` keys.
+        """
+        from mocapbench.codecs.model_file import join_states
+
+        if self._model is None:
+            raise NotFittedError("mcb-linf: no fitted model to save; call fit() on training motions first.")
+        others = {joints: model.arrays() for joints, model in self._models.items() if model is not self._model}
+        return join_states(self._model.arrays(), others)
+
+    def load_model_state(self, arrays) -> "McbLinfCodec":
+        """Hold the models stored by :meth:`model_state` (their representation must be this config's)."""
+        from mocapbench.codecs.model_file import split_states
+
+        main, others = split_states(arrays)
+        models = [TrainedModel.from_arrays(state) for state in (main, *others.values())]
+        for model in models:
+            if model.representation != self.config.representation:
+                raise ValueError(
+                    f"mcb-linf: the model was fit for representation='{model.representation}', the codec is set to "
+                    f"'{self.config.representation}'."
+                )
+        self._model = models[0]
+        self._models = {model.num_joints: model for model in models}
+        return self
+
+    def _held_model(self, representation: str, num_joints: int | None = None) -> TrainedModel | None:
+        """The fitted model for ``num_joints`` joints, else the main fitted one, else the package's (``"pca"``)."""
+        if num_joints in self._models:
+            return self._models[num_joints]
+        if self._model is not None:
+            return self._model
+        return load_default_model() if representation == "pca" else None
+
+    def _encoding_mode(self, num_joints: int) -> tuple[str, str, TrainedModel | None]:
+        """``(representation, entropy coder, model)`` for a motion of ``num_joints`` joints.
+
+        The configured settings when they need no model or the held model fits the skeleton; otherwise the
+        untrained mode (``on_missing_model="untrained"``, the reason kept for the encode stats) or NotFittedError.
+        """
+        config = self.config
+        self._untrained_reason = ""
+        self._used_joints = num_joints
+        if not _needs_model(config.representation, config.entropy):
+            return config.representation, config.entropy, None
+        model = self._held_model(config.representation, num_joints)
+        if model is None:
+            problem = (
+                f"entropy='{config.entropy}' with representation='{config.representation}' needs a model and none "
+                f"is held"
+            )
+        elif model.num_joints != num_joints:
+            problem = f"the model is for {model.num_joints} joints, the motion has {num_joints}"
+        else:
+            return config.representation, config.entropy, model
+        if config.on_missing_model == "error":
+            raise NotFittedError(
+                f"mcb-linf: {problem}; fit a model on motions of this skeleton (`mocapbench fit`), or use "
+                f"on_missing_model='untrained'."
+            )
+        self._untrained_reason = problem
+        return _UNTRAINED_REPRESENTATION, _UNTRAINED_ENTROPY, None
+
+    @property
+    def needs_model(self) -> bool:  # type: ignore[override]
+        """The PCA representation and the trained entropy coder need learned state fit for the skeleton."""
+        return _needs_model(self.config.representation, self.config.entropy)
+
+    @property
+    def latency_frames(self) -> int:
+        """The DCT clip length L: a frame is emitted once its clip of ``clip_frames`` frames is complete."""
+        return int(self.config.clip_frames)
+
+    @property
+    def model_bytes(self) -> int:
+        """Bytes of the held model the last encode used (0 when it needed none or ran untrained)."""
+        config = self.config
+        if not _needs_model(config.representation, config.entropy) or self._untrained_reason:
+            return 0
+        model = self._held_model(config.representation, self._used_joints)
+        return model.stored_bytes if model is not None else 0
+
+    # -- encoding --------------------------------------------------------------------------------------
+    def encode_payload(self, motion: Motion) -> bytes:
+        """One window (the format of every clip up to :data:`WINDOW_FRAMES` frames), else a sequence of windows.
+
+        A longer capture is coded window by window (each window's payload prefixed by its length, each with its
+        own rate search and its own check of the bound), so the encoder holds one window's positions and
+        temporaries and the decoder one window's temporaries beside its output, whatever the length.
+        """
+        if motion.num_frames <= WINDOW_FRAMES:
+            return self._encode_window(motion)
+        payload, stats = encode_windows(motion, WINDOW_FRAMES, self._encode_window_with_stats)
+        self.last_encode_stats = {
+            "windows": len(stats),
+            "base_step_cm": float(np.median([w["base_step_cm"] for w in stats])),
+            "bound_slack_cm": min(w["bound_slack_cm"] for w in stats),
+            "mean_error_cm": float(np.mean([w["mean_error_cm"] for w in stats])),
+            "corrected_joints": sum(w["corrected_joints"] for w in stats),
+            "cuts": sum(w["cuts"] for w in stats),
+            "model_mode": stats[0]["model_mode"],
+        }
+        return payload
+
+    def _encode_window_with_stats(self, motion: Motion) -> tuple[bytes, dict]:
+        return self._encode_window(motion), self.last_encode_stats
+
+    def _encode_window(self, motion: Motion) -> bytes:
+        positions = motion.positions()
+        config = self.config
+        representation, entropy, model = self._encoding_mode(motion.num_joints)
+        parents = motion.skeleton.parents
+        cuts = find_cuts(positions) if config.cut_detection else np.zeros(0, dtype=np.int64)
+        signal = to_signal(positions, parents, representation, model)
+        spectrum = forward_dct(signal, config.clip_frames, cuts)
+        layout = CoefficientLayout.of(motion.num_frames, config.clip_frames, 3 * motion.num_joints, cuts)
+        stream = _Stream(representation, entropy, model, cuts)
+
+        def attempt(step: float) -> _Candidate:
+            return self._encode_with_step(positions, parents, spectrum, layout, step, stream)
+
+        if config.mean_cm > 0:
+            steps = [config.mean_cm * rel for rel in _MEAN_TARGET_STEPS]
+            best = _coarsest_meeting_target(attempt, steps, config.mean_cm)
+        else:
+            steps = [config.eps_cm * rel for rel in (_RDO_STEPS if config.rdo else (config.base_step_rel,))]
+            best = min((attempt(step) for step in steps), key=lambda candidate: len(candidate.payload))
+        # The guarantee: decode what we are about to return and check it.
+        header = Header(self.name, motion.num_frames, motion.num_joints, motion.fps)
+        decoded = self._decode_window(header, memoryview(best.payload))
+        worst = float(np.linalg.norm(decoded - positions, axis=-1).max())
+        if worst > config.eps_cm:
+            raise RuntimeError(f"mcb-linf: decoded L-inf {worst} cm exceeds eps {config.eps_cm} cm; not writing.")
+        self.last_encode_stats = {
+            "base_step_cm": best.step,
+            "bound_slack_cm": config.eps_cm - worst,
+            "mean_error_cm": best.mean_error,
+            "corrected_joints": best.corrected_joints,
+            "cuts": len(cuts),
+            "model_mode": f"untrained ({representation}, {entropy}): {self._untrained_reason}"
+            if self._untrained_reason else ("model" if model is not None else "none needed"),
+        }
+        return best.payload
+
+    def _encode_with_step(self, positions, parents, spectrum, layout: CoefficientLayout, step: float, stream):
+        """A :class:`_Candidate`: the payload coded with base step ``step`` (cm), its mean error, its corrections."""
+        num_frames, num_joints, _ = positions.shape
+        config = self.config
+        model, cuts = stream.model, stream.cuts
+        steps = quantization_steps(
+            layout.frequencies, layout.channels, step, config.frequency_slope, config.root_step_rel, config.clip_frames
+        )
+        # Dead-zone rounding (offset < 1/2) zeroes more small coefficients; the refinement layer keeps the bound.
+        coefficients = dead_zone_quantize(spectrum, steps, config.rounding)
+        base = base_positions(
+            coefficients, steps, num_frames, parents, config.clip_frames, stream.representation, model, cuts
+        ).reshape(-1, 3)
+        residual = positions.reshape(-1, 3) - base
+        radius = config.eps_cm * (1.0 - _SAFETY_MARGIN)
+        corrected = np.flatnonzero(np.sum(residual**2, axis=-1) > radius**2)
+        lattice, half_cell = bcc_quantize(residual[corrected], radius)
+        residual[corrected] -= lattice * half_cell
+        mean_error = float(np.linalg.norm(residual, axis=-1).mean()) if residual.size else 0.0
+
+        writer = ByteWriter()
+        writer.write_f64(config.eps_cm)
+        writer.write_f64(step)
+        writer.write_f64(config.frequency_slope)
+        writer.write_f64(config.root_step_rel)
+        writer.write_varint(config.clip_frames)
+        writer.write_u8(REPRESENTATIONS.index(stream.representation))
+        writer.write_u8(_ENTROPY_CODERS.index(stream.entropy) | (_CUTS_FLAG if len(cuts) else 0))
+        # F again: the ANS coder can code a long run of near-certain zeros in almost no bytes, so the payload
+        # alone does not pin F; a header F edited to 1e6 would otherwise build a 1e6-frame layout.
+        writer.write_varint(num_frames)
+        if len(cuts):
+            write_cuts(writer, cuts)
+        if stream.representation == "bone":
+            writer.write_varints(parents[1:] + 1)  # the joint tree (offsets are not needed)
+        if model is not None:
+            writer.write_u32(model.tag)
+        if stream.entropy == "trained":
+            _write_trained(writer, coefficients, layout, steps, model)
+        else:
+            _write_bands(writer, coefficients, layout, config.zstd_level)
+        writer.write_varint(len(corrected))
+        _write_symbols(writer, np.diff(corrected, prepend=-1) - 1, config.zstd_level)
+        _write_lattice(writer, lattice, model if stream.entropy == "trained" else None, config.zstd_level)
+        return _Candidate(writer.getvalue(), step, mean_error, len(corrected))
+
+    # -- decoding --------------------------------------------------------------------------------------
+    def _decoding_model(self, representation: str, tag: int, num_joints: int) -> TrainedModel:
+        """The model a stream was coded with (its tag), or a BitstreamError saying which model it needs."""
+        model = self._held_model(representation, num_joints)
+        if model is None:
+            raise BitstreamError(
+                f"mcb-linf: the stream was coded with a model fit for representation '{representation}' (tag "
+                f"{tag:#010x}); this decoder holds none (pass the model it was coded with: `decompress --model "
+                f"MODEL`, or fit() on the same training motions)."
+            )
+        if model.tag != tag or model.num_joints != num_joints or model.representation != representation:
+            raise BitstreamError(
+                f"mcb-linf: the stream was coded with model {tag:#010x} ({representation}, {num_joints} joints); "
+                f"this decoder holds model {model.tag:#010x} ({model.representation}, {model.num_joints} joints): "
+                f"pass the model it was coded with (`decompress --model MODEL`)."
+            )
+        return model
+
+    def decode_payload(self, header: Header, payload: memoryview):
+        num_frames, num_joints = header.num_frames, header.num_joints
+        if num_frames <= WINDOW_FRAMES:
+            return self._decode_window(header, payload), None
+        windows = split_windows(payload, num_frames, WINDOW_FRAMES)  # every extent checked before decoding
+        positions = np.empty((num_frames, num_joints, 3))
+        for start, stop, part in windows:  # each window decodes straight into its frames of the output
+            self._decode_window(Header(header.codec, stop - start, num_joints, header.fps), part, positions[start:stop])
+        return positions, None
+
+    def _decode_window(self, header: Header, payload: memoryview, out: np.ndarray | None = None) -> np.ndarray:
+        """Positions (F, J, 3) cm of one window's payload (a whole stream up to :data:`WINDOW_FRAMES` frames),
+        written into ``out`` when given.
+
+        Memory: the output, the quantized coefficients (F·C int64, freed before the refinement is read) and
+        temporaries of one layout slice or one DCT window; the layout's F·C arrays are never built.
+        """
+        reader = ByteReader(payload)
+        eps, step, slope, root_step_rel, clip_frames, representation, entropy, has_cuts = _read_settings(reader)
+        num_frames, num_joints = header.num_frames, header.num_joints
+        if reader.read_varint("frame count") != num_frames:
+            raise BitstreamError(f"mcb-linf: the payload was written for another frame count than the header's {num_frames}.")
+        cuts = read_cuts(reader, num_frames, "mcb-linf") if has_cuts else np.zeros(0, dtype=np.int64)
+        parents = np.full(num_joints, -1)
+        if representation == "bone":
+            parents = np.concatenate([[-1], reader.read_varints(num_joints - 1, "joint tree").astype(np.int64) - 1])
+            if np.any(parents[1:] < 0) or np.any(parents[1:] >= np.arange(1, num_joints)):
+                raise BitstreamError("mcb-linf: the joint tree must list parents before children.")
+        model = None
+        if _needs_model(representation, entropy):
+            model = self._decoding_model(representation, reader.read_u32("model tag"), num_joints)
+        layout = LayoutSlices.of(num_frames, clip_frames, 3 * num_joints, cuts)
+        if entropy == "trained":
+            coefficients = _read_trained(reader, layout, (step, slope, root_step_rel, clip_frames), model)
+        else:
+            coefficients = _read_bands(reader, payload, layout)
+        if coefficients.size and -(1 << 31) <= coefficients.min() and coefficients.max() < 1 << 31:
+            coefficients = coefficients.astype(np.int32)  # half the memory beside the output; same products
+        positions = np.empty((num_frames, num_joints, 3)) if out is None else out
+        base_positions_into(positions, coefficients, layout, step, slope, root_step_rel, parents, representation, model)
+        del coefficients
+        positions = positions.reshape(-1, 3)
+        num_corrected = reader.read_varint("corrected joint count")
+        if num_corrected > num_frames * num_joints:
+            raise BitstreamError(
+                f"mcb-linf: expected at most {num_frames * num_joints} corrected joints, found {num_corrected}."
+            )
+        gaps = _read_symbols(reader, payload, num_corrected, "refinement positions")
+        corrected = np.cumsum(gaps + 1) - 1
+        if num_corrected and (gaps.min() < 0 or corrected[-1] >= num_frames * num_joints):
+            raise BitstreamError("mcb-linf: refinement positions run past the end of the motion.")
+        lattice = _read_lattice(reader, payload, num_corrected, model if entropy == "trained" else None)
+        reader.expect_end()
+        half_cell = 2.0 * eps * (1.0 - _SAFETY_MARGIN) / np.sqrt(5.0)
+        positions[corrected] += lattice * half_cell
+        return positions.reshape(num_frames, num_joints, 3)
+
+    def describe_payload(self, header: Header, payload: memoryview):
+        reader = ByteReader(payload)
+        windows = {}
+        if header.num_frames > WINDOW_FRAMES:  # a sequence of windows: describe the first
+            reader.read_varint("window length")
+            windows = {"windows of frames": f"{-(-header.num_frames // WINDOW_FRAMES)} x {WINDOW_FRAMES} (first shown)"}
+        eps, step, slope, root_step_rel, clip_frames, representation, entropy, has_cuts = _read_settings(reader)
+        frames = min(header.num_frames, WINDOW_FRAMES)
+        reader.read_varint("frame count")  # F again (written before the cuts)
+        cuts = read_cuts(reader, frames, "mcb-linf") if has_cuts else []
+        return {**windows,"eps_cm (guaranteed L-inf)": eps, "base step cm": step, "frequency slope": slope,
+                "root step (x base step)": root_step_rel, "clip frames": clip_frames,
+                "representation": representation, "entropy coder": entropy,
+                "cuts (frames starting a segment)": list(map(int, cuts))}
+
+
+def _needs_model(representation: str, entropy: str) -> bool:
+    """Whether a stream of these settings needs learned state (the PCA basis, the trained entropy model)."""
+    return representation == "pca" or entropy == "trained"
+
+
+def _read_settings(reader: ByteReader) -> tuple[float, float, float, float, int, str, str, bool]:
+    """The stream's leading fields, checked: (eps, step, slope, root step, L, representation, entropy coder, cuts?)."""
+    eps = reader.read_f64("eps")
+    step = reader.read_f64("base step")
+    slope = reader.read_f64("frequency slope")
+    root_step_rel = reader.read_f64("root step")
+    clip_frames = reader.read_varint("clip length")
+    representation = reader.read_u8("representation")
+    entropy = reader.read_u8("entropy coder")
+    has_cuts = bool(entropy & _CUTS_FLAG)
+    entropy &= ~_CUTS_FLAG
+    if (
+        not (0 < eps < np.inf and 0 < step < np.inf and 0 <= slope <= 64 and 0 < root_step_rel <= 1)
+        or not 4 <= clip_frames <= 4096
+        or representation >= len(REPRESENTATIONS)
+        or entropy >= len(_ENTROPY_CODERS)
+    ):
+        raise BitstreamError(
+            f"mcb-linf: expected eps > 0, step > 0, 0 <= slope <= 64, 0 < root step <= 1, 4 <= L <= 4096, "
+            f"representation < {len(REPRESENTATIONS)}, entropy coder < {len(_ENTROPY_CODERS)}; found {eps}, "
+            f"{step}, {slope}, {root_step_rel}, {clip_frames}, {representation}, {entropy}."
+        )
+    return (
+        eps, step, slope, root_step_rel, clip_frames, REPRESENTATIONS[representation], _ENTROPY_CODERS[entropy],
+        has_cuts,
+    )
+
+
+def _coarsest_meeting_target(attempt, steps: Sequence[float], target_cm: float) -> _Candidate:
+    """The candidate of the coarsest step (steps ascending) whose mean error is <= target, by bisection.
+
+    Assumes the mean error grows with the step (it does, up to noise). If even the finest step misses the target,
+    the finest step's candidate is returned (its mean error is in the encode stats).
+    """
+    low = attempt(steps[0])
+    if low.mean_error > target_cm:
+        return low
+    high = attempt(steps[-1])
+    if high.mean_error <= target_cm:
+        return high
+    low_index, high_index = 0, len(steps) - 1
+    while high_index - low_index > 1:
+        middle_index = (low_index + high_index) // 2
+        middle = attempt(steps[middle_index])
+        if middle.mean_error <= target_cm:
+            low_index, low = middle_index, middle
+        else:
+            high_index = middle_index
+    return low

@@ -1,0 +1,205 @@
+"""mcb-linf: the L-infinity bound holds on every joint of every frame, whatever the motion."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from mocapbench import metrics
+from mocapbench.codecs import BitstreamError, create
+from mocapbench.codecs.mcb_linf.codec import bcc_quantize
+from mocapbench.synthetic import sinusoidal_motion
+
+
+@settings(max_examples=25, deadline=None, derandomize=True)
+@given(
+    seed=st.integers(0, 10_000),
+    frames=st.integers(1, 400),
+    eps=st.sampled_from([0.05, 0.3, 1.0, 2.5, 7.0]),
+    clip=st.sampled_from([4, 17, 120]),
+    representation=st.sampled_from(["pca", "bone", "absolute"]),
+    amplitude=st.floats(0.0, 60.0),
+)
+def test_bound_holds_on_random_synthetic_motions(seed, frames, eps, clip, representation, amplitude):
+    motion = sinusoidal_motion(num_frames=frames, seed=seed, amplitude_deg=amplitude, max_frequency_hz=6.0)
+    entropy = "trained" if representation == "pca" else "bands"  # trained + bone/absolute needs fit(): below
+    codec = create("mcb-linf", eps_cm=eps, clip_frames=clip, representation=representation, entropy=entropy)
+    decoded = create("mcb-linf").decode(codec.encode(motion))  # a fresh codec: nothing beside the bytes
+    assert metrics.max_joint_error(motion.positions(), decoded.positions) <= eps
+
+
+def test_bound_is_used_not_wasted(synthetic_motion):
+    """The error is close to eps (a codec that codes losslessly would also meet the bound, at a high rate)."""
+    codec = create("mcb-linf", eps_cm=1.0)
+    data = codec.encode(synthetic_motion)
+    error = metrics.max_joint_error(synthetic_motion.positions(), codec.decode(data).positions)
+    assert 0.5 < error <= 1.0
+    baseline = create("quant-delta-zstd", step_cm=2 / np.sqrt(3)).encode(synthetic_motion)
+    assert len(data) < len(baseline), "mcb-linf should beat the generic baseline at equal L-inf"
+
+
+def test_rate_falls_as_the_bound_grows(synthetic_motion):
+    sizes = [len(create("mcb-linf", eps_cm=eps).encode(synthetic_motion)) for eps in (0.1, 0.5, 2.0, 8.0)]
+    assert sizes == sorted(sizes, reverse=True) and sizes[0] > 2 * sizes[-1]
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.floats(-50, 50), min_size=3, max_size=3), st.floats(0.01, 10.0))
+def test_bcc_lattice_covers_within_radius(point, radius):
+    coords, half_cell = bcc_quantize(np.array([point]), radius)
+    assert np.all(coords % 2 == coords[0, 0] % 2)  # all even or all odd
+    assert np.linalg.norm(coords[0] * half_cell - point) <= radius * (1 + 1e-12)
+
+
+def test_static_motion_and_single_frame(synthetic_motion):
+    still = synthetic_motion.slice(0, 1)
+    codec = create("mcb-linf", eps_cm=0.2)
+    decoded = codec.decode(codec.encode(still))
+    assert metrics.max_joint_error(still.positions(), decoded.positions) <= 0.2
+
+
+def test_bad_config_values_are_rejected():
+    with pytest.raises(ValueError, match=r"eps_cm must be in \[0.001, 100.0\] cm, got 0.0"):
+        create("mcb-linf", eps_cm=0.0)
+    with pytest.raises(ValueError, match="representation must be one of"):
+        create("mcb-linf", representation="quaternion")
+
+
+def test_decoder_with_another_model_refuses_the_stream(synthetic_motion, training_motions):
+    fitted = create("mcb-linf", eps_cm=0.5).fit(training_motions)
+    data = fitted.encode(synthetic_motion)
+    with pytest.raises(BitstreamError, match=r"coded with model 0x[0-9a-f]{8} \(pca, 31 joints\); this decoder holds"):
+        create("mcb-linf").decode(data)  # holds the shipped CMU basis, not this one
+    refit = create("mcb-linf").fit(training_motions)
+    assert metrics.max_joint_error(synthetic_motion.positions(), refit.decode(data).positions) <= 0.5
+
+
+def test_shipped_model_is_orthonormal_and_reported():
+    from mocapbench.codecs.mcb_linf.codec import load_default_model
+
+    model = load_default_model()
+    assert model.num_joints == 31 and model.representation == "pca"
+    np.testing.assert_allclose(model.basis @ model.basis.T, np.eye(90), atol=1e-5)
+    arrays = 4 * (90 * 90 + 90) + 4 * model.band_scale.size + 8 * model.class_edges.size
+    arrays += 4 * (model.tables.counts.size + model.lattice_tables.counts.size)
+    assert create("mcb-linf").model_bytes == arrays + 1 + 4 + 4  # + representation, joints, clip length
+    assert create("mcb-linf", representation="bone", entropy="bands").model_bytes == 0
+
+
+def test_pca_on_another_skeleton_asks_for_fit_when_told_to():
+    from mocapbench.codecs import NotFittedError
+    from mocapbench.motion import Motion, Skeleton
+
+    skeleton = Skeleton(names=("a", "b"), parents=np.array([-1, 0]), offsets=np.array([[0, 0, 0], [0, 10.0, 0]]))
+    motion = Motion(skeleton, 30.0, np.zeros((5, 3)), np.tile([0, 0, 0, 1.0], (5, 2, 1)))
+    with pytest.raises(NotFittedError, match="model is for 31 joints, the motion has 2"):
+        create("mcb-linf", on_missing_model="error").encode(motion)
+    with pytest.raises(NotFittedError, match="entropy='trained' with representation='bone' needs a model"):
+        create("mcb-linf", representation="bone", on_missing_model="error").encode(motion)
+
+
+@pytest.mark.parametrize("representation", ["pca", "bone"])
+def test_a_skeleton_without_a_model_is_coded_untrained_within_the_bound(representation):
+    from mocapbench.motion import Motion, Skeleton
+
+    rng = np.random.default_rng(0)
+    joints, frames = 7, 90
+    skeleton = Skeleton(
+        names=tuple(f"j{i}" for i in range(joints)), parents=np.array([-1, 0, 1, 2, 0, 4, 5]),
+        offsets=np.vstack([[0, 0, 0], rng.normal(0, 10, (joints - 1, 3))]),
+    )
+    angles = np.cumsum(rng.normal(0, 0.02, (frames, joints, 3)), axis=0)
+    from scipy.spatial.transform import Rotation
+
+    rotations = Rotation.from_rotvec(angles.reshape(-1, 3)).as_quat().reshape(frames, joints, 4)
+    motion = Motion(skeleton, 30.0, np.cumsum(rng.normal(0, 1, (frames, 3)), axis=0), rotations)
+    codec = create("mcb-linf", eps_cm=0.5, representation=representation)
+    data = codec.encode(motion)
+    assert "untrained (bone, bands)" in codec.last_encode_stats["model_mode"]
+    assert codec.model_bytes == 0
+    decoded = create("mcb-linf").decode(data)  # no model needed to decode
+    assert metrics.max_joint_error(motion.positions(), decoded.positions) <= 0.5
+    assert len(data) < 0.25 * metrics.raw_position_bytes(joints, frames)
+
+
+def test_bound_holds_on_a_real_clip(cmu_09_06):
+    motion = cmu_09_06
+    for eps in (0.5, 2.0):
+        decoded = create("mcb-linf").decode(create("mcb-linf", eps_cm=eps).encode(motion))
+        assert metrics.max_joint_error(motion.positions(), decoded.positions) <= eps
+
+
+@pytest.mark.cmu
+@pytest.mark.parametrize("eps", [0.1, 0.5, 1.0, 2.0, 3.0, 10.0])
+def test_bound_holds_on_every_frame_of_cmu_test(eps, cmu_full_dir):
+    from mocapbench.datasets.cmu import load_split
+
+    for motion in load_split("cmu_test", data_dir=cmu_full_dir):
+        decoded = create("mcb-linf").decode(create("mcb-linf", eps_cm=eps).encode(motion))
+        error = metrics.joint_errors(motion.positions(), decoded.positions)
+        assert error.max() <= eps, f"{motion.name}: {error.max()} cm > {eps} cm"
+
+
+@pytest.mark.parametrize("representation", ["bone", "absolute"])
+def test_trained_entropy_on_a_fitted_skeleton(synthetic_motion, training_motions, representation):
+    codec = create("mcb-linf", eps_cm=0.5, representation=representation).fit(training_motions)
+    data = codec.encode(synthetic_motion)
+    assert metrics.max_joint_error(synthetic_motion.positions(), codec.decode(data).positions) <= 0.5
+    with pytest.raises(BitstreamError, match=f"model fit for representation '{representation}'.*holds none"):
+        create("mcb-linf", representation=representation).decode(data)
+
+
+def test_trained_entropy_beats_per_band_tables_on_a_real_clip(cmu_09_06):
+    trained = len(create("mcb-linf", eps_cm=1.0).encode(cmu_09_06))
+    bands = len(create("mcb-linf", eps_cm=1.0, entropy="bands").encode(cmu_09_06))
+    assert trained < 0.85 * bands
+
+
+@pytest.mark.parametrize("target", [0.05, 0.2])
+def test_mean_target_is_met_and_the_bound_still_holds(synthetic_motion, target):
+    codec = create("mcb-linf", eps_cm=2.0, mean_cm=target)
+    decoded = codec.decode(codec.encode(synthetic_motion)).positions
+    error = metrics.joint_errors(synthetic_motion.positions(), decoded)
+    assert error.max() <= 2.0
+    assert target / 3 < error.mean() <= target  # met, and not by coding far finer than asked
+    assert codec.last_encode_stats["mean_error_cm"] == pytest.approx(error.mean(), rel=1e-6)
+
+
+def test_a_tighter_mean_target_costs_more(synthetic_motion):
+    sizes = [len(create("mcb-linf", eps_cm=3.0, mean_cm=mean).encode(synthetic_motion)) for mean in (0.02, 0.1, 0.5)]
+    assert sizes == sorted(sizes, reverse=True)
+
+
+def test_corrupt_payloads_past_the_crc_fail_cleanly(synthetic_motion):
+    """Bytes changed *inside* a valid container (as a buggy writer would): a BitstreamError or a well-formed result."""
+    from mocapbench.codecs.container import Header
+
+    codec = create("mcb-linf", eps_cm=0.5)
+    payload = codec.encode_payload(synthetic_motion)
+    header = Header("mcb-linf", synthetic_motion.num_frames, synthetic_motion.num_joints, synthetic_motion.fps)
+    rng = np.random.default_rng(0)
+    outcomes = {"error": 0, "decoded": 0}
+    for _ in range(300):
+        corrupt = bytearray(payload)
+        position = int(rng.integers(len(corrupt)))
+        corrupt[position] ^= int(rng.integers(1, 256))
+        try:
+            positions, _ = codec.decode_payload(header, memoryview(bytes(corrupt)))
+        except BitstreamError:
+            outcomes["error"] += 1
+            continue
+        assert positions.shape == synthetic_motion.positions().shape
+        outcomes["decoded"] += 1
+    assert outcomes["error"] > 0
+
+
+@pytest.mark.parametrize("frames", [2, 5])
+def test_fit_from_clips_shorter_than_their_channel_count(frames, synthetic_motion):
+    """Fewer frames than the 3 (J - 1) root-relative channels used to crash the PCA (issue 16)."""
+    training = [sinusoidal_motion(num_frames=frames, seed=seed) for seed in (21, 22)]
+    codec = create("mcb-linf", eps_cm=0.5).fit(training)
+    data = codec.encode(synthetic_motion)
+    assert codec.last_encode_stats["model_mode"] == "model"
+    assert metrics.max_joint_error(synthetic_motion.positions(), codec.decode(data).positions) <= 0.5

@@ -1,0 +1,137 @@
+"""The native runtime (``runtime/``) against the numpy decoder: the same output on the streams the suite makes,
+the bound on its output, and hostile payloads refused with one line (never a crash)."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from mocapbench import metrics
+from mocapbench.codecs import BitstreamError, container, create
+from mocapbench.codecs.mcb_rot import decoder, native, stream
+from mocapbench.synthetic import sinusoidal_motion
+
+ROOT = Path(__file__).resolve().parents[3]
+sys.path.insert(0, str(ROOT / "tests" / "codecs"))
+sys.path.insert(0, str(ROOT / "tests"))
+sys.path.insert(0, str(ROOT / "tests" / "fixtures" / "golden_decode"))
+from make_golden import spinning  # noqa: E402
+from test_mcb_rot import random_motion  # noqa: E402
+
+GOLDEN = sorted((ROOT / "tests" / "fixtures" / "golden_decode").glob("mcb-rot6-*.mcb"))
+
+
+@pytest.fixture(scope="module")
+def lib():
+    from conftest import running_in_ci
+
+    found = native.library()
+    if found is None:
+        if running_in_ci():
+            pytest.fail("the native runtime did not build (CI has a C compiler)")
+        pytest.skip("the native runtime is not available (no C compiler?)")
+    return found
+
+
+def _both(data: bytes):
+    """(native, numpy) positions, roots, rotations of a one-window stream."""
+    header, payload = container.unpack(data, "mcb-rot")
+    count = header.num_frames
+    results = []
+    for use_native in (True, False):
+        info = stream.read_info(header, payload)
+        if not use_native:
+            info._cache["native"] = None
+        else:
+            assert decoder.native_clip(info, payload) is not None
+        results.append(decoder.decode_range(info, payload, 0, count))
+    return results
+
+
+def _assert_same(data: bytes) -> None:
+    (positions, roots, quats), (ref_positions, ref_roots, ref_quats) = _both(data)
+    np.testing.assert_allclose(positions, ref_positions, rtol=0, atol=1e-6)
+    np.testing.assert_allclose(roots, ref_roots, rtol=0, atol=1e-6)
+    np.testing.assert_allclose(quats, ref_quats, rtol=0, atol=1e-9)
+
+
+@settings(max_examples=25, deadline=None, derandomize=True, suppress_health_check=list(HealthCheck))
+@given(
+    seed=st.integers(0, 10_000),
+    joints=st.integers(1, 20),
+    frames=st.integers(1, 400),
+    eps=st.sampled_from([0.05, 0.5, 2.0]),
+    zero_bones=st.sampled_from([0.0, 0.3, 1.0]),
+    speed=st.sampled_from([0.0, 0.02, 0.3]),
+    segment=st.sampled_from([1, 7, 32, 128]),
+    chunk=st.sampled_from([1, 100, 128, 300]),
+    shell=st.sampled_from([0.0, 2.0]),
+    power=st.sampled_from([0.0, 2.0]),
+    slope=st.sampled_from([0.0, 1.0]),
+)
+def test_the_runtime_decodes_what_numpy_decodes_and_holds_the_bound(lib, seed, joints, frames, eps, zero_bones, speed,
+                                                                    segment, chunk, shell, power, slope):
+    motion = random_motion(seed, joints, frames, zero_bones, speed)
+    data = create("mcb-rot", eps_cm=eps, segment_frames=segment, chunk_frames=chunk, shell_cm=shell,
+                  allocation_power=power, frequency_slope=slope).encode(motion)
+    _assert_same(data)
+    decoded = create("mcb-rot").decode(data)  # through the runtime
+    assert metrics.max_joint_error(motion.positions(), decoded.positions) <= eps
+
+
+@pytest.mark.parametrize("path", GOLDEN, ids=lambda p: p.stem)
+def test_the_golden_format_6_streams_decode_alike(lib, path):
+    _assert_same(path.read_bytes())
+
+
+def test_cuts_spins_and_parts_decode_alike(lib):
+    motion = spinning(sinusoidal_motion(num_frames=700, seed=5))
+    data = create("mcb-rot", eps_cm=0.1).encode(motion)
+    _assert_same(data)
+    codec = create("mcb-rot")
+    whole = codec.decode(data)
+    for start, stop in ((0, 1), (127, 129), (300, 700), (699, 700)):
+        part = codec.decode_frames(data, start, stop)
+        np.testing.assert_allclose(part.positions, whole.positions[start:stop], rtol=0, atol=1e-9)
+
+
+def test_hostile_payloads_are_refused_with_one_line_never_a_crash(lib):
+    data = GOLDEN[0].read_bytes()
+    header, payload = container.unpack(data, "mcb-rot")
+    payload = bytes(payload)
+    rng = np.random.default_rng(7)
+    cases = [payload[:n] for n in range(0, len(payload), 7)]
+    for _ in range(300):
+        bad = bytearray(payload)
+        for at in rng.integers(0, len(bad), rng.integers(1, 4)):
+            bad[at] = int(rng.integers(0, 256))
+        cases.append(bytes(bad))
+    refused = 0
+    for case in cases:
+        try:
+            clip = native.NativeClip(lib, case, header.num_frames, header.num_joints, header.fps)
+            count = header.num_frames
+            clip.frames(0, count, np.empty((count, 3)), np.empty((count, header.num_joints, 4)))
+        except BitstreamError as error:
+            assert "\n" not in str(error) and str(error).startswith("mcb-rot")
+            refused += 1
+    assert refused >= len(cases) // 2
+
+
+def test_another_format_is_refused_by_the_runtime(lib):
+    header, payload = container.unpack(GOLDEN[0].read_bytes(), "mcb-rot")
+    newer = bytes([7]) + bytes(payload)[1:]
+    with pytest.raises(BitstreamError, match="payload format 7"):
+        native.NativeClip(lib, newer, header.num_frames, header.num_joints, header.fps)
+
+
+def test_the_c_tables_are_the_python_tables():
+    result = subprocess.run([sys.executable, str(ROOT / "runtime" / "tools" / "gen_tables.py"), "--check"],
+                            capture_output=True, text=True, cwd=ROOT, env={"PYTHONPATH": str(ROOT)})
+    assert result.returncode == 0, result.stderr
