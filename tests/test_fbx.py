@@ -128,7 +128,8 @@ def test_cli_compresses_fbx(tmp_path, capsys):
     back = read_bvh(tmp_path / "dog.bvh", length_unit_cm=0.1)
     assert metrics.max_joint_error(case.motion.positions(), back.positions()) < 1.0
     assert main(["inspect", str(source)]) == 0
-    assert "z (from the file)" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert "z (from the file)" in out and "mm (declared by the file's UnitScaleFactor)" in out
 
 
 def test_frames_times_bones_over_the_decode_limits_is_refused_before_baking(tmp_path):

@@ -20,7 +20,7 @@ def inspect_motion(args) -> None:
         "frames": motion.num_frames,
         "joints": motion.num_joints,
         "fps": motion.fps,
-        "source unit": unit_label(motion.source_unit_cm) + ("" if args.units else " (default; --units to change)"),
+        "source unit": unit_label(motion.source_unit_cm) + ("" if args.units else f" ({_unit_source(args.input)})"),
         "up axis": f"{motion.up_axis} (given)" if args.up else f"{motion.up_axis} (from the file)" if from_file
         else f"{axis} (detected: {reason})",
         "rest height": f"{rest_height_cm(motion.skeleton, motion.up_axis):.1f} cm",
@@ -28,6 +28,16 @@ def inspect_motion(args) -> None:
     width = max(len(key) for key in facts)
     for key, value in facts.items():
         print(f"{key:<{width}}  {value}")
+
+
+def _unit_source(path: str) -> str:
+    """Where the unit of a file read without ``--units`` came from: its sidecar, or what its format declares."""
+    from mocapbench.io.formats import default_unit_source
+    from mocapbench.io.unit_choice import read_sidecar, sidecar_path
+
+    if "units" in read_sidecar(path):
+        return f"sidecar {sidecar_path(path).name}"
+    return default_unit_source(path)
 
 
 def run(args) -> None:
