@@ -18,6 +18,7 @@ import os
 import platform
 import shlex
 import sys
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Iterable, Sequence
 
@@ -36,7 +37,7 @@ from mocapbench.experiments.reproduction import reproduction_sections
 from mocapbench.experiments.run import EXAMPLE_FILE
 from mocapbench.io.safe_output import check_name, write_text
 
-__all__ = ["build_report", "headline_table", "headline_tables", "headline_text", "QUOTED_REFERENCES",
+__all__ = ["ReportData", "build_report", "headline_table", "headline_tables", "headline_text", "QUOTED_REFERENCES",
            "CMU_ACKNOWLEDGEMENT", "unique_report_folder"]
 
 BOUNDS_CM = DEFAULT_BOUNDS_CM
@@ -256,6 +257,52 @@ def _failure_summary(errors: pd.DataFrame) -> pd.DataFrame:
     return out.sort_values(["count"], ascending=False)
 
 
+@dataclass(frozen=True)
+class ReportData:
+    """What every section of the report reads: the aggregated sweep and where the report goes.
+
+    Attributes
+    ----------
+    rows : DataFrame
+        One row per job and clip (:func:`mocapbench.experiments.aggregate.aggregate`).
+    points : DataFrame
+        One row per dataset, codec and configuration, pooled over clips (:func:`curve_points`).
+    errors : DataFrame
+        The failure records of the jobs (:func:`read_errors`).
+    headline : DataFrame
+        Per dataset and bound, the ranked codecs (:func:`headline_tables`).
+    datasets, codecs : list of str
+        Sorted names present in ``rows``.
+    bounds : tuple of float, cm
+        The headline's L∞ bounds.
+    out : Path
+        The new report folder; figures go to ``figures`` (``out / "figures"``).
+    name, anchor : str
+        The report's name and the BD-rate anchor codec.
+    folders : list of Path
+        The sweep folders read.
+    command : str or None
+        The command that produced everything, quoted in "Data and method".
+    """
+
+    rows: pd.DataFrame
+    points: pd.DataFrame
+    errors: pd.DataFrame
+    headline: pd.DataFrame
+    datasets: list[str]
+    codecs: list[str]
+    bounds: tuple[float, ...]
+    out: Path
+    name: str
+    anchor: str
+    folders: list[Path]
+    command: str | None
+
+    @property
+    def figures(self) -> Path:
+        return self.out / "figures"
+
+
 def build_report(
     folders: Iterable[str | Path],
     *,
@@ -266,6 +313,9 @@ def build_report(
     bounds: Sequence[float] | None = None,
 ) -> Path:
     """Aggregate the sweep folders and write the report; returns the new report folder.
+
+    Each section is one function of the document and :class:`ReportData`, called here in the report's order (a
+    new section is a function, in its own module if it is long, and one line here).
 
     Parameters
     ----------
@@ -281,9 +331,37 @@ def build_report(
     bounds : floats, cm, optional
         L∞ bounds of the headline beside 1 cm and 3 cm.
     """
-    from mocapbench.experiments.published import points_for
     from mocapbench.experiments.results_files import write_results
 
+    data = _read_sweeps(folders, name=name, reports_root=reports_root, anchor=anchor, command=command, bounds=bounds)
+    doc = Document(f"mocapbench report: {data.name}")
+    _summary_section(doc, data)
+    _headline_section(doc, data)
+    _rate_distortion_section(doc, data)
+    _distributions_section(doc, data)
+    add_animator_section(doc, data.rows, data.points, data.bounds, data.out, _config_labels(data.points))
+    _bd_rate_section(doc, data)
+    _reproduction_section(doc, data.rows)
+    _pictures_section(doc, data)
+    _all_points_section(doc, data)
+    _failures_section(doc, data)
+    _method_section(doc, data)
+    _acknowledgement_section(doc, data)
+    write_results(data.out, data.rows, data.points)
+    write_text(data.out / "report.md", doc.markdown())
+    write_text(data.out / "index.html", doc.html())
+    return data.out
+
+
+def _config_labels(points: pd.DataFrame):
+    """A point's config text with the parameters swept for its codec (the label the sections print)."""
+    swept = _swept_params(points)
+    return lambda point: _config_text(point, swept[point["codec"]])
+
+
+def _read_sweeps(folders: Iterable[str | Path], *, name: str | None, reports_root: str | Path, anchor: str,
+                 command: str | None, bounds: Sequence[float] | None) -> ReportData:
+    """Aggregate the sweep folders and make the new report folder (with its ``figures/``)."""
     bounds = bounds_with(bounds)
     folders = [Path(f) for f in folders]
     name = check_name(name or folders[0].resolve().name, "report name")
@@ -291,19 +369,25 @@ def build_report(
     points = curve_points(rows)
     errors = read_errors(folders)
     out = unique_report_folder(Path(reports_root), name)
-    figures = out / "figures"
-    figures.mkdir()
-    datasets = sorted(rows["dataset"].unique())
-    codecs = sorted(rows["codec"].unique())
-    headline = headline_tables(points, errors, bounds)
+    (out / "figures").mkdir()
+    return ReportData(rows=rows, points=points, errors=errors, headline=headline_tables(points, errors, bounds),
+                      datasets=sorted(rows["dataset"].unique()), codecs=sorted(rows["codec"].unique()),
+                      bounds=tuple(bounds), out=out, name=name, anchor=anchor, folders=folders, command=command)
 
-    doc = Document(f"mocapbench report: {name}")
+
+def _summary_section(doc: Document, data: ReportData) -> None:
+    """The opening lines: a warning when every clip is synthetic, and what the report covers."""
+    rows, points, datasets, codecs = data.rows, data.points, data.datasets, data.codecs
     note = synthetic_only_note(rows)
     if note:
         doc.paragraph(note, strong=True)
     doc.paragraph(f"{len(rows)} result rows, {len(points)} codec configurations, {len(codecs)} codecs, "
                   f"datasets {', '.join(datasets)}. Generated {_dt.datetime.now():%Y-%m-%d %H:%M}.")
 
+
+def _headline_section(doc: Document, data: ReportData) -> None:
+    """Which codec to pick: the winners in sentences, one ranked table per dataset and bound, the quoted points."""
+    headline = data.headline
     doc.heading("Headline: which codec to pick")
     doc.bullets(winner_sentences(headline))
     doc.paragraph("Per dataset and L∞ bound, every codec at the configuration with the highest compression ratio "
@@ -326,6 +410,17 @@ def build_report(
                   "joint per frame):")
     doc.table(_quoted_table())
 
+
+def _rate_distortion_section(doc: Document, data: ReportData) -> None:
+    """One rate-distortion figure per dataset and error metric, and one per clip."""
+    from mocapbench.experiments.published import points_for
+
+    rows = data.rows
+    points = data.points
+    datasets = data.datasets
+    bounds = data.bounds
+    out = data.out
+    figures = data.figures
     doc.heading("Rate-distortion")
     doc.paragraph("One metric per figure; rate in bits per joint per frame (lower is better) against each error. "
                   "Colours and markers are fixed per codec across reports; line style by family: solid = paper, "
@@ -346,6 +441,16 @@ def build_report(
         path = plots.rd_per_clip_figure(ds_rows, dataset, figures / f"rd_per_clip_{slug}.png")
         doc.image(path.relative_to(out).as_posix(), f"{dataset}: per clip, bits/joint/frame vs L∞")
 
+
+def _distributions_section(doc: Document, data: ReportData) -> None:
+    """Per dataset and bound, each ranked codec's ratio, max error and share under the bound over the clips."""
+    rows = data.rows
+    points = data.points
+    headline = data.headline
+    datasets = data.datasets
+    bounds = data.bounds
+    out = data.out
+    figures = data.figures
     doc.heading("Distributions over clips")
     doc.paragraph("For each bound, every ranked codec at its headline configuration: the compression ratio of each "
                   "clip, the max error of each clip and the share of joint samples (every joint of every frame) "
@@ -361,8 +466,10 @@ def build_report(
                 continue
             doc.image(path.relative_to(out).as_posix(), f"{dataset}: over clips at L∞ < {bound:g} cm")
 
-    add_animator_section(doc, rows, points, bounds, out, lambda p: _config_text(p, _swept_params(points)[p["codec"]]))
 
+def _bd_rate_section(doc: Document, data: ReportData) -> None:
+    """The BD-rate of every codec against the anchor, for L∞ and for the mean error."""
+    points, anchor = data.points, data.anchor
     doc.heading(f"BD-rate against {anchor}")
     doc.paragraph("Bjontegaard-delta rate (bjontegaard package, pchip): average extra rate (%) a codec needs for the "
                   "same quality as the anchor; negative = fewer bits. Quality = -log(error cm), rate = bits per joint "
@@ -370,8 +477,10 @@ def build_report(
     for error in ("max_err_cm", "mean_err_cm"):
         doc.table(bd_rate_table(points, anchor=anchor, error=error), caption=f"quality = -log({error})")
 
-    _reproduction_section(doc, rows)
 
+def _pictures_section(doc: Document, data: ReportData) -> None:
+    """Per dataset: the error heat maps and skeleton overlays of the example clips the jobs saved."""
+    rows, points, datasets, out, figures = data.rows, data.points, data.datasets, data.out, data.figures
     doc.heading("Pictures")
     for dataset in datasets:
         examples = _examples(points, rows, dataset)
@@ -387,6 +496,10 @@ def build_report(
         doc.image(path.relative_to(out).as_posix(), f"{dataset}: original vs decoded at each codec's worst joint, "
                                                     "whole body and zoomed")
 
+
+def _all_points_section(doc: Document, data: ReportData) -> None:
+    """Every rate-distortion point, with the parameters swept for its codec."""
+    points = data.points
     doc.heading("All rate-distortion points")
     doc.paragraph("Config shows the parameters swept for each codec; every other parameter is at its default "
                   "(configs/codec/<name>.yaml). The same numbers are in results/<dataset>/<codec>.json (one file per "
@@ -399,12 +512,25 @@ def build_report(
     table.insert(2, "config", [_config_text(r, swept[r["codec"]]) for _, r in table.iterrows()])
     doc.table(table[columns[:2] + ["config"] + columns[2:]])
 
+
+def _failures_section(doc: Document, data: ReportData) -> None:
+    """The failed jobs and clips grouped by reason (no section when nothing failed)."""
+    errors = data.errors
     if not errors.empty:
         doc.heading("Failed jobs and clips")
         doc.paragraph(f"{len(errors)} failure record(s), grouped by reason; errors.jsonl in each job folder holds "
                       "the tracebacks.")
         doc.table(_failure_summary(errors))
 
+
+def _method_section(doc: Document, data: ReportData) -> None:
+    """Data and method: the clips, the definitions of rate and error, the machine, versions, the commands."""
+    rows = data.rows
+    bounds = data.bounds
+    name = data.name
+    anchor = data.anchor
+    folders = data.folders
+    command = data.command
     doc.heading("Data and method")
     clips = rows.groupby(["dataset", "clip"], sort=True).agg(frames=("frames", "first"), fps=("fps", "first"),
                                                                joints=("joints", "first"),
@@ -443,6 +569,11 @@ def build_report(
                              "--name", name, "--anchor", anchor,
                              *[a for b in bounds if b not in BOUNDS_CM for a in ("--bounds", f"{b:g}")]]))
     doc.code("\n".join(lines))
+
+
+def _acknowledgement_section(doc: Document, data: ReportData) -> None:
+    """The acknowledgement each data set used asks for (none for synthetic data alone)."""
+    rows = data.rows
     used = {column: column in rows and rows[column].fillna(False).astype(bool).any()
             for column in ("cmu_data", "bandai_data")}
     if any(used.values()):
@@ -453,11 +584,6 @@ def build_report(
             doc.paragraph(CMU_ACKNOWLEDGEMENT)
         if used["bandai_data"]:
             doc.paragraph(BANDAI_ACKNOWLEDGEMENT)
-
-    write_results(out, rows, points)
-    write_text(out / "report.md", doc.markdown())
-    write_text(out / "index.html", doc.html())
-    return out
 
 
 def _reproduction_section(doc: Document, rows: pd.DataFrame) -> None:

@@ -536,46 +536,12 @@ class PgaIkCodec(Codec):
                 f"pga-ik: header says {header.num_joints} joints, the skeleton has {skeleton.num_joints} (need >= 2)."
             )
         num_inner, num_frames = skeleton.num_joints - 1, header.num_frames
-        k = reader.read_varint("number of geodesics")
-        num_ends = reader.read_varint("number of end joints")
-        if not 1 <= k <= 3 * num_inner or not 1 <= num_ends <= num_inner:
-            raise BitstreamError(
-                f"pga-ik: expected 1..{3 * num_inner} geodesics and 1..{num_inner} end joints, "
-                f"found {k} and {num_ends}."
-            )
-        values = reader.read_varints(num_ends + 5, "end joints and settings")
-        ends = [int(e) for e in values[:num_ends]]
-        model_bits, trajectory_bits, root_dropped, end_dropped, iterations = (int(v) for v in values[num_ends:])
-        if len(set(ends)) != num_ends or min(ends) < 1 or max(ends) > num_inner:
-            raise BitstreamError(f"pga-ik: end joints must be distinct indices in 1..{num_inner}, found {ends}.")
-        if not (2 <= model_bits <= 24 and 2 <= trajectory_bits <= 24 and 1 <= iterations <= _MAX_LM_ITERATIONS):
-            raise BitstreamError(
-                f"pga-ik: expected bits in 2..24 and 1..{_MAX_LM_ITERATIONS} LM iterations, found "
-                f"{model_bits}, {trajectory_bits}, {iterations}."
-            )
-        if root_dropped > 40 or end_dropped > 40:
-            raise BitstreamError(f"pga-ik: at most 40 dropped levels, found {root_dropped} and {end_dropped}.")
-        current_limits().check("max_ik_iterations", num_frames * iterations, f"{num_frames} frames x {iterations}")
-        lam = reader.read_f32("IK lambda")
-        if not (np.isfinite(lam) and 0.0 <= lam <= 1e12):
-            raise BitstreamError(f"pga-ik: expected an IK lambda in [0, 1e12] cm^2, found {lam}.")
-        count = 3 * num_inner * (k + 1)
-        model_indices, offset = decode_symbols(payload, reader.offset, expected_count=count)
+        settings = _read_settings(reader, num_inner, num_frames)
+        k, ends = settings["k"], settings["ends"]
+        model_bits, trajectory_bits, root_dropped, end_dropped = settings["bits_and_levels"]
+        mean, directions, offset = _read_pose_model(payload, reader.offset, num_inner, k, model_bits)
         reader = ByteReader(payload, offset)
-        model_step = 1.0 / ((1 << (model_bits - 1)) - 1)
-        model_values = model_indices * model_step
-        if np.max(np.abs(model_values)) > 1.0 + model_step:
-            raise BitstreamError("pga-ik: the mean and geodesics must lie in [-1, 1] before scaling; found more.")
-        mean = Rotation.from_rotvec(model_values[: 3 * num_inner].reshape(num_inner, 3) * np.pi).as_quat()
-        directions = model_values[3 * num_inner :].reshape(k, num_inner, 3)
-
-        # Trajectory coefficients: per track, level 0 (one sample) then each kept detail level.
-        sizes = level_sizes(num_frames)
-        layout = []  # (track channels, number of coded levels (coarse included), samples per level)
-        for channels, dropped in ((3, root_dropped), (3, root_dropped), (3 * num_ends, end_dropped)):
-            coded = _kept_levels(num_frames, dropped) + 1
-            counts = [1] + [sizes[level] - sizes[level - 1] for level in range(1, coded)]
-            layout.append((channels, counts))
+        layout = _trajectory_layout(num_frames, root_dropped, end_dropped, len(ends))
         num_steps = sum(len(counts) for _, counts in layout)
         steps = reader.read_array(num_steps, np.float32, "trajectory steps").astype(np.float64)
         if not np.all(np.isfinite(steps)) or np.any(steps < 0):
@@ -584,26 +550,17 @@ class PgaIkCodec(Codec):
         symbols, offset = decode_symbols(payload, reader.offset, expected_count=total)
         fixes = None
         if corrections:
-            fixes, offset = _read_corrections(payload, ByteReader(payload, offset), num_frames, num_ends)
+            fixes, offset = _read_corrections(payload, ByteReader(payload, offset), num_frames, len(ends))
         ByteReader(payload, offset).expect_end()
-        coefficients, position, step_index = [], 0, 0
-        for channels, counts in layout:
-            levels = []
-            for count in counts:
-                size = channels * count
-                levels.append(symbols[position : position + size].reshape(count, channels) * steps[step_index])
-                position += size
-                step_index += 1
-            coefficients.append(levels)
         return {
             "skeleton": skeleton,
             "k": k,
             "ends": ends,
             "mean": mean,
             "directions": directions,
-            "lambda": float(lam),
-            "iterations": iterations,
-            "coefficients": coefficients,
+            "lambda": settings["lambda"],
+            "iterations": settings["iterations"],
+            "coefficients": _dequantized_levels(symbols, layout, steps),
             "corrections": fixes,
             "settings": (model_bits, trajectory_bits, root_dropped, end_dropped),
         }
@@ -722,3 +679,70 @@ class PgaIkCodec(Codec):
             "lm_iterations": parsed["iterations"],
             **({"end_joint_corrections": len(parsed["corrections"][0])} if corrections else {}),
         }
+
+
+def _read_settings(reader: ByteReader, num_inner: int, num_frames: int) -> dict[str, Any]:
+    """The payload's counts and settings after the skeleton, each checked against its range (and the IK work
+    against the decode limits): ``k``, ``ends``, ``bits_and_levels``, ``iterations``, ``lambda``."""
+    k = reader.read_varint("number of geodesics")
+    num_ends = reader.read_varint("number of end joints")
+    if not 1 <= k <= 3 * num_inner or not 1 <= num_ends <= num_inner:
+        raise BitstreamError(
+            f"pga-ik: expected 1..{3 * num_inner} geodesics and 1..{num_inner} end joints, "
+            f"found {k} and {num_ends}."
+        )
+    values = reader.read_varints(num_ends + 5, "end joints and settings")
+    ends = [int(e) for e in values[:num_ends]]
+    model_bits, trajectory_bits, root_dropped, end_dropped, iterations = (int(v) for v in values[num_ends:])
+    if len(set(ends)) != num_ends or min(ends) < 1 or max(ends) > num_inner:
+        raise BitstreamError(f"pga-ik: end joints must be distinct indices in 1..{num_inner}, found {ends}.")
+    if not (2 <= model_bits <= 24 and 2 <= trajectory_bits <= 24 and 1 <= iterations <= _MAX_LM_ITERATIONS):
+        raise BitstreamError(
+            f"pga-ik: expected bits in 2..24 and 1..{_MAX_LM_ITERATIONS} LM iterations, found "
+            f"{model_bits}, {trajectory_bits}, {iterations}."
+        )
+    if root_dropped > 40 or end_dropped > 40:
+        raise BitstreamError(f"pga-ik: at most 40 dropped levels, found {root_dropped} and {end_dropped}.")
+    current_limits().check("max_ik_iterations", num_frames * iterations, f"{num_frames} frames x {iterations}")
+    lam = reader.read_f32("IK lambda")
+    if not (np.isfinite(lam) and 0.0 <= lam <= 1e12):
+        raise BitstreamError(f"pga-ik: expected an IK lambda in [0, 1e12] cm^2, found {lam}.")
+    return {"k": k, "ends": ends, "bits_and_levels": (model_bits, trajectory_bits, root_dropped, end_dropped),
+            "iterations": iterations, "lambda": float(lam)}
+
+
+def _read_pose_model(payload: memoryview, offset: int, num_inner: int, k: int, model_bits: int):
+    """The PGA pose model at ``offset``: the mean pose (num_inner, 4) quaternions, the ``k`` geodesic directions
+    (k, num_inner, 3) and the offset after them."""
+    model_indices, offset = decode_symbols(payload, offset, expected_count=3 * num_inner * (k + 1))
+    model_step = 1.0 / ((1 << (model_bits - 1)) - 1)
+    model_values = model_indices * model_step
+    if np.max(np.abs(model_values)) > 1.0 + model_step:
+        raise BitstreamError("pga-ik: the mean and geodesics must lie in [-1, 1] before scaling; found more.")
+    mean = Rotation.from_rotvec(model_values[: 3 * num_inner].reshape(num_inner, 3) * np.pi).as_quat()
+    return mean, model_values[3 * num_inner :].reshape(k, num_inner, 3), offset
+
+
+def _trajectory_layout(num_frames: int, root_dropped: int, end_dropped: int, num_ends: int):
+    """Per track (root, root again, end joints): its channels and the samples of each coded level, coarse first."""
+    sizes = level_sizes(num_frames)
+    layout = []
+    for channels, dropped in ((3, root_dropped), (3, root_dropped), (3 * num_ends, end_dropped)):
+        coded = _kept_levels(num_frames, dropped) + 1
+        counts = [1] + [sizes[level] - sizes[level - 1] for level in range(1, coded)]
+        layout.append((channels, counts))
+    return layout
+
+
+def _dequantized_levels(symbols: np.ndarray, layout, steps: np.ndarray) -> list[list[np.ndarray]]:
+    """The trajectory coefficients of each track, level by level ((count, channels) each), times their steps."""
+    coefficients, position, step_index = [], 0, 0
+    for channels, counts in layout:
+        levels = []
+        for count in counts:
+            size = channels * count
+            levels.append(symbols[position : position + size].reshape(count, channels) * steps[step_index])
+            position += size
+            step_index += 1
+        coefficients.append(levels)
+    return coefficients

@@ -72,38 +72,27 @@ class GeodesicIK:
     """
 
     def __init__(self, skeleton: Skeleton, mean: np.ndarray, directions: np.ndarray, end_joints: Sequence[int]):
-        num_inner = skeleton.num_joints - 1
-        mean = np.asarray(mean, dtype=np.float64)
-        directions = np.asarray(directions, dtype=np.float64)
-        if mean.shape != (num_inner, 4):
-            raise ValueError(f"Expected `mean` of shape ({num_inner}, 4), got {mean.shape}.")
-        if directions.ndim != 3 or directions.shape[1:] != (num_inner, 3) or directions.shape[0] < 1:
-            raise ValueError(f"Expected `directions` of shape (k >= 1, {num_inner}, 3), got {directions.shape}.")
-        ends = [int(e) for e in end_joints]
-        if not ends or len(set(ends)) != len(ends) or min(ends) < 1 or max(ends) >= skeleton.num_joints:
-            raise ValueError(
-                f"`end_joints` must be distinct joint indices in 1..{skeleton.num_joints - 1}, got {ends}."
-            )
+        mean, directions, ends = _checked_model(skeleton, mean, directions, end_joints)
         parents = skeleton.parents
         self.skeleton = skeleton
         self.end_joints = tuple(ends)
         self.num_geodesics = directions.shape[0]
         # Joints whose rotation moves an end joint: the strict ancestors of the ends, the root excepted.
-        ancestors_of = {}
-        for e in ends:
-            chain, j = [], int(parents[e])
-            while j > 0:
-                chain.append(j)
-                j = int(parents[j])
-            ancestors_of[e] = chain
+        ancestors_of = _end_chains(parents, ends)
         rotating = sorted({j for chain in ancestors_of.values() for j in chain})
         nodes = sorted({0, *rotating, *ends})  # the joints the IK evaluates, parents before children
         compact = {j: c for c, j in enumerate(nodes)}
-        num_nodes = len(nodes)
         node_parent = np.array([0] + [compact[int(parents[j])] for j in nodes[1:]], dtype=np.int64)
         self._end_compact = np.array([compact[e] for e in ends], dtype=np.int64)
         self._node_parent = node_parent
         self._offsets = np.ascontiguousarray(skeleton.offsets[nodes].T)  # (3, c), cm
+        self._set_tree(node_parent)
+        self._set_pairs(ends, ancestors_of, compact)
+        self._set_model(nodes, rotating, mean, directions)
+
+    def _set_tree(self, node_parent: np.ndarray) -> None:
+        """The pointer-jumping steps and the ancestor matrix of the evaluated nodes."""
+        num_nodes = len(node_parent)
         # Global rotations by pointer jumping: after step s a node holds the product of the locals of itself and
         # its 2^s - 1 nearest ancestors; ceil(log2(depth + 1)) steps reach the root for every node.
         depth = np.zeros(num_nodes, dtype=np.int64)
@@ -118,13 +107,19 @@ class GeodesicIK:
             pointer = pointer[pointer]
         ancestors[:, 0] = 0.0  # the root's step is the root position, 0 in the root frame
         self._ancestors_t = np.ascontiguousarray(ancestors.T)  # pos = steps @ ancestors^T
-        # (end, rotating ancestor) pairs for the Jacobian, and the (pairs, d) summing matrix.
+
+    def _set_pairs(self, ends: list[int], ancestors_of: dict[int, list[int]], compact: dict[int, int]) -> None:
+        """(end, rotating ancestor) pairs for the Jacobian, and the (pairs, d) summing matrix."""
         pairs = [(i, compact[j]) for i, e in enumerate(ends) for j in ancestors_of[e]]
         self._pair_end = np.array([self._end_compact[i] for i, _ in pairs], dtype=np.int64)
         self._pair_joint = np.array([c for _, c in pairs], dtype=np.int64)
         self._pair_sum_t = np.zeros((len(pairs), len(ends)))
         for p, (i, _) in enumerate(pairs):
             self._pair_sum_t[p, i] = 1.0
+
+    def _set_model(self, nodes: list[int], rotating: list[int], mean: np.ndarray, directions: np.ndarray) -> None:
+        """The mean rotations and the geodesics' Rodrigues terms on every evaluated node."""
+        num_nodes = len(nodes)
         # The model on every evaluated node, component-major ((3, 3, ...) and (3, ...): at these sizes explicit
         # 3x3 products over contiguous component arrays are ~3x faster than batched matmul). Nodes whose
         # rotation moves no end joint (the root, leaf end joints) get the identity and zero directions.
@@ -293,3 +288,33 @@ class GeodesicIK:
                 x, state = self.solve(targets[frame], x, lam, iterations, start=state)
             out[frame] = x
         return out
+
+
+def _checked_model(skeleton: Skeleton, mean, directions, end_joints: Sequence[int]):
+    """``mean`` (J - 1, 4) and ``directions`` (k >= 1, J - 1, 3) as float64, and the end joints as a list of
+    distinct indices in 1..J-1; anything else is a ``ValueError`` naming the argument."""
+    num_inner = skeleton.num_joints - 1
+    mean = np.asarray(mean, dtype=np.float64)
+    directions = np.asarray(directions, dtype=np.float64)
+    if mean.shape != (num_inner, 4):
+        raise ValueError(f"Expected `mean` of shape ({num_inner}, 4), got {mean.shape}.")
+    if directions.ndim != 3 or directions.shape[1:] != (num_inner, 3) or directions.shape[0] < 1:
+        raise ValueError(f"Expected `directions` of shape (k >= 1, {num_inner}, 3), got {directions.shape}.")
+    ends = [int(e) for e in end_joints]
+    if not ends or len(set(ends)) != len(ends) or min(ends) < 1 or max(ends) >= skeleton.num_joints:
+        raise ValueError(
+            f"`end_joints` must be distinct joint indices in 1..{skeleton.num_joints - 1}, got {ends}."
+        )
+    return mean, directions, ends
+
+
+def _end_chains(parents: np.ndarray, ends: list[int]) -> dict[int, list[int]]:
+    """For each end joint, its strict ancestors below the root, nearest first."""
+    chains = {}
+    for e in ends:
+        chain, j = [], int(parents[e])
+        while j > 0:
+            chain.append(j)
+            j = int(parents[j])
+        chains[e] = chain
+    return chains
