@@ -243,7 +243,10 @@ class Codec(abc.ABC):
             raise TypeError(f"{self.name}: encode expects a Motion, got {type(motion).__name__}.")
         self.last_encode_stats = {}
         self.check_motion_fits(motion)
-        payload = self.encode_payload(motion)
+        return self.pack_stream(motion, self.encode_payload(motion))
+
+    def pack_stream(self, motion: Motion, payload: bytes) -> bytes:
+        """The self-describing stream of ``payload`` (the container header of ``motion``'s facts around it)."""
         return container.pack(
             self.name,
             motion.num_frames,
@@ -253,6 +256,25 @@ class Codec(abc.ABC):
             source_unit_cm=motion.source_unit_cm,
             up_axis=motion.up_axis,
         )
+
+    #: True when :meth:`encode_many` does work shared by its clips (the neural Fourier codecs train the clips'
+    #: networks side by side), so that a caller holding several clips should hand them over together.
+    encodes_many: ClassVar[bool] = False
+
+    def encode_many(self, motions: Sequence[Motion]) -> list[tuple[bytes | Exception, dict[str, Any]]]:
+        """Encode several motions; per motion its stream (or the error that refused it) and its encode stats.
+
+        Default: :meth:`encode` one motion at a time. A codec with ``encodes_many`` overrides it; its streams are
+        the ones :meth:`encode` writes for each motion alone (up to the order of floating-point sums). One motion's
+        error never stops the others.
+        """
+        out: list[tuple[bytes | Exception, dict[str, Any]]] = []
+        for motion in motions:
+            try:
+                out.append((self.encode(motion), dict(self.last_encode_stats)))
+            except Exception as error:  # noqa: BLE001 - handed back per motion, as encode would raise it
+                out.append((error, {}))
+        return out
 
     def check_motion_fits(self, motion: Motion) -> None:
         """Refuse, in one ``ValueError`` line, a motion outside the codec's range or with too few joints.

@@ -4,6 +4,7 @@
     python -m mocapbench.experiments.cost --dataset cmu_full data_dir=/data/cmu --workers 8   # a folder you have
     python -m mocapbench.experiments.cost --sweep small --dataset cmu_test --workers 2
     python -m mocapbench.experiments.cost --calibrate          # measure the per-frame costs on this machine
+    python -m mocapbench.experiments.cost --calibrate-from multirun/<date>-bench/cmu_test   # from a finished run
 
 The estimate multiplies measured per-frame costs by the dataset's frames. Costs live in
 ``mocapbench/configs/costs.json`` (written by ``--calibrate``, which runs the sweep on two synthetic clips of
@@ -39,7 +40,7 @@ from importlib import resources
 from pathlib import Path
 from typing import Any, Sequence
 
-__all__ = ["COSTS_FILE", "load_costs", "cpu_cost", "Estimate", "estimate", "main"]
+__all__ = ["COSTS_FILE", "load_costs", "cpu_cost", "job_costs", "makespan", "Estimate", "estimate", "main"]
 
 COSTS_FILE = "configs/costs.json"
 # Used for a codec the costs file does not know (a codec added after the last calibration): 1 ms per frame.
@@ -77,6 +78,23 @@ def cpu_cost(costs: dict[str, Any], folder: str) -> tuple[float, float]:
     return _UNKNOWN_CPU_S_PER_FRAME, 0.0
 
 
+def job_costs(costs: dict[str, Any], folder: str, frames: Sequence[int], count: int,
+              packing: str = "balanced") -> list[float]:
+    """Estimated CPU s of each of the ``count`` shards of the config ``folder`` over clips of ``frames`` frames.
+
+    Per clip: the config's per-frame and per-clip cost plus the job's (reading, positions, metrics).
+    """
+    from mocapbench.experiments.shards import pack
+
+    per_frame, per_clip = cpu_cost(costs, folder)
+    overhead = costs.get("job", {})
+    per_frame += float(overhead.get("cpu_s_per_frame", 0.0))
+    per_clip += float(overhead.get("cpu_s_per_clip", 0.0))
+    if not frames:
+        return [per_clip]
+    return [sum(per_frame * frames[i] + per_clip for i in shard) for shard in pack(frames, count, packing)]
+
+
 def _peak_bytes_per_frame(costs: dict[str, Any], codec: str) -> float:
     return float(costs.get("memory", {}).get(codec, {}).get("peak_bytes_per_frame", _UNKNOWN_PEAK_BYTES_PER_FRAME))
 
@@ -108,7 +126,7 @@ class Estimate:
     jobs_over_mem: int = 0
 
 
-def _makespan(durations: Sequence[float], workers: int) -> float:
+def makespan(durations: Sequence[float], workers: int) -> float:
     """Longest-processing-time-first schedule of ``durations`` on ``workers`` machines: the finish time."""
     loads = [0.0] * max(1, workers)
     heapq.heapify(loads)
@@ -187,7 +205,7 @@ def estimate(costs: dict[str, Any], folders: Sequence[str], frames: Sequence[int
         row["peak_gb"] = max(row["peak_gb"], peak / 1e9)
     rows = sorted(by_codec.values(), key=lambda r: -r["cpu_h"])
     cpu_h = sum(r["cpu_h"] for r in rows)
-    return Estimate(rows, cpu_h, _makespan(durations, workers) / 3600, max((r["peak_gb"] for r in rows), default=0.0),
+    return Estimate(rows, cpu_h, makespan(durations, workers) / 3600, max((r["peak_gb"] for r in rows), default=0.0),
                     len(durations), over_mem)
 
 
@@ -264,12 +282,7 @@ def calibrate(sweep: str = "all", clip_frames: int = 300, memory_frames: int = 4
     configs: dict[str, Any] = {}
     data["folder"] = [str(Path(d).relative_to(Path(d).parents[1])) for d in data["job_dir"]]
     overhead_per_clip = []
-    def calls(group, step: str):
-        """Encode/decode calls per clip: the timing's warm-up and repeats (one call in rows without them)."""
-        if f"{step}_repeats" not in group:
-            return 1
-        return group[f"{step}_repeats"].fillna(1) + group.get(f"{step}_warmup", 0).fillna(0)
-
+    calls = _calls
     for folder_name, group in data.groupby("folder"):
         # Rows hold the median CPU time of one call; the job ran warm-up + repeats calls of each.
         cpu = float((group["encode_cpu_s"] * calls(group, "encode")
@@ -311,6 +324,48 @@ def calibrate(sweep: str = "all", clip_frames: int = 300, memory_frames: int = 4
     target = out or Path(__file__).resolve().parents[1] / COSTS_FILE
     Path(target).write_text(json.dumps(costs, indent=1, sort_keys=True) + "\n")
     return costs
+
+
+def _config_folder(job_dir: str) -> str:
+    """``<codec>/<overrides>`` of a job folder (a shard's ``shard-i-of-n`` folder belongs to its config)."""
+    parts = Path(job_dir).parts
+    if parts and parts[-1].startswith("shard-"):
+        parts = parts[:-1]
+    return "/".join(parts[-2:])
+
+
+def calibrate_from(sweeps: Sequence[str | Path], out: Path | None = None) -> dict[str, Any]:
+    """Update the per-frame costs of the configs that finished sweeps ran, from their rows (no new run).
+
+    Each config's cost is its rows' encode and decode CPU seconds (times the calls the timing made) over their
+    frames, as :func:`calibrate` measures it, but on the clips the sweeps ran: for codecs whose cost per frame
+    depends on the clips (the neural Fourier codecs train a network per clip, side by side), the benchmark's own
+    jobs are the calibration that fits. The other entries of the costs file are kept.
+    """
+    from mocapbench.experiments.aggregate import aggregate
+
+    data = aggregate([str(s) for s in sweeps])
+    if data.empty:
+        raise RuntimeError(f"no results in {', '.join(str(s) for s in sweeps)}")
+    data["folder"] = [_config_folder(d) for d in data["job_dir"]]
+    costs = load_costs(out)
+    configs = costs.setdefault("configs", {})
+    for folder_name, group in data.groupby("folder"):
+        cpu = float((group["encode_cpu_s"] * _calls(group, "encode") + group["decode_cpu_s"] * _calls(group, "decode")).sum())
+        frames = int(group["frames"].sum())
+        configs[folder_name] = {"codec": str(group["codec"].iloc[0]), "cpu_s_per_frame": cpu / frames,
+                                "cpu_s_per_clip": 0.0, "frames_measured": frames,
+                                "measured_on": f"{time.strftime('%Y-%m-%d')}, results of {group['dataset'].iloc[0]}"}
+    target = out or Path(__file__).resolve().parents[1] / COSTS_FILE
+    Path(target).write_text(json.dumps(costs, indent=1, sort_keys=True) + "\n")
+    return costs
+
+
+def _calls(group, step: str):
+    """Encode/decode calls per clip: the timing's warm-up and repeats (one call in rows without them)."""
+    if f"{step}_repeats" not in group:
+        return 1
+    return group[f"{step}_repeats"].fillna(1) + group.get(f"{step}_warmup", 0).fillna(0)
 
 
 def _parse_cost_per_frame() -> float:
@@ -362,7 +417,8 @@ def _old_layout_constants() -> dict[str, float]:
 
 
 # -- command line -----------------------------------------------------------------------------------------
-def _dataset_frames(name: str, overrides: Sequence[str]) -> list[int]:
+def dataset_frames(name: str, overrides: Sequence[str] = ()) -> list[int]:
+    """Frames of every clip of the dataset config ``name`` (with ``overrides``, e.g. ``data_dir=...``), in order."""
     from hydra import compose, initialize_config_module
     from hydra.core.global_hydra import GlobalHydra
     from omegaconf import OmegaConf
@@ -406,8 +462,14 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--costs", help="costs file (default: the package's configs/costs.json)")
     parser.add_argument("--calibrate", action="store_true", help="measure the costs on this machine, write them")
     parser.add_argument("--calibration-frames", type=int, default=300)
+    parser.add_argument("--calibrate-from", nargs="+", metavar="SWEEP_DIR",
+                        help="update the costs of the configs these finished sweeps ran, from their rows")
     parser.add_argument("overrides", nargs="*", help="Hydra overrides for the dataset, e.g. data_dir=/data/cmu")
     args = parser.parse_args(argv)
+    if args.calibrate_from:
+        costs = calibrate_from(args.calibrate_from, out=Path(args.costs) if args.costs else None)
+        print(f"updated the costs of the configs in {' '.join(args.calibrate_from)}; wrote {args.costs or COSTS_FILE}")
+        return 0
     if args.calibrate:
         costs = calibrate(args.sweep, args.calibration_frames, out=Path(args.costs) if args.costs else None)
         print(f"measured {len(costs['configs'])} configs in {costs['calibration_s']:.0f} s; wrote "
@@ -418,7 +480,7 @@ def main(argv: list[str] | None = None) -> int:
         print("no costs file: run python -m mocapbench.experiments.cost --calibrate first", file=sys.stderr)
         return 2
     if args.dataset:
-        frames = _dataset_frames(args.dataset, args.overrides)
+        frames = dataset_frames(args.dataset, args.overrides)
         what = f"dataset {args.dataset}: {len(frames)} clips, {sum(frames):,} frames"
     elif args.frames and args.clips:
         each = args.frames / args.clips

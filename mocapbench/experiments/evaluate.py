@@ -13,7 +13,7 @@ import numpy as np
 from mocapbench import metrics
 from mocapbench.codecs.base import Codec, Decoded
 from mocapbench.experiments.animator_metrics import animator_columns
-from mocapbench.metrics.timing import measure
+from mocapbench.metrics.timing import Timing, measure
 from mocapbench.motion import Motion
 
 __all__ = ["evaluate", "evaluate_with_decoded", "package_versions", "codec_traits", "TimingSettings"]
@@ -68,9 +68,11 @@ def evaluate(
     *,
     reference_positions: np.ndarray | None = None,
     timing: TimingSettings | None = None,
+    encoded: tuple[bytes, dict[str, Any], Timing] | None = None,
 ) -> dict[str, Any]:
     """The results row of :func:`evaluate_with_decoded`, without the decoded motion."""
-    return evaluate_with_decoded(codec, motion, reference_positions=reference_positions, timing=timing)[0]
+    return evaluate_with_decoded(codec, motion, reference_positions=reference_positions, timing=timing,
+                                 encoded=encoded)[0]
 
 
 def evaluate_with_decoded(
@@ -79,6 +81,7 @@ def evaluate_with_decoded(
     *,
     reference_positions: np.ndarray | None = None,
     timing: TimingSettings | None = None,
+    encoded: tuple[bytes, dict[str, Any], Timing] | None = None,
 ) -> tuple[dict[str, Any], Decoded]:
     """Encode and decode ``motion``, timed as :class:`TimingSettings` says, and measure the result.
 
@@ -91,6 +94,10 @@ def evaluate_with_decoded(
         ``motion.positions()``, if the caller already has it.
     timing : TimingSettings, optional
         Default: 3 timed repeats after 1 warm-up, one thread, 10 s budget.
+    encoded : (bytes, dict, Timing), optional
+        The stream, encode stats and encode timing of ``motion`` already made (by
+        :meth:`~mocapbench.codecs.base.Codec.encode_many`, which encodes a batch of clips at once and gives each
+        its share of the batch's time); then ``motion`` is not encoded again.
 
     Returns
     -------
@@ -114,8 +121,11 @@ def evaluate_with_decoded(
     reference = motion.positions() if reference_positions is None else reference_positions
     knobs = {"repeats": timing.repeats, "warmup": timing.warmup, "threads": timing.threads,
              "budget_s": timing.budget_s}
-    encode_timing, data = measure(lambda: codec.encode(motion), **knobs)
-    stats = dict(codec.last_encode_stats)
+    if encoded is None:
+        encode_timing, data = measure(lambda: codec.encode(motion), **knobs)
+        stats = dict(codec.last_encode_stats)
+    else:
+        data, stats, encode_timing = encoded
     decode_timing, decoded = measure(lambda: codec.decode(data), **knobs)
     encode_s, decode_s = encode_timing.wall_s, decode_timing.wall_s
     positions = decoded.positions

@@ -10,8 +10,11 @@
     ``bandai_test`` (a game studio's capture at its 30 fps, a game rig; learned state fit on ``bandai_train``; when
     its data folder exists, else one line says so), then the LSDT claim sweeps (``sweep=lsdt_sparsity``, ``sweep=lsdt_clip_length``) when the LSDT codecs exist.
 
+Before the sweeps, ``make bench`` prints how long they will take (:mod:`mocapbench.experiments.bench_time`: the
+jobs it is about to run priced with the per-frame costs measured on this machine; ``--no-estimate`` skips it).
 Each sweep runs as its own ``python -m mocapbench.experiments.run -m ...`` process (Hydra owns its process), which
-prints a line per finished job with an ETA and a summary at the end; ``--resume DIR`` re-runs into an existing
+prints its estimate, a line per finished job with its time beside its estimate and an ETA, and a summary at the
+end; at the end of the run a table gives each codec's wall and CPU time; ``--resume DIR`` re-runs into an existing
 sweep root, skipping the finished jobs. Then the report is written and its headline printed: per dataset and L∞
 bound (1 cm, 3 cm and ``--bounds``), the codecs ranked by ratio with the winner in a sentence. The exit status is
 1 when any job failed, unless ``--allow-failures``.
@@ -62,6 +65,45 @@ def _sweep(root: Path, name: str, overrides: list[str]) -> tuple[Path, int]:
     return folder, subprocess.run(command).returncode
 
 
+def _bench_plans():
+    """The sweeps of ``make bench``, in order."""
+    from mocapbench.codecs import codec_names
+    from mocapbench.experiments.bench_time import SweepPlan
+
+    # Every codec at 120 fps, then at 24 fps (every 5th frame: ACL's published CMU rate) without the neural Fourier
+    # codecs: they train a network per clip for a fixed number of steps, so at 24 fps they would cost nearly as much
+    # as at 120 fps again.
+    plans = [SweepPlan("cmu_test", "all", "cmu_test"),
+             SweepPlan("cmu_test_24fps", "all", "cmu_test_24fps", (f"hydra.sweeper.exclude=[{_NEURAL}]",))]
+    # The game studio's capture at its own 30 fps, beside CMU (its rig, its frame rate, its motion vocabulary).
+    ok, where = bandai_available()
+    if ok:
+        plans.append(SweepPlan("bandai_test", "all", "bandai_test"))
+    else:
+        print(f"Bandai Namco data not found, bandai_test left out ({where})", flush=True)
+    # The extra grids behind the LSDT paper's Figs. 4 (sparsity P) and 7 (clip length L), when registered.
+    for sweep, needs in (("lsdt_sparsity", {"lsdt-frame", "lsdt-clip"}), ("lsdt_clip_length", {"lsdt-clip"})):
+        if needs <= set(codec_names()):
+            plans.append(SweepPlan(f"cmu_test_{sweep}", sweep, "cmu_test"))
+    return plans
+
+
+def _print_estimate(plans, common: list[str]) -> None:
+    """How long the run will take, before it starts (see :mod:`mocapbench.experiments.bench_time`)."""
+    from mocapbench.experiments.bench_time import estimate_run, format_estimate
+
+    workers = 2  # the local launcher's n_jobs (configs/hydra/launcher/local.yaml)
+    for override in common:
+        if override.startswith("hydra.launcher.n_jobs="):
+            workers = int(override.split("=", 1)[1])
+    try:
+        estimate = estimate_run(plans, workers, common)
+    except Exception as error:  # noqa: BLE001 - an estimate is a courtesy: the run goes on without it
+        print(f"no estimate ({error}); starting the sweeps", flush=True)
+        return
+    print("make bench: " + format_estimate(estimate, workers), flush=True)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--cmu", action="store_true", help="the benchmark (sweep=all over cmu_test, cmu_test_24fps and bandai_test)")
@@ -73,6 +115,7 @@ def main(argv: list[str] | None = None) -> int:
                         help="an L∞ bound (cm) for the headline beside 1 and 3 cm (repeatable)")
     parser.add_argument("--allow-failures", action="store_true",
                         help="exit 0 even if some job failed (the summary and the report still list them)")
+    parser.add_argument("--no-estimate", action="store_true", help="do not price the run before it starts")
     parser.add_argument("extra", nargs="*", help="more Hydra overrides for every sweep")
     args = parser.parse_args(argv)
     from mocapbench.experiments.headline import bounds_with
@@ -98,28 +141,14 @@ def main(argv: list[str] | None = None) -> int:
         if not ok:
             print(f"make bench needs the CMU clips: {where}", file=sys.stderr)
             return 2
-        # Every codec at 120 fps, then at 24 fps (every 5th frame: ACL's published CMU rate, issue 15's targets)
-        # without the neural Fourier codecs: they train a network per clip for a fixed number of iterations, so at
-        # 24 fps they would cost about as much as at 120 fps (over 90 % of the benchmark's CPU) again.
-        sweeps = [("cmu_test", []), ("cmu_test_24fps", [f"hydra.sweeper.exclude=[{_NEURAL}]"])]
-        # The game studio's capture at its own 30 fps, beside CMU (its rig, its frame rate, its motion vocabulary).
-        ok, where = bandai_available()
-        if ok:
-            sweeps.append(("bandai_test", []))
-        else:
-            print(f"Bandai Namco data not found, bandai_test left out ({where})", flush=True)
-        for dataset, extra in sweeps:
-            folder, code = _sweep(root, dataset, ["sweep=all", f"dataset={dataset}", *extra, *common])
+        plans = _bench_plans()
+        if not args.no_estimate:
+            _print_estimate(plans, common)
+        for plan in plans:
+            folder, code = _sweep(root, plan.label, [f"sweep={plan.sweep}", f"dataset={plan.dataset}",
+                                                     *plan.overrides, *common])
             folders.append(folder)
             failures += code != 0
-        # The extra grids behind the LSDT paper's Figs. 4 (sparsity P) and 7 (clip length L), when registered.
-        from mocapbench.codecs import codec_names
-
-        for sweep, needs in (("lsdt_sparsity", {"lsdt-frame", "lsdt-clip"}), ("lsdt_clip_length", {"lsdt-clip"})):
-            if needs <= set(codec_names()):
-                folder, code = _sweep(root, f"cmu_test_{sweep}", [f"sweep={sweep}", "dataset=cmu_test", *common])
-                folders.append(folder)
-                failures += code != 0
     else:
         # One sweep over both datasets, so the two workers stay busy until the last job.
         datasets = "synthetic"
@@ -148,6 +177,10 @@ def main(argv: list[str] | None = None) -> int:
     print(headline_text(rows, curve_points(rows), read_errors(present), bounds))
     print()
     total = time.perf_counter() - start
+    from mocapbench.experiments.bench_time import codec_times, format_codec_times
+
+    print("time per codec (its jobs' wall and CPU seconds, summed; two jobs run at once):")
+    print(format_codec_times(codec_times(folders)))
     print(f"sweeps {sweep_s:.0f} s, total {total:.0f} s on {os.cpu_count()} cores; results in {root}")
     print(f"report: {report / 'index.html'} (and {report / 'report.md'}); machine-readable results in "
           f"{report / 'results'}")

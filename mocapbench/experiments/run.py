@@ -91,8 +91,8 @@ def run_job(cfg: Any, output_dir: Path, fitted_dir: Path | None = None) -> dict[
     Returns
     -------
     dict
-        The ``job.json`` record: ``status`` (``done`` or ``failed``), ``rows``, ``errors``, ``seconds``,
-        ``clips`` (of the shard), ``shard`` (``index``, ``count``).
+        The ``job.json`` record: ``status`` (``done`` or ``failed``), ``rows``, ``errors``, ``seconds`` (wall),
+        ``cpu_s`` (CPU time of the job's process), ``clips`` (of the shard), ``shard`` (``index``, ``count``).
     """
     from hydra.utils import instantiate
     from omegaconf import OmegaConf
@@ -103,7 +103,7 @@ def run_job(cfg: Any, output_dir: Path, fitted_dir: Path | None = None) -> dict[
     from mocapbench.experiments.worst_clip import save_worst, worst_error
     from mocapbench.experiments.sweeper import JOB_FILE
 
-    start = time.perf_counter()
+    start, start_cpu = time.perf_counter(), time.process_time()
     output_dir = Path(output_dir)
     output_dir.mkdir(parents=True, exist_ok=True)
     _set_threads(cfg.get("threads_per_job"))
@@ -164,14 +164,20 @@ def run_job(cfg: Any, output_dir: Path, fitted_dir: Path | None = None) -> dict[
             keep_worst = cfg.get("save_worst", True)
             worst = worst_error(output_dir)
             motions = datasets.iter_clips(dataset_cfg, todo)
-            for motion in tqdm(motions, total=len(todo), desc=f"{codec.name} clips", unit="clip", leave=False,
-                               disable=None):
+            batches = _encode_batches(codec, motions, timing) if codec.encodes_many else None
+            for motion in tqdm(batches or motions, total=len(todo), desc=f"{codec.name} clips", unit="clip",
+                               leave=False, disable=None):
+                encoded = None
+                if batches is not None:
+                    motion, encoded = motion
                 try:
+                    if isinstance(encoded, Exception):
+                        raise encoded
                     reference = motion.positions()
                     row, decoded = evaluate_with_decoded(codec, motion, reference_positions=reference,
-                                                         timing=timing)
+                                                         timing=timing, encoded=encoded)
                     if example and motion.name == clips[0]:
-                        _save_example(output_dir, codec, motion, reference)
+                        _save_example(output_dir, motion, reference, decoded.positions)
                     if keep_worst and row["max_err_cm"] > worst:
                         save_worst(output_dir, motion, reference, decoded.positions, row)
                         worst = row["max_err_cm"]
@@ -189,16 +195,60 @@ def run_job(cfg: Any, output_dir: Path, fitted_dir: Path | None = None) -> dict[
     except Exception as error:  # noqa: BLE001
         fail("setup", error)
     record = {"status": status, "rows": count, "errors": errors, "seconds": time.perf_counter() - start,
-              "clips": len(clips), "shard": {"index": index, "count": total}}
+              "cpu_s": time.process_time() - start_cpu, "clips": len(clips), "shard": {"index": index, "count": total}}
     tmp = job_path.with_name(f".{JOB_FILE}.tmp-{os.getpid()}")
     tmp.write_text(json.dumps(record))
     os.replace(tmp, job_path)
     return record
 
 
-def _save_example(folder: Path, codec: Any, motion: Any, reference: np.ndarray) -> None:
-    """Original and decoded positions of the job's first clip (float32), for the report's pictures."""
-    decoded = codec.decode(codec.encode(motion)).positions
+#: Most frames a job encodes in one :meth:`~mocapbench.codecs.base.Codec.encode_many` call (the clips are held
+#: together, and a killed job loses the batch in progress).
+BATCH_FRAMES = 20_000
+
+
+def _encode_batches(codec: Any, motions: Any, timing: Any):
+    """Yield ``(motion, (stream, stats, Timing) or Exception)`` for ``motions``, encoded in batches of clips.
+
+    For a codec whose :meth:`encode_many` shares work between clips: up to :data:`BATCH_FRAMES` frames are encoded
+    in one call, timed once (CPU time of the process and wall time), and each clip's row gets the batch's time in
+    proportion to its frames (``encode_repeats`` 1, no warm-up: like a call too slow to repeat).
+    """
+    from mocapbench.metrics.timing import Timing, load_average, single_thread
+
+    threads = timing.threads if timing is not None else 1
+    batch: list[Any] = []
+
+    def flush():
+        load_before = load_average()
+        cpu, wall = time.process_time(), time.perf_counter()
+        with single_thread(threads):
+            results = codec.encode_many(batch)
+        cpu, wall = time.process_time() - cpu, time.perf_counter() - wall
+        load_after = load_average()
+        total = sum(m.num_frames for m in batch)
+        for motion, (data, stats) in zip(batch, results):
+            if isinstance(data, Exception):
+                yield motion, data
+                continue
+            share = motion.num_frames / total
+            clip_timing = Timing(wall_s=wall * share, cpu_s=cpu * share, wall_spread_s=0.0, repeats=1, warmup=0,
+                                 threads=threads, load_before=load_before, load_after=load_after)
+            yield motion, (data, {**stats, "encode_batch_clips": len(batch), "encode_batch_cpu_s": cpu}, clip_timing)
+
+    frames = 0
+    for motion in motions:
+        if batch and frames + motion.num_frames > BATCH_FRAMES:
+            yield from flush()
+            batch, frames = [], 0
+        batch.append(motion)
+        frames += motion.num_frames
+    if batch:
+        yield from flush()
+
+
+def _save_example(folder: Path, motion: Any, reference: np.ndarray, decoded: np.ndarray) -> None:
+    """Original and decoded positions (float32) of the job's first clip, for the report's pictures."""
     tmp = folder / f".{EXAMPLE_FILE}.tmp-{os.getpid()}.npz"
     np.savez_compressed(
         tmp,

@@ -16,7 +16,7 @@ import time
 from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable, Sequence
+from typing import Callable, Mapping, Sequence
 
 __all__ = ["JobMonitor", "SweepSummary", "summarize", "format_summary", "format_duration"]
 
@@ -70,10 +70,20 @@ class JobMonitor:
         Where lines go (default: ``print`` with flush).
     interval_s : float
         Polling period.
+    estimates : mapping of str to float, optional
+        Each job's estimated CPU s (:func:`mocapbench.experiments.cost.job_costs`). With them the ETA is the
+        longest-first schedule of the pending jobs' estimates on ``workers``, scaled by how the finished jobs'
+        wall times compared with their estimates; without them, the mean time per finished job.
+    workers : int
+        Jobs that run at once.
     """
 
     def __init__(self, root: Path, folders: Sequence[str], emit: Callable[[str], None] | None = None,
-                 interval_s: float = 2.0) -> None:
+                 interval_s: float = 2.0, estimates: Mapping[str, float] | None = None, workers: int = 1) -> None:
+        self.estimates = dict(estimates or {})
+        self.workers = max(1, int(workers))
+        self._actual_s = 0.0
+        self._estimated_s = 0.0
         self.root = Path(root)
         self.pending = list(folders)
         self.total = len(self.pending)
@@ -108,13 +118,28 @@ class JobMonitor:
             self.finished.append(folder)
             elapsed = time.perf_counter() - self.start
             done = len(self.finished)
-            eta = elapsed / done * (self.total - done)
             status = record.get("status")
             took = record.get("seconds")
             took_text = f" in {format_duration(float(took))}" if isinstance(took, (int, float)) else ""
+            estimated = self.estimates.get(folder)
+            if estimated and isinstance(took, (int, float)):
+                took_text += f" (estimated {format_duration(estimated)})"
+                self._actual_s += float(took)
+                self._estimated_s += estimated
+            eta = self.eta(elapsed, done)
             errors = f", {record.get('errors')} error(s)" if record.get("errors") else ""
             self.emit(f"[{done}/{self.total}] {folder} {status}{took_text}{errors}; elapsed "
                       f"{format_duration(elapsed)}, ETA {format_duration(eta) if done < self.total else 'done'}")
+
+
+    def eta(self, elapsed: float, done: int) -> float:
+        """Seconds until the last pending job ends (see the ``estimates`` parameter)."""
+        from mocapbench.experiments.cost import makespan
+
+        pending = [self.estimates.get(folder) for folder in self.pending]
+        if self._estimated_s > 0 and pending and all(p is not None for p in pending):
+            return makespan(pending, self.workers) * self._actual_s / self._estimated_s
+        return elapsed / max(1, done) * (self.total - done)
 
 
 @dataclass

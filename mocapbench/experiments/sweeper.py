@@ -148,6 +148,7 @@ class RdSweeper(Sweeper):
         self.params = dict(params or {})
         self.hydra_context = None
         self.config = None
+        self.estimates: dict[str, float] = {}  # estimated CPU s of every job folder (shard_jobs)
         self.launcher = None
         self.union = bool(union)
         self.codecs = list(codecs) if codecs else None
@@ -270,34 +271,39 @@ class RdSweeper(Sweeper):
         costs = cost.load_costs()
         catalogues: dict[tuple[str, ...], Any] = {}
         out: list[tuple[str, list[str]]] = []
+        self.estimates = {}
         for folder, overrides in jobs:
+            key = tuple(o for o in overrides if o.split("=", 1)[0].split(".", 1)[0] in self._DATASET_KEYS)
+            if key not in catalogues:
+                cfg = self._job_config(overrides)
+                spec = OmegaConf.to_container(cfg.dataset, resolve=True)
+                try:
+                    refs = datasets.catalogue(spec)
+                except Exception as error:  # noqa: BLE001 - the job itself reports a bad dataset
+                    log.warning("dataset of %s: %s (one shard; the job will say why)", folder, error)
+                    refs = []
+                catalogues[key] = (refs, cfg.shard)
+            refs, shard_cfg = catalogues[key]
+            per_frame, per_clip = cost.cpu_cost(costs, folder)
             if folder not in plan:
                 fixed = [o for o in overrides if o.split("=", 1)[0] == "shard.count"]
-                key = tuple(o for o in overrides if o.split("=", 1)[0].split(".", 1)[0] in self._DATASET_KEYS)
-                if key not in catalogues:
-                    cfg = self._job_config(overrides)
-                    spec = OmegaConf.to_container(cfg.dataset, resolve=True)
-                    try:
-                        refs = datasets.catalogue(spec)
-                    except Exception as error:  # noqa: BLE001 - the job itself reports a bad dataset
-                        log.warning("dataset of %s: %s (one shard; the job will say why)", folder, error)
-                        refs = []
-                    catalogues[key] = (refs, cfg.shard)
-                refs, shard_cfg = catalogues[key]
                 if fixed:
                     plan[folder] = int(shard_cfg.count)
                 else:
-                    per_frame, per_clip = cost.cpu_cost(costs, folder)
                     plan[folder] = shards.shard_count([r.frames for r in refs], per_frame, shard_cfg.max_cpu_s,
                                                       per_clip, packing)
             count = plan[folder]
+            frames = [r.frames for r in refs]
+            job_costs = cost.job_costs(costs, folder, frames, count, packing)
             if count == 1:
                 out.append((folder, [o for o in overrides if not o.startswith("shard.count=")]))
+                self.estimates[folder] = job_costs[0]
                 continue
             base = [o for o in overrides if o.split("=", 1)[0] not in ("shard.index", "shard.count", "shard.packing")]
             for index in range(count):
                 out.append((shards.shard_folder(folder, index, count),
                             [*base, f"shard.index={index}", f"shard.count={count}", f"shard.packing={packing}"]))
+                self.estimates[out[-1][0]] = job_costs[index] if index < len(job_costs) else 0.0
         plan_path.write_text(json.dumps({"packing": packing, "counts": plan}, indent=1, sort_keys=True))
         return out
 
@@ -325,17 +331,21 @@ class RdSweeper(Sweeper):
         (sweep_dir / "jobs.json").write_text(json.dumps([{"folder": f, "overrides": o} for f, o in jobs], indent=1))
         if self.dry_run:
             return []
-        from mocapbench.experiments.sweep_progress import JobMonitor, format_summary, summarize
+        from mocapbench.experiments.cost import makespan
+        from mocapbench.experiments.sweep_progress import JobMonitor, format_duration, format_summary, summarize
 
         size = self.max_batch_size or len(todo) or 1
         batches = [todo[i : i + size] for i in range(0, len(todo), size)]
         returns = []
         index = 0
         start = time.perf_counter()
-        print(f"sweep {sweep_dir}: {len(jobs)} jobs, {len(self.skipped)} already done, {len(todo)} to run",
-              flush=True)
+        workers = int(OmegaConf.select(self.config, "hydra.launcher.n_jobs", default=1) or 1)
+        estimates = {folder: self.estimates.get(folder, 0.0) for folder in launched}
+        print(f"sweep {sweep_dir}: {len(jobs)} jobs, {len(self.skipped)} already done, {len(todo)} to run; "
+              f"estimated {format_duration(makespan(list(estimates.values()), workers))} on {workers} worker(s) "
+              f"({sum(estimates.values()) / 60:.1f} CPU-min, costs of configs/costs.json)", flush=True)
         # One line per finished job with an ETA (the launcher only returns when a whole batch is done).
-        with JobMonitor(sweep_dir, launched):
+        with JobMonitor(sweep_dir, launched, estimates=estimates, workers=workers):
             for batch in batches:
                 tic = time.perf_counter()
                 self.validate_batch_is_legal(batch)

@@ -43,3 +43,15 @@ def test_summary_groups_failures_by_reason(tmp_path):
     assert "exit status 1" in text
     assert "exit status 0 (--allow-failures)" in format_summary(summary, allow_failures=True)
     assert summarize(tmp_path, ["a/1"]).ok
+
+
+def test_eta_from_estimates_scales_the_pending_schedule_by_how_finished_jobs_compared(tmp_path):
+    lines = []
+    estimates = {"a/1": 1.5, "a/2": 10.0, "b/1": 10.0, "b/2": 4.0}
+    monitor = JobMonitor(tmp_path, list(estimates), emit=lines.append, estimates=estimates, workers=2)
+    _job(tmp_path, "a/1", "done")  # took 3 s against 1.5 estimated: the machine runs at half the estimated speed
+    monitor.poll()
+    assert "in 3 s (estimated 2 s)" in lines[0]
+    # Pending 10, 10, 4 on 2 workers: 14 s of schedule, times 2.
+    assert monitor.eta(elapsed=3.0, done=1) == 28.0
+    assert lines[0].endswith("ETA 28 s")

@@ -1,0 +1,111 @@
+"""How long ``make bench`` will take before it starts, and what each codec took when it ends.
+
+Before: every sweep of the run is listed by a dry run of the sweeper (its job folders, one per codec config) and
+priced by :func:`mocapbench.experiments.cost.estimate` from the per-frame costs measured on this machine
+(``configs/costs.json``) and the clips' frames; the sweeps run one after another, so the run's wall time is the sum
+of their schedules on the workers. After: every job's ``job.json`` holds its wall and CPU seconds; they are summed
+per codec.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Sequence
+
+from mocapbench.experiments.sweep_progress import format_duration
+
+__all__ = ["SweepPlan", "BenchEstimate", "estimate_run", "format_estimate", "codec_times", "format_codec_times"]
+
+
+@dataclass(frozen=True)
+class SweepPlan:
+    """One sweep of a run: ``sweep=<sweep> dataset=<dataset>`` and more overrides (e.g. exclusions)."""
+
+    label: str
+    sweep: str
+    dataset: str
+    overrides: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True)
+class BenchEstimate:
+    """Estimated wall seconds (sweeps in sequence), CPU seconds, jobs, and CPU seconds per codec."""
+
+    wall_s: float
+    cpu_s: float
+    jobs: int
+    codec_cpu_s: dict[str, float]
+    measured: str  # when and where the costs were measured
+    unpriced: tuple[str, ...] = ()  # sweeps that could not be priced, with the reason
+
+
+def estimate_run(plans: Sequence[SweepPlan], workers: int, common: Sequence[str] = ()) -> BenchEstimate:
+    """Price every sweep of ``plans`` (each a dry run of the sweeper, a few seconds) on ``workers`` workers."""
+    from mocapbench.experiments import cost
+
+    costs = cost.load_costs()
+    wall = cpu = 0.0
+    jobs = 0
+    per_codec: dict[str, float] = {}
+    unpriced = []
+    for plan in plans:
+        overrides = [f"dataset={plan.dataset}", *plan.overrides, *common]
+        try:
+            folders = cost.sweep_folders(plan.sweep, overrides)
+            frames = cost.dataset_frames(plan.dataset, [o for o in common if not o.startswith("hydra.")])
+        except Exception as error:  # noqa: BLE001 - the sweep itself will say what is wrong
+            unpriced.append(f"{plan.label} ({str(error).splitlines()[0][:120] if str(error) else type(error).__name__})")
+            continue
+        result = cost.estimate(costs, folders, frames, workers)
+        wall += result.wall_h * 3600
+        cpu += result.cpu_h * 3600
+        jobs += result.jobs
+        for row in result.rows:
+            per_codec[row["codec"]] = per_codec.get(row["codec"], 0.0) + row["cpu_h"] * 3600
+    measured = f"{costs.get('measured', '?')} on {costs.get('machine', '?')}"
+    return BenchEstimate(wall, cpu, jobs, per_codec, measured, tuple(unpriced))
+
+
+def format_estimate(estimate: BenchEstimate, workers: int, top: int = 4) -> str:
+    """One line: the run's estimated wall time, CPU time and jobs, and the costliest codecs."""
+    heavy = sorted(estimate.codec_cpu_s.items(), key=lambda item: -item[1])[:top]
+    share = ", ".join(f"{codec} {format_duration(seconds)}" for codec, seconds in heavy)
+    return (f"estimated {format_duration(estimate.wall_s)} wall on {workers} workers "
+            f"({format_duration(estimate.cpu_s)} CPU, {estimate.jobs} jobs; most CPU: {share}); "
+            f"per-frame costs measured {estimate.measured}"
+            + (f"; not priced: {', '.join(estimate.unpriced)}" if estimate.unpriced else ""))
+
+
+def codec_times(folders: Sequence[Path]) -> list[dict[str, Any]]:
+    """Per codec: jobs, summed wall seconds and CPU seconds of its jobs (``job.json``) in the sweep ``folders``.
+
+    Jobs written before ``job.json`` held ``cpu_s`` count no CPU (``cpu_s`` then reads NaN for their codec).
+    """
+    rows: dict[str, dict[str, Any]] = {}
+    for folder in folders:
+        for job in sorted(Path(folder).rglob("job.json")):
+            try:
+                record = json.loads(job.read_text())
+            except (OSError, ValueError):
+                continue
+            codec = job.parent.relative_to(folder).parts[0]
+            row = rows.setdefault(codec, {"codec": codec, "jobs": 0, "wall_s": 0.0, "cpu_s": 0.0})
+            row["jobs"] += 1
+            row["wall_s"] += float(record.get("seconds", 0.0))
+            row["cpu_s"] += float(record.get("cpu_s", float("nan")))
+    return sorted(rows.values(), key=lambda r: -r["wall_s"])
+
+
+def format_codec_times(rows: Sequence[dict[str, Any]]) -> str:
+    """A Markdown table: codec, jobs, wall time and CPU time of its jobs (summed; jobs ran side by side)."""
+    lines = ["| codec | jobs | wall (sum of its jobs) | CPU |", "|---|---:|---:|---:|"]
+    for row in rows:
+        lines.append(f"| {row['codec']} | {row['jobs']} | {format_duration(row['wall_s'])} | "
+                     f"{format_duration(row['cpu_s'])} |")
+    total_wall = sum(r["wall_s"] for r in rows)
+    total_cpu = sum(r["cpu_s"] for r in rows)
+    lines.append(f"| all | {sum(r['jobs'] for r in rows)} | {format_duration(total_wall)} | "
+                 f"{format_duration(total_cpu)} |")
+    return "\n".join(lines)

@@ -1,0 +1,39 @@
+"""make bench's time per codec (from job.json) and its estimate line."""
+
+from __future__ import annotations
+
+import json
+import math
+
+from mocapbench.experiments.bench_time import BenchEstimate, codec_times, format_codec_times, format_estimate
+
+
+def _job(root, folder, seconds, cpu=None):
+    path = root / folder
+    path.mkdir(parents=True)
+    record = {"status": "done", "seconds": seconds}
+    if cpu is not None:
+        record["cpu_s"] = cpu
+    (path / "job.json").write_text(json.dumps(record))
+
+
+def test_codec_times_sum_each_codecs_jobs_over_sweeps_and_shards(tmp_path):
+    _job(tmp_path / "s1", "svd/codec.rank=2", 10.0, 8.0)
+    _job(tmp_path / "s1", "fourier-mlp-int/codec.K=2/shard-001-of-002", 100.0, 90.0)
+    _job(tmp_path / "s1", "fourier-mlp-int/codec.K=2/shard-002-of-002", 50.0, 45.0)
+    _job(tmp_path / "s2", "svd/codec.rank=4", 5.0)  # written before job.json held cpu_s
+    rows = codec_times([tmp_path / "s1", tmp_path / "s2"])
+    assert [r["codec"] for r in rows] == ["fourier-mlp-int", "svd"]
+    assert rows[0]["jobs"] == 2 and rows[0]["wall_s"] == 150.0 and rows[0]["cpu_s"] == 135.0
+    assert rows[1]["wall_s"] == 15.0 and math.isnan(rows[1]["cpu_s"])
+    table = format_codec_times(rows)
+    assert "| fourier-mlp-int | 2 | 2.5 min | 2.2 min |" in table
+    assert table.splitlines()[-1].startswith("| all | 4 |")
+
+
+def test_estimate_line_names_the_time_and_the_costliest_codecs():
+    estimate = BenchEstimate(wall_s=600.0, cpu_s=1100.0, jobs=90,
+                             codec_cpu_s={"a": 500.0, "b": 400.0, "c": 1.0}, measured="2026-12-02 on here")
+    line = format_estimate(estimate, workers=2, top=2)
+    assert line.startswith("estimated 10.0 min wall on 2 workers (18.3 min CPU, 90 jobs; most CPU: a 8.3 min, b 6.7 min)")
+    assert "c " not in line and line.endswith("measured 2026-12-02 on here")
