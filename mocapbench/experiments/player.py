@@ -115,7 +115,7 @@ def player_data(entries: Sequence[PlayerEntry]) -> dict:
         step = int(frames[1] - frames[0]) if len(frames) > 1 else 1
         note = entry.note
         if step > 1:
-            note = (note + " " if note else "") + (f"Shown every {step}th frame ({len(frames)} of {original.shape[0]}; "
+            note = (note + " " if note else "") + (f"Shown one frame in {step} ({len(frames)} of {original.shape[0]}, "
                                                     f"the worst frame among them) to keep the page small.")
         records.append({
             "label": entry.label, "names": [str(n) for n in entry.names],
