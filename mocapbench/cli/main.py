@@ -1,4 +1,4 @@
-"""``mocapbench`` command line: compress, decompress, inspect, codecs, plot, fit, compare.
+"""``mocapbench`` command line: compress, decompress, inspect, codecs, plot, fit, compare, view.
 
 Errors are one line on stderr and exit code 2; an existing output file is never overwritten without ``--force``.
 
@@ -14,7 +14,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from mocapbench.cli import codecs, compare, compress, decompress, fit, inspect
+from mocapbench.cli import codecs, compare, compress, decompress, fit, inspect, view
 from mocapbench.cli.arguments import CliError
 
 __all__ = ["main"]
@@ -35,7 +35,7 @@ def _parser() -> argparse.ArgumentParser:
     for command in (compress, decompress, inspect, codecs):
         command.add_parser(commands)
     add_plot_parser(commands)
-    for command in (fit, compare):
+    for command in (fit, compare, view):
         command.add_parser(commands)
     return parser
 
