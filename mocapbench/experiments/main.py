@@ -106,7 +106,8 @@ def _print_estimate(plans, common: list[str]) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--cmu", action="store_true", help="the benchmark (sweep=all over cmu_test, cmu_test_24fps and bandai_test)")
+    parser.add_argument("--cmu", action="store_true",
+                        help="the benchmark (sweep=all over cmu_test, cmu_test_24fps and bandai_test)")
     parser.add_argument("--data-dir", default=None, help="CMU data folder (default: the config's data_dir)")
     parser.add_argument("--resume", help="an existing sweep root to continue (skips finished jobs)")
     parser.add_argument("--reports-root", default="reports")

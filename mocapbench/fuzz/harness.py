@@ -314,15 +314,22 @@ def mutations(seed_stream: bytes, count: int, seed: int) -> Iterator[tuple[str, 
 
 
 def seed_streams(names: list[str]) -> dict[str, list[bytes]]:
-    """Valid streams per codec: its ``smoke_params`` on two short synthetic motions (24 and 61 frames)."""
+    """Valid streams per codec: its ``smoke_params`` on two short synthetic motions (24 and 61 frames) and, for a
+    codec that carries a game rig's tracks, a third: a game rig (a translated pelvis, a stretching spine and, where
+    the codec carries scale, a scaled chest), so that the streams' track sections and flags are fuzzed too."""
     from mocapbench.codecs import CODECS, create
     from mocapbench.synthetic import sinusoidal_motion
+    from mocapbench.synthetic.game import game_rig_motion
 
     motions = [sinusoidal_motion(num_frames=24, seed=3), sinusoidal_motion(num_frames=61, seed=4)]
     streams = {}
     for name in names:
         codec = create(name, **CODECS[name].smoke_params)
         streams[name] = [codec.encode(motion) for motion in motions]
+        carried = CODECS[name].carries_tracks
+        if "translations" in carried:
+            rig = game_rig_motion(num_frames=30, seed=5, stretch_cm=2.0, scale=1.2 if "scales" in carried else 1.0)
+            streams[name].append(codec.encode(rig))
     return streams
 
 
