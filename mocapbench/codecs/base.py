@@ -361,10 +361,30 @@ class Codec(abc.ABC):
             raise BitstreamError(f"{self.name}: decoded positions hold non-finite values.")
         return Decoded(positions=positions, motion=motion, header=header)
 
+    def decode_frames(self, data: bytes, start: int, stop: int, *, limits: DecodeLimits | None = None) -> Decoded:
+        """Frames ``start:stop`` of a stream: positions (``stop - start``, J, 3) cm and, for a rotation codec, the
+        motion of those frames (the header still describes the whole stream).
+
+        The default decodes the whole clip and keeps the frames asked for, so it costs a whole :meth:`decode`;
+        a codec with ``random_access`` overrides it to decode only what holds those frames. ``limits`` as in
+        :meth:`decode`.
+
+        Raises
+        ------
+        ValueError
+            If ``start:stop`` is empty or outside the stream's frames.
+        BitstreamError
+            If the stream is corrupt.
+        """
+        self._unpack_frame_range(data, start, stop)
+        decoded = self.decode(data, limits=limits)
+        motion = decoded.motion.slice(start, stop) if decoded.motion is not None else None
+        return Decoded(positions=decoded.positions[start:stop].copy(), motion=motion, header=decoded.header)
+
     def _unpack_frame_range(self, data: bytes, start: int, stop: int) -> tuple[Header, memoryview]:
         """The container of a random-access stream and a check that ``start:stop`` is a non-empty frame range in it.
 
-        For codecs with ``random_access`` (their ``decode_frames(data, start, stop)`` starts here).
+        Every ``decode_frames(data, start, stop)`` starts here.
 
         Raises
         ------

@@ -60,6 +60,26 @@ def test_round_trip_within_bound_and_smaller_than_raw(name, encoded, synthetic_m
 
 
 @pytest.mark.parametrize("name", NAMES)
+def test_decode_frames_returns_the_frames_of_the_whole_decode(name, encoded, training_motions):
+    """Every codec answers ``decode_frames`` (random access, or the default: a whole decode, sliced), with the frames
+    the whole decode has there; an empty or outside range is a ``ValueError``."""
+    codec, data = encoded(name)
+    decoder = _fitted(name, training_motions)
+    whole = decoder.decode(data)
+    frames = whole.positions.shape[0]
+    for start, stop in ((0, 1), (frames // 3, frames // 3 + 17), (frames - 5, frames)):
+        part = decoder.decode_frames(data, start, stop)
+        assert part.positions.shape == (stop - start, *whole.positions.shape[1:])
+        np.testing.assert_allclose(part.positions, whole.positions[start:stop], rtol=0, atol=1e-9)
+        if whole.motion is not None:
+            assert part.motion.num_frames == stop - start
+            np.testing.assert_allclose(part.motion.positions(), part.positions, rtol=0, atol=1e-9)
+    for start, stop in ((5, 5), (-1, 3), (0, frames + 1)):
+        with pytest.raises(ValueError):
+            decoder.decode_frames(data, start, stop)
+
+
+@pytest.mark.parametrize("name", NAMES)
 def test_encoding_is_deterministic(name, encoded, synthetic_motion, training_motions):
     _, data = encoded(name)
     assert _fitted(name, training_motions).encode(synthetic_motion) == data

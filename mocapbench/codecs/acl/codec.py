@@ -46,6 +46,7 @@ from mocapbench.codecs.acl.binding import LEVELS, ROTATION_FORMATS, TRANSLATION_
 from mocapbench.codecs.acl.build import AclSetupError
 from mocapbench.codecs import container
 from mocapbench.codecs.base import Codec, CodecConfig, Decoded, Header, param
+from mocapbench.codecs.limits import DecodeLimits, using_limits
 from mocapbench.codecs.registry import CodecUnavailableError
 from mocapbench.codecs.skeleton_blob import pack_skeleton, unpack_skeleton
 from mocapbench.codecs.windows import WINDOW_FRAMES
@@ -252,11 +253,11 @@ class AclCodec(Codec):
     def decode_payload(self, header: Header, payload: memoryview):
         return self._decode_range(header, payload, 0, header.num_frames)
 
-    def decode_frames(self, data: bytes, start: int, stop: int) -> Decoded:
+    def decode_frames(self, data: bytes, start: int, stop: int, *, limits: DecodeLimits | None = None) -> Decoded:
         """Frames ``start:stop`` only: ACL seeks each sample directly, nothing else is decompressed.
 
         Returns a :class:`Decoded` whose positions (``stop - start``, J, 3) and motion cover those frames (the header
-        still describes the whole stream).
+        still describes the whole stream). ``limits`` as in :meth:`decode`, applied to the frames asked for.
 
         Raises
         ------
@@ -266,7 +267,9 @@ class AclCodec(Codec):
             If the stream is corrupt.
         """
         header, payload = self._unpack_frame_range(data, start, stop)
-        positions, motion = self._decode_range(header, payload, start, stop)
+        with using_limits(limits) as active:
+            active.check_header(stop - start, header.num_joints, self.codes_rotations)
+            positions, motion = self._decode_range(header, payload, start, stop)
         return Decoded(positions=positions, motion=motion, header=header)
 
     def describe_payload(self, header: Header, payload: memoryview) -> dict[str, Any]:
