@@ -10,12 +10,10 @@ from __future__ import annotations
 import argparse
 import ast
 import sys
-from pathlib import Path
 from typing import Any
 
 __all__ = [
     "CliError",
-    "MOTION_SUFFIXES",
     "add_motion_arguments",
     "add_motion_options",
     "codec_for_stream",
@@ -26,10 +24,6 @@ __all__ = [
     "read_clips",
     "settings_of",
 ]
-
-#: Files a folder argument contributes (other files in it are ignored).
-MOTION_SUFFIXES = (".bvh", ".amc", ".gltf", ".glb")
-
 
 class CliError(Exception):
     """A user-facing error: printed as one line, no traceback."""
@@ -116,12 +110,9 @@ def read_clips(args: argparse.Namespace, paths: list[str]) -> list:
     ValueError
         No readable motion at all.
     """
-    files: list[Path] = []
-    for path in map(Path, paths):
-        if path.is_dir():
-            files += sorted(p for p in path.iterdir() if p.is_file() and p.suffix.lower() in MOTION_SUFFIXES)
-        else:
-            files.append(path)
+    from mocapbench.io.format_table import motion_files
+
+    files = motion_files(paths)
     motions = []
     for file in files:
         one = argparse.Namespace(**{**vars(args), "input": str(file)})

@@ -409,11 +409,12 @@ def _manifest_frames(data_dir: Path) -> dict[str, int]:
 
 def _folder_files(spec: Mapping[str, Any], where: str) -> list[Path]:
     from mocapbench.datasets.cmu import DataNotFoundError
+    from mocapbench.io.format_table import motion_files
 
     folder = Path(str(_require(spec, "path", where))).expanduser()
     if not folder.is_dir():
         raise DataNotFoundError(f"{folder} is not a folder.")
-    files = sorted(p for p in folder.iterdir() if p.suffix.lower() in (".bvh", ".amc") and p.is_file())
+    files = motion_files([folder], suffixes=(".bvh", ".amc"))  # the formats _estimate_frames can count
     if not files:
         raise DataNotFoundError(f"{folder} holds no .bvh or .amc file.")
     return files

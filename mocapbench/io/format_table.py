@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-__all__ = ["READ_SUFFIXES", "WRITE_SUFFIXES", "default_unit_source"]
+__all__ = ["READ_SUFFIXES", "WRITE_SUFFIXES", "default_unit_source", "motion_files"]
 
 READ_SUFFIXES = (".bvh", ".amc", ".gltf", ".glb", ".fbx")
 WRITE_SUFFIXES = (".bvh", ".gltf", ".glb")
@@ -28,3 +28,24 @@ def default_unit_source(path: str | Path) -> str:
     ``"declared by the file's UnitScaleFactor"`` for FBX, ``"default; --units to change"`` for BVH (the one format
     that declares no unit), ...; ``"the format's default"`` for another suffix."""
     return _DEFAULT_UNIT_SOURCES.get(Path(path).suffix.lower(), "the format's default")
+
+
+def motion_files(paths, suffixes: tuple[str, ...] = READ_SUFFIXES) -> list[Path]:
+    """The motion files of ``paths``: a file as given, a folder's files with a readable suffix in name order.
+
+    The one place a folder argument becomes files (``fit``, ``compare`` and the ``folder`` dataset), so that every
+    command reads the same formats of a folder. A folder's other files and its sub-folders are ignored.
+
+    Parameters
+    ----------
+    paths : iterable of str or Path
+    suffixes : tuple of str, optional
+        Lower-case suffixes a folder contributes (default every readable format, ``.fbx`` included).
+    """
+    files: list[Path] = []
+    for path in map(Path, paths):
+        if path.is_dir():
+            files += sorted(p for p in path.iterdir() if p.is_file() and p.suffix.lower() in suffixes)
+        else:
+            files.append(path)
+    return files
