@@ -1,4 +1,4 @@
-"""Issue 16's closing tables: every codec on the users' rigs, and what a T-pose frame or a cut costs each clip codec.
+"""Every codec on the users' rigs, and what a T-pose frame or a cut costs each clip codec.
 
     python -m mocapbench.benchmarks.own_data [--codecs a,b,...] [--bound-cm 1.0] [--long] [--cuts-only]
         [--data-dir D] [--out FILE]
@@ -15,7 +15,7 @@ Prints, as markdown (and writes to ``--out`` if given):
    no search), to keep the table to minutes: their ratios are lower bounds of what full training gives.
 2. **T-pose and cut losses** of every clip codec: the ratio of the whole motion over the ratio of its parts coded
    apart (same settings: those the rate search found for the whole), with cut detection on and off:
-   ``loss = 1 - ratio(whole) / ratio(parts apart)``; the target of issue 16 is a loss of at most 10 %. Cases: the
+   ``loss = 1 - ratio(whole) / ratio(parts apart)``; the target is a loss of at most 10 %. Cases: the
    synthetic T-pose-first and two-takes cases, the real CMU walk 02_01 from BVH (its frame 0 is the T-pose
    reference frame; at eps 0.5 and 1 cm, with the issue's figure of 76:1 -> 28:1 before cut detection), and CMU
    02_01 + 02_02 (frames 0 dropped) concatenated. The ratio of the longest part alone (e.g. the walk without its

@@ -19,7 +19,7 @@ worker reports the outcome (decoded, a :class:`BitstreamError` subclass, any oth
 and CPU time, the growth of its peak resident memory over the decode (``/proc/self/clear_refs`` resets the peak)
 and the bytes of the decoded arrays.
 
-Targets (issue 17): 0 outcomes other than decoded or ``BitstreamError``; 0 decodes above the limits; 0 decodes
+Targets: 0 outcomes other than decoded or ``BitstreamError``; 0 decodes above the limits; 0 decodes
 over 5 s; decode memory at most 2 x the output arrays + a constant. Every other outcome is a *finding*, written
 to ``tests/fuzz_regressions/<codec>-<hash>.mcb`` (``--save-findings``) where ``tests/test_fuzz.py`` decodes it
 in every run.
@@ -681,7 +681,7 @@ def memory_motion(num_frames: int, seed: int = 5):
 def memory_check(names: list[str], num_frames: int, *, timeout_s: float = 600.0) -> str:
     """Decode one valid ``num_frames``-frame stream per codec in a fresh worker; a markdown table of the peak memory.
 
-    The target of issue 17: the growth of the worker's peak resident memory over the decode is at most twice
+    The target: the growth of the worker's peak resident memory over the decode is at most twice
     the decoded arrays plus a constant. "Decoded arrays" are everything a decode returns: the positions
     ``(F, J, 3)`` float64, and for the codecs that decode rotations the motion's quaternions ``(F, J, 4)`` and
     root positions ``(F, 3)`` as well (:func:`mocapbench.codecs.limits.output_bytes`). The stream is the codec's

@@ -1,7 +1,7 @@
 """Synthetic rigs users throw at mocapbench: many joint counts and topologies, Y-up or Z-up, any unit and Euler order.
 
 The CMU-like fixture of :mod:`mocapbench.synthetic` is one 31-joint skeleton; real files differ. This module builds
-the cases of issue 16 from seeds, with no file:
+the users' cases from seeds, with no file:
 
 * skeletons of 15 to 70 joints in three topologies (``"biped"``, ``"quadruped"``, ``"random"`` tree), always in
   depth-first order (the order a BVH file lists them, so a BVH round trip keeps indices);
@@ -395,7 +395,7 @@ def concatenate_takes(first: Motion, second: Motion) -> Motion:
 
 @dataclass(frozen=True, eq=False)
 class RigCase:
-    """One test case of issue 16: a motion (cm) and how a user's file of it is written.
+    """One users' case: a motion (cm) and how a user's file of it is written.
 
     Attributes
     ----------

@@ -1,4 +1,4 @@
-"""ACL 2.1 on ``cmu_test``: its rate-distortion points beside the independent run of issue 14, and its speed.
+"""ACL 2.1 on ``cmu_test``: its rate-distortion points beside an independent reference run, and its speed.
 
     python -m mocapbench.benchmarks.acl.rd                 # RD points, ASF/AMC clips (what cmu_test reads)
     python -m mocapbench.benchmarks.acl.rd --fmt bvh       # the same on the BVH release (what the issue measured)

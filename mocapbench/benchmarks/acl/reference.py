@@ -1,4 +1,4 @@
-"""Why two of issue 14's ACL reference points differ from ours: the settings grid and the measurement variants.
+"""Why two of the independent ACL reference points differ from ours: the settings grid and the measurement variants.
 
     python -m mocapbench.benchmarks.acl.rd --fmt bvh --grid       # shell x precision grid, best match per reference row
     python -m mocapbench.benchmarks.acl.rd --fmt bvh --variants   # other ways the reference could have run or measured
@@ -62,7 +62,7 @@ __all__ = ["ISSUE_REFERENCE", "ISSUE_SHELL0",
            "Variant", "VARIANTS", "measure", "deviation", "grid", "run_variants", "run_jitter", "closest",
            "parse_quantization_summary", "main_grid", "main_variants", "main_jitter", "main_neighbourhood", "main_why"]
 
-# Issue 14: ACL 2.1.0 built and run independently on the cmu_test BVH files, level highest, shell 3 cm.
+# The reference: ACL 2.1.0 built and run independently on the cmu_test BVH files, level highest, shell 3 cm.
 # precision cm -> (ratio, bits/joint/frame, L-inf cm, mean cm, p99 cm)
 ISSUE_REFERENCE = {
     0.01: (4.43, 21.67, 0.0127, 0.0029, 0.0081),

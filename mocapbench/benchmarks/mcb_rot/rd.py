@@ -43,10 +43,10 @@ __all__ = ["main", "rd_points", "ratio_at"]
 
 EPSILONS_CM = (0.05, 0.1, 0.25, 0.5, 1.0, 2.0)
 TARGETS_CM = (0.05, 0.1, 0.5, 1.0)
-TARGET_X = 2.5  # mcb-rot's ratio over ACL's at its best, at equal L-inf (issue 15: 2x on cmu_test; 27: 2.5x)
+TARGET_X = 2.5  # the target of mcb-rot's ratio over ACL's at its best, at equal L-inf on cmu_test
 SHELL_CM = 3.0  # ACL's default shell distance: mcb-rot's shell_cm on ACL's own metric
 ACL_PRECISIONS_CM = (0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0, 2.0)
-# Issue 15's table (ACL 2.1 on the cmu_test BVH files, 120 fps): (shell cm, ratio, L-inf cm), used without ACL.
+# A reference run of ACL 2.1 on the cmu_test BVH files, 120 fps: (shell cm, ratio, L-inf cm), used without ACL.
 ISSUE_ACL = ((3.0, 4.43, 0.013), (3.0, 7.18, 0.120), (3.0, 13.54, 0.552), (3.0, 17.89, 1.26),
              (0.0, 15.6, 0.68), (0.0, 20.3, 1.51))
 OTHERS = {
@@ -116,7 +116,7 @@ def _acl_points(motions: list[Motion], fps: float) -> tuple[list[dict], str]:
         if fps < 100:
             return [], f"ACL unavailable ({UNAVAILABLE.get('acl', 'not registered')}); no 24 fps reference"
         return ([{"codec": "acl", "shell_cm": s, "ratio": r, "ratio_buffer": r, "linf_cm": e, "shell_max_cm": np.nan}
-                 for s, r, e in ISSUE_ACL], "ACL: issue 15's table (BVH, not measured here)")
+                 for s, r, e in ISSUE_ACL], "ACL: the reference run's table (BVH, not measured here)")
     points = []
     for shell in (3.0, 0.0):
         for pre_process in (False, True):
@@ -213,7 +213,7 @@ def _speed(motions: list[Motion], repeats: int) -> None:
     print("Encode: every repeat codes fresh copies of the motions (nothing computed on them survives a repeat), "
           "after one warm-up encode of an unrelated synthetic clip (imports, coder tables).")
     rows = []
-    for eps in TARGETS_CM:  # issue 15 asks for the decode speed at every target bound
+    for eps in TARGETS_CM:  # the decode speed at every target bound
         codec = create("mcb-rot", eps_cm=eps)
         copies = iter([[_fresh(m) for m in motions] for _ in range(repeats + 1)])
         codec.encode(sinusoidal_motion(num_frames=60, seed=1))
@@ -272,7 +272,7 @@ def _discontinuities(data_dir) -> None:
     root = cmu_data_dir(data_dir)
     print("\n## Discontinuities: bytes joined / bytes of the parts coded apart (target <= 1.10)")
     rows = []
-    for eps in TARGETS_CM:  # issue 15 asks for the decode speed at every target bound
+    for eps in TARGETS_CM:  # the decode speed at every target bound
         codec = create("mcb-rot", eps_cm=eps)
         for name in ("02_01", "09_06", "16_07", "64_05", "118_10"):
             motion = read_bvh(root / "bvh" / f"{name}.bvh", length_unit_cm=CMU_CM_PER_UNIT)

@@ -60,12 +60,11 @@ The decoder (:mod:`.decoder`) is vectorized numpy over blocks of chunks written 
 decoding (constriction, one call per class and chunk), a batched inverse DCT, the exponential map, one multiply per
 correction, then forward kinematics compiled with numba (:mod:`.kinematics`: one loop over joints and frames, bit
 for bit the closed loop's numpy arithmetic). Everything else is numpy call overhead on a few thousand values, so its
-speed is the number of calls. Made faster (session 4) by: chunks of 256 frames (payload format 5: half the ANS
-streams per clip), SIMD tan instead of sin and cos in the exponential map, entropy sort keys built per chunk from
-cached class rows, signs and raw bits read without N-long index arithmetic, and the motion built without
-re-validating the decoder's own arrays (``Motion.from_decoder``); (session 5) by the compiled forward kinematics,
-which also writes the output rotations: 1.0 ms of numpy calls per 465-frame clip became 0.1 ms, 1.22 times the
-batched decode speed measured side by side in one process. Random access (``decode_frames(data, t, t + 1)``)
+speed is the number of calls. Hence: chunks of 256 frames (payload format 5: half the ANS streams per clip), SIMD
+tan instead of sin and cos in the exponential map, entropy sort keys built per chunk from cached class rows, signs
+and raw bits read without N-long index arithmetic, the motion built without re-validating the decoder's own arrays
+(``Motion.from_decoder``), and the compiled forward kinematics, which also writes the output rotations (the README
+quotes the speeds). Random access (``decode_frames(data, t, t + 1)``)
 entropy decodes its chunk and sends only the frames asked for through the exponential map, the corrections and
 forward kinematics; the first frame of a clip also parses its header. Speeds: ``python -m
 mocapbench.benchmarks.mcb_rot.rd --no-rd --speed`` (the README quotes a run).
