@@ -28,7 +28,8 @@ def test_example_runs_and_prints_one_row_per_codec():
     result = subprocess.run([sys.executable, str(EXAMPLE)], cwd=ROOT, env=env, capture_output=True, text=True)
     assert result.returncode == 0, result.stderr
     lines = result.stdout.strip().splitlines()
-    assert lines[0] == "Motion('09_06', 141 frames at 120 fps = 1.18 s, Skeleton(31 joints, root 'Hips', 7 end sites))"
+    assert lines[0] == ("Motion('09_06', 141 frames at 120 fps = 1.18 s, Skeleton(31 joints, root 'Hips', 7 end sites), "
+                        "source unit 5.64444 cm)")  # read in CMU units, no warning line
     assert lines[1].split() == ["codec", "bitstream_bytes", "compression_ratio", "max_err_cm", "mean_err_cm"]
     rows = {cells[0]: [float(x) for x in cells[1:]] for cells in (line.split() for line in lines[2:])}
     assert list(rows) == ["quant-delta-zstd", "quant-rot-zstd", "mcb-linf"]

@@ -104,4 +104,6 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    from mocapbench.benchmarks.entry import run_script
+
+    raise SystemExit(run_script(main))

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from mocapbench.cli.arguments import add_motion_arguments, codec_of, load_motion, settings_of
+from mocapbench.cli.arguments import CliError, add_motion_arguments, codec_of, load_motion, settings_of
 
 __all__ = ["add_parser", "compress_motion", "run"]
 
@@ -19,6 +19,7 @@ def run(args) -> None:
     from mocapbench.io.units import unit_label
     from mocapbench.metrics import compression_ratio, raw_position_bytes
 
+    _refuse_motion_suffix(args.output)
     output = check_output(args.output, force=args.force)
     motion = load_motion(args)
     codec, data, worst, mean, note = compress_motion(args, motion)
@@ -26,10 +27,36 @@ def run(args) -> None:
     raw = raw_position_bytes(motion.num_joints, motion.num_frames)
     print(
         f"{output}: {len(data)} bytes, {motion.num_frames} frames x {motion.num_joints} joints, "
-        f"{compression_ratio(raw, len(data)):.1f}:1 against float32 positions ({args.codec}); "
+        f"{compression_ratio(raw, len(data)):.1f}:1 against float32 positions ({args.codec}"
+        f"{_model_text(args, codec, raw, len(data))}); "
         f"source unit {unit_label(motion.source_unit_cm)}, {motion.up_axis} up; "
         f"L-inf {worst:.3f} cm, mean {mean:.3f} cm{note}"
     )
+
+
+def _refuse_motion_suffix(output: str) -> None:
+    """``compress`` writes a bitstream: an output named like a motion file would hide it under a lie."""
+    from pathlib import Path
+
+    from mocapbench.io.formats import READ_SUFFIXES
+
+    suffix = Path(output).suffix.lower()
+    if suffix in READ_SUFFIXES:
+        raise CliError(f"{output}: compress writes a bitstream, not a {suffix} motion file; name the output "
+                       f"{Path(output).with_suffix('.mcb').name} (`mocapbench decompress` writes {suffix})")
+
+
+def _model_text(args, codec, raw_bytes: int, stream_bytes: int) -> str:
+    """What the ratio leaves out: the model a decoder needs beside the stream, its bytes and the ratio with it."""
+    from mocapbench.metrics import compression_ratio
+
+    model_bytes = int(codec.model_bytes)
+    if model_bytes <= 0:
+        return ""
+    where = (f"model {args.model}, fit elsewhere" if getattr(args, "model", None)
+             else "the model shipped with the package")
+    with_model = compression_ratio(raw_bytes, stream_bytes + model_bytes)
+    return f"; the decoder also needs {where}: {model_bytes:,} bytes, {with_model:.1f}:1 with them"
 
 
 def compress_motion(args, motion) -> tuple[Any, bytes, float, float, str]:

@@ -11,7 +11,7 @@ __all__ = ["add_parser", "run"]
 
 def inspect_motion(args) -> None:
     """``inspect`` of a motion file: size, unit, up axis (and why), rest height."""
-    from mocapbench.io.units import detect_up_axis, rest_height_cm, unit_label
+    from mocapbench.io.units import body_shape, detect_up_axis, rest_up_axis, unit_label
 
     motion = load_motion(args)
     axis, reason = detect_up_axis(motion)
@@ -23,8 +23,14 @@ def inspect_motion(args) -> None:
         "source unit": unit_label(motion.source_unit_cm) + ("" if args.units else f" ({_unit_source(args.input)})"),
         "up axis": f"{motion.up_axis} (given)" if args.up else f"{motion.up_axis} (from the file)" if from_file
         else f"{axis} (detected: {reason})",
-        "rest height": f"{rest_height_cm(motion.skeleton, motion.up_axis):.1f} cm",
     }
+    rest_axis = rest_up_axis(motion)
+    shape = body_shape(motion.skeleton, rest_axis)
+    turned = "" if rest_axis == motion.up_axis else f", along the rest pose's {rest_axis} (its root turns it up)"
+    facts["rest height"] = f"{shape.stature_cm:.1f} cm{turned}"
+    if shape.legs == 2:
+        facts["hips"] = f"{shape.hip_fraction:.0%} of the rest height" + (" (an adult's proportions)"
+                                                                          if shape.adult_human else "")
     width = max(len(key) for key in facts)
     for key, value in facts.items():
         print(f"{key:<{width}}  {value}")

@@ -30,22 +30,26 @@ def default_unit_source(path: str | Path) -> str:
     return _DEFAULT_UNIT_SOURCES.get(Path(path).suffix.lower(), "the format's default")
 
 
-def motion_files(paths, suffixes: tuple[str, ...] = READ_SUFFIXES) -> list[Path]:
-    """The motion files of ``paths``: a file as given, a folder's files with a readable suffix in name order.
+def motion_files(paths, suffixes: tuple[str, ...] = READ_SUFFIXES, *, recurse: bool = False) -> list[Path]:
+    """The motion files of ``paths``: a file as given, a folder's files with a readable suffix in path order.
 
     The one place a folder argument becomes files (``fit``, ``compare`` and the ``folder`` dataset), so that every
-    command reads the same formats of a folder. A folder's other files and its sub-folders are ignored.
+    command reads the same formats of a folder. A folder's other files are ignored; its sub-folders too unless
+    ``recurse`` (``fit`` and ``compare`` recurse unless ``--no-recurse``). A link inside a folder is not followed.
 
     Parameters
     ----------
     paths : iterable of str or Path
     suffixes : tuple of str, optional
         Lower-case suffixes a folder contributes (default every readable format, ``.fbx`` included).
+    recurse : bool, keyword-only
+        Search the sub-folders too.
     """
     files: list[Path] = []
     for path in map(Path, paths):
         if path.is_dir():
-            files += sorted(p for p in path.iterdir() if p.is_file() and p.suffix.lower() in suffixes)
+            found = path.rglob("*") if recurse else path.iterdir()
+            files += sorted(p for p in found if p.suffix.lower() in suffixes and p.is_file() and not p.is_symlink())
         else:
             files.append(path)
     return files

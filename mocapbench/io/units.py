@@ -14,7 +14,7 @@ import dataclasses
 import math
 
 import numpy as np
-from scipy.spatial.transform import Rotation
+from mocapbench.lazy_imports import Rotation
 
 from mocapbench.io.asf_amc import CMU_CM_PER_UNIT
 from mocapbench.motion import Motion, Skeleton

@@ -372,4 +372,6 @@ def _sweep_points(folders: list[str]) -> list[dict]:
 
 
 if __name__ == "__main__":
-    main()
+    from mocapbench.benchmarks.entry import run_script
+
+    raise SystemExit(run_script(main))

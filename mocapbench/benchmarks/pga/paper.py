@@ -374,4 +374,6 @@ def main(argv: list[str] | None = None) -> None:
 
 
 if __name__ == "__main__":
-    main()
+    from mocapbench.benchmarks.entry import run_script
+
+    raise SystemExit(run_script(main))

@@ -133,11 +133,21 @@ class _LsdtBases:
         if self._trained is not None and (self.config.basis == "fit" or self._trained.shape[-1] == num_joints):
             return self._trained
         if self.config.basis == "fit":
-            raise NotFittedError(f"{self.name}: basis='fit' needs fit(motions) before encoding or decoding.")
+            raise NotFittedError(
+                f"{self.name}: basis='fit' needs bases fit on clips of this skeleton: `mocapbench fit CLIPS... -o "
+                f"MODEL.npz --codec {self.name} --set basis=fit`, then `--model MODEL.npz`."
+            )
         return load_committed_bases(self.config.sparsity)
 
     def _fingerprint(self, num_joints: int) -> bytes:
         return basis_fingerprint(self._bases(num_joints))
+
+    def _model_needed(self, num_joints: int, fingerprint: bytes) -> str:
+        committed = load_committed_bases(self.config.sparsity)
+        if committed.shape[-1] == num_joints and basis_fingerprint(committed) == fingerprint:
+            return f"the committed LSDT bases shipped with the package ({num_joints} joints, {fingerprint.hex()})"
+        return (f"LSDT bases {fingerprint.hex()} for {num_joints} joints, not the shipped ones: decode with "
+                f"`mocapbench decompress --model MODEL.npz`, MODEL the `mocapbench fit` output it was coded with")
 
     @property
     def model_bytes(self) -> int:
@@ -162,6 +172,9 @@ class _FixedBases:
 
     def _bases(self, num_joints: int) -> np.ndarray:
         return _fixed_bases(self.transform, num_joints)[0]
+
+    def _model_needed(self, num_joints: int, fingerprint: bytes) -> str:
+        return f"none (a fixed {self.transform.upper()} transform)"
 
     def _fingerprint(self, num_joints: int) -> bytes:
         # As the LSDT streams do: a DCT stream relabelled as a DWT one (CRC recomputed) is refused, not decoded

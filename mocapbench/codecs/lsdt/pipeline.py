@@ -88,6 +88,10 @@ def check_joints(name: str, bases: np.ndarray, num_joints: int) -> None:
 _CUTS_FLAG = 0x80
 
 
+#: Length of the bases fingerprint every stream starts with (:func:`.bases.basis_fingerprint`).
+_FINGERPRINT_BYTES = 8
+
+
 class SpatialTransformCodec(Codec):
     """The pipeline shared by the six codecs; subclasses choose the scheme and the spatial transform."""
 
@@ -109,6 +113,10 @@ class SpatialTransformCodec(Codec):
 
     def _fingerprint(self, num_joints: int) -> bytes:
         """Bytes written in the stream to name the bases (8 bytes of SHA-1 of the bases)."""
+        raise NotImplementedError
+
+    def _model_needed(self, num_joints: int, fingerprint: bytes) -> str:
+        """What a decoder needs beside a stream whose bases fingerprint is ``fingerprint`` (``inspect``)."""
         raise NotImplementedError
 
     def _check_joint_count(self, num_joints: int, error: type[Exception]) -> None:
@@ -327,7 +335,8 @@ class SpatialTransformCodec(Codec):
             count = -(-num_frames // max(window_frames, 1))
             info["windows of frames"] = f"{count} x {window_frames} (first shown)"
             num_frames = min(num_frames, window_frames)
-        reader.read_bytes(len(self._fingerprint(header.num_joints)), "bases fingerprint")
+        fingerprint = bytes(reader.read_bytes(_FINGERPRINT_BYTES, "bases fingerprint"))
+        info["model needed"] = self._model_needed(header.num_joints, fingerprint)
         coding = reader.read_u8("count coding")
         info["count_coding"] = COUNT_CODINGS[(coding & ~_CUTS_FLAG) % len(COUNT_CODINGS)]
         info["step_cm"] = reader.read_f64("quantization step")

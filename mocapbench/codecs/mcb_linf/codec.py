@@ -393,7 +393,8 @@ class McbLinfCodec(Codec):
         from mocapbench.codecs.model_file import join_states
 
         if self._model is None:
-            raise NotFittedError("mcb-linf: no fitted model to save; call fit() on training motions first.")
+            raise NotFittedError("mcb-linf: no fitted model to save; fit one on clips of the skeleton first "
+                                 "(`mocapbench fit CLIPS... -o MODEL.npz --codec mcb-linf`).")
         others = {joints: model.arrays() for joints, model in self._models.items() if model is not self._model}
         return join_states(self._model.arrays(), others)
 
@@ -584,8 +585,8 @@ class McbLinfCodec(Codec):
         if model is None:
             raise BitstreamError(
                 f"mcb-linf: the stream was coded with a model fit for representation '{representation}' (tag "
-                f"{tag:#010x}); this decoder holds none (pass the model it was coded with: `decompress --model "
-                f"MODEL`, or fit() on the same training motions)."
+                f"{tag:#010x}); this decoder holds none (pass the model it was coded with: `mocapbench decompress "
+                f"--model MODEL.npz`)."
             )
         if model.tag != tag or model.num_joints != num_joints or model.representation != representation:
             raise BitstreamError(
@@ -662,10 +663,24 @@ class McbLinfCodec(Codec):
         frames = min(header.num_frames, WINDOW_FRAMES)
         reader.read_varint("frame count")  # F again (written before the cuts)
         cuts = read_cuts(reader, frames, "mcb-linf") if has_cuts else []
+        model = "none (decodes without learned state)"
+        if _needs_model(representation, entropy):
+            if representation == "bone":
+                reader.read_varints(header.num_joints - 1, "joint tree")
+            model = _model_text(reader.read_u32("model tag"), representation, header.num_joints)
         return {**windows,"eps_cm (guaranteed L-inf)": eps, "base step cm": step, "frequency slope": slope,
                 "root step (x base step)": root_step_rel, "clip frames": clip_frames,
                 "representation": representation, "entropy coder": entropy,
-                "cuts (frames starting a segment)": list(map(int, cuts))}
+                "cuts (frames starting a segment)": list(map(int, cuts)), "model needed": model}
+
+
+def _model_text(tag: int, representation: str, num_joints: int) -> str:
+    """The model a stream needs, named by its tag: the shipped one, or a model file to pass to ``decompress``."""
+    shipped = load_default_model()
+    if shipped.tag == tag:
+        return f"{tag:#010x}, the model shipped with the package ({shipped.num_joints} joints)"
+    return (f"{tag:#010x} ({representation}, {num_joints} joints), not the shipped one: decode with "
+            f"`mocapbench decompress --model MODEL.npz`, MODEL the `mocapbench fit` output it was coded with")
 
 
 def _needs_model(representation: str, entropy: str) -> bool:
