@@ -61,7 +61,7 @@ def test_uncommitted_sparsity_needs_fit():
     with pytest.raises(ValueError, match="sparsity=3 has no committed bases"):
         create("lsdt-frame", sparsity=3)
     codec = create("lsdt-frame", sparsity=3, basis="fit")
-    with pytest.raises(NotFittedError, match="needs fit"):
+    with pytest.raises(NotFittedError, match="needs bases fit on clips of this skeleton: `mocapbench fit"):
         codec.encode(sinusoidal_motion(num_frames=10, seed=1))
 
 
