@@ -30,11 +30,26 @@ from mocapbench.codecs.container import BitstreamError, Header
 from mocapbench.codecs.limits import DecodeLimits, using_limits
 from mocapbench.motion import Motion
 
-__all__ = ["Codec", "CodecConfig", "Decoded", "param", "BitstreamError", "Header", "NotFittedError"]
+__all__ = [
+    "Codec", "CodecConfig", "Decoded", "param", "BitstreamError", "Header", "NotFittedError", "single_threaded_blas",
+]
 
 
 class NotFittedError(RuntimeError):
     """A codec that needs training state was used before :meth:`Codec.fit`."""
+
+
+def single_threaded_blas():
+    """A context in which BLAS runs one thread: a fit inside gives the same model whatever the machine's threads.
+
+    BLAS splits a product or a decomposition into blocks by its thread count, and the order of the sums changes
+    with them: an SVD of the same data then differs in the last bits at 1 and 2 threads, and a model rounded to
+    float32 (or a model tag, a CRC of its bytes) differs with it. Fitting with one thread makes the model a
+    function of the clips alone. Encoding and decoding are unaffected (they check their own streams).
+    """
+    from threadpoolctl import threadpool_limits
+
+    return threadpool_limits(limits=1, user_api="blas")
 
 
 def param(

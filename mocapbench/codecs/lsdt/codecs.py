@@ -9,7 +9,7 @@ from typing import ClassVar, Sequence
 
 import numpy as np
 
-from mocapbench.codecs.base import NotFittedError
+from mocapbench.codecs.base import NotFittedError, single_threaded_blas
 from mocapbench.codecs.lsdt.bases import basis_fingerprint, load_committed_bases
 from mocapbench.codecs.lsdt.pipeline import (
     ClipConfig,
@@ -64,9 +64,10 @@ class _LsdtBases:
                     f"{self.name}: sparsity={self.config.sparsity} exceeds the {num_joints} joints of the motions."
                 )
             positions = np.concatenate([motion.positions() for motion in group])
-            trained[num_joints], results = train_lsdt_bases(
-                positions, self.config.sparsity, init="dct", max_iterations=self.config.train_iterations
-            )
+            with single_threaded_blas():  # the same bases whatever the machine's BLAS threads
+                trained[num_joints], results = train_lsdt_bases(
+                    positions, self.config.sparsity, init="dct", max_iterations=self.config.train_iterations
+                )
             frames[num_joints] = len(positions)
             self.training_objective += [result.objective for result in results]
         self._trained_by_joints = trained
@@ -90,12 +91,20 @@ class _LsdtBases:
         bases = np.array(bases, dtype=np.float64)
         if bases.ndim != 3 or bases.shape[0] != 3 or bases.shape[1] != bases.shape[2]:
             raise ValueError(f"{self.name}: expected bases of shape (3, J, J), got {bases.shape}.")
+        if not np.all(np.isfinite(bases)):
+            raise ValueError(f"{self.name}: the bases hold a non-finite value.")
         identity = np.eye(bases.shape[1])
-        if max(np.abs(b @ b.T - identity).max() for b in bases) >= 1e-10:
+        if not max(np.abs(b @ b.T - identity).max() for b in bases) < 1e-10:
             raise ValueError(f"{self.name}: the bases must be orthogonal (||B Bᵀ − I|| < 1e-10).")
         self._trained = bases
         self._trained_by_joints = {**self._trained_by_joints, bases.shape[-1]: bases}
         return self
+
+    def model_arrays(self, num_joints: int) -> dict:
+        """The arrays a model file holds for a skeleton of ``num_joints`` joints (:mod:`.model_file` checks them)."""
+        from mocapbench.codecs.model_file import ModelArray
+
+        return {"bases": ModelArray("<f8", (3, num_joints, num_joints))}
 
     def model_state(self) -> dict[str, np.ndarray]:
         """The learned bases as arrays, for a model file or a sweep's shared state (:mod:`mocapbench.codecs.model_file`).

@@ -59,7 +59,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mocapbench.codecs.base import Codec, CodecConfig, Header, NotFittedError, param
+from mocapbench.codecs.base import Codec, CodecConfig, Header, NotFittedError, param, single_threaded_blas
 from mocapbench.codecs.mcb_linf.layers import (
     BAND_EDGES,
     CHANNEL_GROUP_STARTS,
@@ -84,6 +84,7 @@ from mocapbench.codecs.mcb_linf.model import (
     load_default_model,
     NUM_CLASSES,
     shifted_classes,
+    stored_layout,
     TrainedModel,
 )
 from mocapbench.codecs.registry import register_codec
@@ -374,16 +375,24 @@ class McbLinfCodec(Codec):
         groups: dict[int, list[Motion]] = {}
         for motion in motions:
             groups.setdefault(motion.num_joints, []).append(motion)
-        self._models = {
-            joints: fit_model(
-                group, config.representation, config.clip_frames, config.frequency_slope, config.root_step_rel,
-                config.rounding,
-            )
-            for joints, group in groups.items()
-        }
+        with single_threaded_blas():  # the same model (and tag) whatever the machine's BLAS threads
+            self._models = {
+                joints: fit_model(
+                    group, config.representation, config.clip_frames, config.frequency_slope, config.root_step_rel,
+                    config.rounding,
+                )
+                for joints, group in groups.items()
+            }
         main = max(groups, key=lambda joints: sum(motion.num_frames for motion in groups[joints]))
         self._model = self._models[main]
         return self
+
+    def model_arrays(self, num_joints: int) -> dict:
+        """The arrays a model file holds for a skeleton of ``num_joints`` joints (:mod:`.model_file` checks them)."""
+        from mocapbench.codecs.model_file import ModelArray
+
+        layout = stored_layout(self.config.representation, num_joints)
+        return {key: ModelArray(dtype, shape) for key, (dtype, shape) in layout.items()}
 
     def model_state(self) -> dict[str, np.ndarray]:
         """The fitted models as arrays, for a model file or a sweep's shared state (:mod:`mocapbench.codecs.model_file`).

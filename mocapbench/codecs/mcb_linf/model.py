@@ -41,8 +41,10 @@ __all__ = [
     "TrainedModel",
     "base_classes",
     "fit_model",
+    "check_stored",
     "load_default_model",
     "shifted_classes",
+    "stored_layout",
 ]
 
 MODEL_FILE = "models/mcb_linf_model_v2.npz"
@@ -126,6 +128,8 @@ class TrainedModel:
 
     @classmethod
     def from_arrays(cls, stored) -> "TrainedModel":
+        """The model of stored arrays (:meth:`arrays`), checked first (:func:`check_stored`)."""
+        check_stored(stored)
         return cls(
             representation=REPRESENTATIONS[int(stored["representation"])],
             num_joints=int(stored["num_joints"]),
@@ -150,6 +154,75 @@ class TrainedModel:
     def stored_bytes(self) -> int:
         """Size as shipped (the arrays' bytes)."""
         return sum(value.nbytes for value in self.arrays().values())
+
+
+def stored_layout(representation: str, num_joints: int) -> dict[str, tuple[str, tuple[int, ...]]]:
+    """dtype and shape of every stored array (:meth:`TrainedModel.arrays`) of a model for ``num_joints`` joints."""
+    size = 3 * (num_joints - 1) if representation == "pca" else 0
+    return {
+        "representation": ("|u1", ()),
+        "num_joints": ("<u4", ()),
+        "clip_frames": ("<u4", ()),
+        "basis": ("<f4", (size, size)),
+        "mean": ("<f4", (size,)),
+        "band_scale": ("<f4", (len(BAND_EDGES), 3 * num_joints)),
+        "class_edges": ("<f8", (NUM_CLASSES - 1,)),
+        "token_counts": ("<u4", (NUM_CLASSES, TOKEN_COUNT)),
+        "lattice_counts": ("<u4", (1, TOKEN_COUNT)),
+    }
+
+
+#: Largest |mean| of a stored basis' centring, cm (the codecs' coordinate range), and the largest departure of a
+#: stored basis from orthonormality (float32 rounding of an orthonormal basis is ~1e-7).
+_MAX_MEAN_CM = 1e6
+_ORTHONORMAL_TOLERANCE = 1e-4
+_MAX_CLIP_FRAMES = 1 << 16
+
+
+def check_stored(stored) -> None:
+    """Refuse stored arrays that no fit can have made: a corrupted or hostile model (one line, ValueError).
+
+    Checked: every array present with its dtype and shape (:func:`stored_layout`), a known representation, a
+    clip length in 1..65536, finite values, an orthonormal basis (within float32 rounding), a centring within
+    the coordinate range, band scales at least the fit's floor (1e-6 cm), the fixed class edges, token counts
+    >= 1. What cannot be told from a fit's (a rescaled band scale, other counts) only costs rate: the encoder
+    checks its own stream.
+    """
+    missing = [key for key in stored_layout("pca", 1) if key not in stored]
+    if missing:
+        raise ValueError(f"mcb-linf: the model has no {missing[0]!r} array.")
+    code = np.asarray(stored["representation"])
+    if code.shape != () or code.dtype.kind not in "iu" or not 0 <= int(code) < len(REPRESENTATIONS):
+        raise ValueError(
+            f"mcb-linf: the model's representation code is {code!r}; expected 0..{len(REPRESENTATIONS) - 1}."
+        )
+    joints = np.asarray(stored["num_joints"])
+    if joints.shape != () or joints.dtype.kind not in "iu" or not 1 <= int(joints) <= 4096:
+        raise ValueError(f"mcb-linf: the model's joint count is {joints!r}; expected 1..4096.")
+    for key, (dtype, shape) in stored_layout(REPRESENTATIONS[int(code)], int(joints)).items():
+        value = np.asarray(stored[key])
+        if value.dtype != np.dtype(dtype) or value.shape != shape:
+            raise ValueError(f"mcb-linf: the model's {key} is {value.shape} of {value.dtype}; expected {shape} of "
+                             f"{np.dtype(dtype)}.")
+        if value.dtype.kind == "f" and not np.all(np.isfinite(value)):
+            raise ValueError(f"mcb-linf: the model's {key} holds a non-finite value.")
+    clip_frames = int(stored["clip_frames"])
+    if not 1 <= clip_frames <= _MAX_CLIP_FRAMES:
+        raise ValueError(f"mcb-linf: the model's clip length is {clip_frames}; expected 1..{_MAX_CLIP_FRAMES}.")
+    basis = np.asarray(stored["basis"], dtype=np.float64)
+    if basis.size:
+        departure = float(np.abs(basis @ basis.T - np.eye(len(basis))).max())
+        if not departure < _ORTHONORMAL_TOLERANCE:
+            raise ValueError(f"mcb-linf: the model's basis is not orthonormal (max |B Bᵀ - I| = {departure:.3g}).")
+    if not np.abs(np.asarray(stored["mean"], dtype=np.float64)).max(initial=0.0) <= _MAX_MEAN_CM:
+        raise ValueError(f"mcb-linf: the model's mean exceeds {_MAX_MEAN_CM:g} cm.")
+    if not np.asarray(stored["band_scale"]).min() >= np.float32(1e-6):
+        raise ValueError("mcb-linf: the model's band scales must be >= 1e-6 cm (the fit's floor).")
+    if not np.allclose(stored["class_edges"], _class_edges(), rtol=1e-12, atol=0.0):
+        raise ValueError("mcb-linf: the model's class edges are not the quarter octaves every model uses.")
+    for key in ("token_counts", "lattice_counts"):
+        if not np.asarray(stored[key]).min() >= 1:
+            raise ValueError(f"mcb-linf: the model's {key} must all be >= 1.")
 
 
 def _fit_basis(motions: Sequence[Motion]) -> tuple[np.ndarray, np.ndarray]:
