@@ -14,16 +14,19 @@ from typing import Any
 
 __all__ = [
     "CliError",
+    "add_limit_argument",
     "add_motion_arguments",
     "add_motion_options",
     "codec_for_stream",
     "codec_of",
     "decoding_codec",
+    "limits_of",
     "load_motion",
     "parse_settings",
     "read_clips",
     "settings_of",
 ]
+
 
 class CliError(Exception):
     """A user-facing error: printed as one line, no traceback."""
@@ -81,6 +84,31 @@ def add_motion_arguments(parser: argparse.ArgumentParser, *, writing: bool = Fal
                             help="up axis (default: the sidecar's, else detected from the frames)")
         parser.add_argument("--strict", action="store_true",
                             help="a unit warning (a body that is not a body's size in the unit read) is an error")
+
+
+def add_limit_argument(parser: argparse.ArgumentParser, *, reading: str) -> None:
+    """Add ``--limit NAME=N`` (repeatable): the :class:`~mocapbench.codecs.limits.DecodeLimits` of the command.
+
+    Parameters
+    ----------
+    reading : str
+        What the limits bound in this command, for the help (``"the input file and the stream written"``).
+    """
+    parser.add_argument(
+        "--limit",
+        action="append",
+        default=[],
+        metavar="NAME=N",
+        help=f"raise or lower a limit on {reading}: frames, joints, output_bytes (default 2 GiB of arrays), "
+             f"ik_iterations",
+    )
+
+
+def limits_of(args) -> "DecodeLimits":  # noqa: F821
+    """The command's limits from its ``--limit`` values (the defaults without any)."""
+    from mocapbench.codecs.limits import DecodeLimits
+
+    return DecodeLimits.from_settings(getattr(args, "limit", None) or [])
 
 
 def add_motion_options(parser: argparse.ArgumentParser) -> None:

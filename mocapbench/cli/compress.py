@@ -2,27 +2,45 @@
 
 ``--model MODEL`` codes with a model written by ``fit``; ``--max-error-cm E`` runs the rate search
 (:mod:`mocapbench.ratesearch`) over the codec's main knob.
+
+``--limit NAME=N`` sets the limits the input is read under (frames x joints checked before the reader
+allocates, as ``decompress`` checks a stream's header). The stream written is decoded back to measure its
+errors under these limits raised to what the motion just read needs: a capture that was read is never thrown
+away after encoding for want of a limit.
 """
 
 from __future__ import annotations
 
 from typing import Any
 
-from mocapbench.cli.arguments import CliError, add_motion_arguments, codec_of, load_motion, settings_of
+from mocapbench.cli.arguments import (
+    CliError,
+    add_limit_argument,
+    add_motion_arguments,
+    codec_of,
+    limits_of,
+    load_motion,
+    settings_of,
+)
 
 __all__ = ["add_parser", "compress_motion", "run"]
 
 
 def run(args) -> None:
     """Encode ``args.input`` into ``args.output``; print the sizes, the ratio and the errors."""
+    from mocapbench.codecs.limits import using_limits
     from mocapbench.io.safe_output import check_output, write_bytes
     from mocapbench.io.units import unit_label
     from mocapbench.metrics import compression_ratio, raw_position_bytes
 
     _refuse_motion_suffix(args.output)
     output = check_output(args.output, force=args.force)
-    motion = load_motion(args)
-    codec, data, worst, mean, note = compress_motion(args, motion)
+    limits = limits_of(args)
+    with using_limits(limits):
+        motion = load_motion(args)
+    # Decoding back what was just encoded: the motion is in memory, so its own size is admitted.
+    with using_limits(limits.admitting(motion.num_frames, motion.num_joints, codes_rotations=True)):
+        codec, data, worst, mean, note = compress_motion(args, motion)
     write_bytes(output, data, force=args.force)
     raw = raw_position_bytes(motion.num_joints, motion.num_frames)
     print(
@@ -113,4 +131,5 @@ def add_parser(commands) -> None:
     compress.add_argument("--force", action="store_true", help="overwrite OUT if it exists")
     compress.add_argument("--model", help="MODEL.npz written by `mocapbench fit` (learned codecs)")
     compress.add_argument("--max-error-cm", type=float, help="smallest stream with L-inf <= this (a rate search)")
+    add_limit_argument(compress, reading="the input file")
     compress.set_defaults(run=run)

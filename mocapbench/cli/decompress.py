@@ -4,7 +4,14 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from mocapbench.cli.arguments import CliError, add_motion_arguments, codec_for_stream, decoding_codec
+from mocapbench.cli.arguments import (
+    CliError,
+    add_limit_argument,
+    add_motion_arguments,
+    codec_for_stream,
+    decoding_codec,
+    limits_of,
+)
 
 __all__ = ["add_parser", "run"]
 
@@ -13,7 +20,6 @@ def run(args) -> None:
     """Decode ``args.input`` into ``args.output`` (the unit recorded in the stream unless ``--units``)."""
     import dataclasses
 
-    from mocapbench.codecs import DecodeLimits
     from mocapbench.io.formats import WRITE_SUFFIXES, write_motion
     from mocapbench.io.safe_output import check_output, save_npy
     from mocapbench.io.units import canonical_unit_cm, parse_units, unit_label
@@ -23,7 +29,7 @@ def run(args) -> None:
     if suffix not in (".npy", *WRITE_SUFFIXES):
         expected = ", ".join((*WRITE_SUFFIXES, ".npy"))
         raise CliError(f"{output}: expected a {expected} output, got {suffix or 'no extension'}")
-    limits = DecodeLimits.from_settings(args.limit)
+    limits = limits_of(args)
     data = Path(args.input).read_bytes()
     codec, header = codec_for_stream(data)
     if args.model:
@@ -53,12 +59,6 @@ def add_parser(commands) -> None:
     decompress.add_argument("output", help="OUT.bvh, OUT.gltf, OUT.glb (rotation codecs) or OUT.npy (positions)")
     add_motion_arguments(decompress, writing=True)
     decompress.add_argument("--force", action="store_true", help="overwrite OUT if it exists")
-    decompress.add_argument(
-        "--limit",
-        action="append",
-        default=[],
-        metavar="NAME=N",
-        help="raise or lower a decode limit: frames, joints, output_bytes (default 2 GiB), ik_iterations",
-    )
+    add_limit_argument(decompress, reading="the decode")
     decompress.add_argument("--model", help="MODEL.npz the stream was coded with (`compress --model`)")
     decompress.set_defaults(run=run)

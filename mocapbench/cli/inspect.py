@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from mocapbench.cli.arguments import add_motion_arguments, codec_for_stream, load_motion
+from mocapbench.cli.arguments import add_limit_argument, add_motion_arguments, codec_for_stream, limits_of, load_motion
 
 __all__ = ["add_parser", "run"]
 
@@ -48,17 +48,20 @@ def _unit_source(path: str) -> str:
 
 def run(args) -> None:
     """Print the facts of a stream, or of a motion file (by its suffix)."""
-    from mocapbench.codecs.container import read_header
+    from mocapbench.codecs.limits import using_limits
     from mocapbench.io.formats import READ_SUFFIXES
     from mocapbench.io.units import unit_label
     from mocapbench.metrics import bits_per_joint_frame, compression_ratio, raw_position_bytes
 
+    limits = limits_of(args)
     if Path(args.input).suffix.lower() in READ_SUFFIXES:
-        inspect_motion(args)
+        with using_limits(limits):
+            inspect_motion(args)
         return
     data = Path(args.input).read_bytes()
-    header, payload = read_header(data)
     codec, _ = codec_for_stream(data)
+    # The header is checked against the limits before the payload is described, as decompress checks it.
+    header, described = codec.describe(data, limits=limits)
     raw = raw_position_bytes(header.num_joints, header.num_frames)
     facts = {
         "codec": header.codec,
@@ -74,7 +77,7 @@ def run(args) -> None:
         "compression ratio (float32 positions)": f"{compression_ratio(raw, len(data)):.2f}",
         "bits per joint per frame": f"{bits_per_joint_frame(len(data), header.num_joints, header.num_frames):.3f}",
     }
-    facts.update(codec.describe_payload(header, payload))
+    facts.update(described)
     width = max(len(key) for key in facts)
     for key, value in facts.items():
         print(f"{key:<{width}}  {value}")
@@ -88,4 +91,5 @@ def add_parser(commands) -> None:
     inspect.add_argument("input", help="IN.mcb, or a motion file (.bvh, .amc, .gltf, .glb, .fbx)")
     add_motion_arguments(inspect)
     inspect.add_argument("--asf", help="skeleton of an AMC input (default: the .asf beside it)")
+    add_limit_argument(inspect, reading="the stream or the motion file read")
     inspect.set_defaults(run=run)

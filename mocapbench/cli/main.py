@@ -59,13 +59,27 @@ def _user_error_message(error: Exception) -> str | None:
     return str(error) if isinstance(error, one_line) else None
 
 
+def _out_of_memory_message(args: argparse.Namespace) -> str:
+    """"out of memory", naming the limit that applies to the command (``--limit``), or none where none does."""
+    if not hasattr(args, "limit"):
+        return "out of memory"
+    from mocapbench.cli.arguments import limits_of
+
+    try:
+        allowed = limits_of(args).max_output_bytes
+    except ValueError:
+        return "out of memory"
+    return (f"out of memory under the limit output_bytes={allowed:,} bytes of arrays; lower it "
+            f"(--limit output_bytes=N) to refuse such inputs up front")
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``mocapbench`` command; returns the exit code."""
     args = _parser().parse_args(argv)
     try:
         args.run(args)
     except MemoryError:
-        print("mocapbench: error: out of memory; lower the decode limits (--limit output_bytes=N)", file=sys.stderr)
+        print(f"mocapbench: error: {_out_of_memory_message(args)}", file=sys.stderr)
         return 2
     except Exception as error:
         message = _user_error_message(error)

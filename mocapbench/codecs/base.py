@@ -425,6 +425,28 @@ class Codec(abc.ABC):
         """Human-readable facts about a payload for ``mocapbench inspect`` (default: none)."""
         return {}
 
+    def describe(self, data: bytes, *, limits: DecodeLimits | None = None) -> tuple[Header, dict[str, Any]]:
+        """The header and :meth:`describe_payload`'s facts of a stream, checked as :meth:`decode` checks it.
+
+        The header is checked against ``limits`` (default: the current ones) before the payload is looked at, so
+        that ``inspect`` refuses what ``decompress`` refuses instead of building what the header asks for.
+
+        Raises
+        ------
+        BitstreamError
+            As :meth:`decode`: a malformed stream, or one that asks for more than ``limits``.
+        """
+        header, payload = container.unpack(data, self.name)
+        with using_limits(limits) as active:
+            active.check_header(header.num_frames, header.num_joints, self.codes_rotations)
+            try:
+                with np.errstate(all="ignore"):
+                    return header, self.describe_payload(header, payload)
+            except BitstreamError:
+                raise
+            except (ValueError, IndexError, KeyError, OverflowError, EOFError, TypeError) as error:
+                raise BitstreamError(f"{self.name}: payload is inconsistent with its header: {error}") from error
+
     def __repr__(self) -> str:
         return f"{type(self).__name__}({self.config!r})"
 

@@ -119,6 +119,19 @@ class DecodeLimits:
             changes[key.strip()] = int(value)
         return cls().replace(**changes)
 
+    def admitting(self, num_frames: int, num_joints: int, codes_rotations: bool) -> "DecodeLimits":
+        """These limits, raised where needed to admit a motion of ``num_frames`` x ``num_joints`` (never lowered).
+
+        For an encoder checking its own stream: the motion it coded is already in memory, so decoding it back must
+        not be refused by a limit meant for streams of unknown origin.
+        """
+        return dataclasses.replace(
+            self,
+            max_frames=max(self.max_frames, num_frames),
+            max_joints=max(self.max_joints, num_joints),
+            max_output_bytes=max(self.max_output_bytes, output_bytes(num_frames, num_joints, codes_rotations)),
+        )
+
     def check(self, limit: str, value: int, what: str = "") -> None:
         """Raise :class:`DecodeLimitError` if ``value`` exceeds the field ``limit``."""
         allowed = getattr(self, limit)

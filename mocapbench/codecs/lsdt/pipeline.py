@@ -326,6 +326,7 @@ class SpatialTransformCodec(Codec):
         return groups
 
     def describe_payload(self, header: Header, payload: memoryview) -> dict[str, Any]:
+        self._check_joint_count(header.num_joints, BitstreamError)  # before the J x J bases of the fingerprint
         info: dict[str, Any] = {"scheme": self.scheme}
         reader = ByteReader(payload)
         num_frames = header.num_frames
