@@ -15,8 +15,9 @@ from mocapbench.fuzz import REGRESSION_DIR, mutations, restamp, run_campaign, se
 from mocapbench.codecs.container import read_header
 
 REGRESSIONS = sorted(REGRESSION_DIR.glob("*.mcb"))
-# Streams per codec in the bounded run (CI); the long run is `python -m mocapbench.fuzz`.
+# Streams per codec and files per surface in the bounded run (CI); the long run is `python -m mocapbench.fuzz`.
 PER_CODEC = int(os.environ.get("MOCAPBENCH_FUZZ_PER_CODEC", "400"))
+PER_SURFACE = int(os.environ.get("MOCAPBENCH_FUZZ_PER_SURFACE", "200"))
 
 
 def test_every_saved_finding_is_a_bitstream_error_within_seconds():
@@ -50,9 +51,14 @@ def test_mutations_keep_the_container_valid_and_are_deterministic():
 
 @pytest.mark.fuzz
 def test_bounded_fuzz_campaign_has_no_findings():
-    result = run_campaign(sorted(CODECS), PER_CODEC, seed=1, workers=2, timeout_s=5.0)
+    from mocapbench.fuzz.surfaces import SURFACES
+
+    result = run_campaign(sorted(CODECS), PER_CODEC, seed=1, workers=2, timeout_s=5.0, per_surface=PER_SURFACE)
     print(result.table())
-    assert result.total == PER_CODEC * len(CODECS)
+    print(result.surface_table())
+    files = sum(sum(result.counts[surface].values()) for surface in SURFACES)
+    assert result.total - files == PER_CODEC * len(CODECS)
+    assert files >= PER_SURFACE * 4  # FBX needs ufbx; every other surface always runs
     described = [f"{n} [{k}] {r['outcome']} {r.get('wall_s', 0):.2f} s: {r.get('error', '')}" for n, k, _, r in
                  result.findings]
     assert not described, "\n".join(described)

@@ -19,13 +19,18 @@ worker reports the outcome (decoded, a :class:`BitstreamError` subclass, any oth
 and CPU time, the growth of its peak resident memory over the decode (``/proc/self/clear_refs`` resets the peak)
 and the bytes of the decoded arrays.
 
-Targets: 0 outcomes other than decoded or ``BitstreamError``; 0 decodes above the limits; 0 decodes
-over 5 s; decode memory at most 2 x the output arrays + a constant. Every other outcome is a *finding*, written
-to ``tests/fuzz_regressions/<codec>-<hash>.mcb`` (``--save-findings``) where ``tests/test_fuzz.py`` decodes it
-in every run.
+The same workers read hostile motion files (BVH, glTF, GLB, FBX) and model files (:mod:`.surfaces`): a job's
+target is a codec (decode the stream) or a surface (write the input to a file in the worker's empty folder and
+read it as ``compress`` or ``--model`` would); :meth:`FuzzResult.surface_table` counts them per surface.
 
-Run ``python -m mocapbench.fuzz --per-codec 8000`` (the long run: 112,000 streams over 14 codecs); the test suite
-runs a bounded one under the ``fuzz`` marker (``pytest -m fuzz``).
+Targets: 0 outcomes other than decoded or ``BitstreamError``; 0 decodes above the limits; 0 decodes
+over 5 s; decode memory at most 2 x the output arrays + a constant; for the files, 0 outcomes other than a motion,
+a loaded model that codes, or the surface's one-line error, none over 5 s or the limits. Every other outcome is a
+*finding*, written to ``tests/fuzz_regressions/<codec>-<hash>.mcb`` (or ``<surface>-<hash>.<suffix>``,
+``--save-findings``) where ``tests/test_fuzz.py`` decodes or reads it in every run.
+
+Run ``python -m mocapbench.fuzz --per-codec 8000 --per-surface 2000`` (the long run); the test suite runs a
+bounded one under the ``fuzz`` marker (``pytest -m fuzz``).
 """
 
 from __future__ import annotations
@@ -372,13 +377,19 @@ def _receive(stream):
 
 
 def _worker_main() -> None:
-    """Decode loop of a worker: read ``(codec, stream)``, decode, write a result dict."""
+    """Loop of a worker: read ``(target, input)``, decode the stream (target: a codec) or read the file (target: a
+    surface of :mod:`.surfaces`), write a result dict."""
     memory_bytes = int(os.environ.get("MOCAPBENCH_FUZZ_AS_BYTES", "0"))
     if memory_bytes:
         resource.setrlimit(resource.RLIMIT_AS, (memory_bytes, memory_bytes))
+    import tempfile
+
     from mocapbench.codecs import CODECS, BitstreamError, DecodeLimits, create
+    from mocapbench.fuzz import surfaces
 
     limits = DecodeLimits(max_output_bytes=int(os.environ.get("MOCAPBENCH_FUZZ_OUTPUT_BYTES", FUZZ_OUTPUT_BYTES)))
+    clean = (BitstreamError, *surfaces.clean_errors())
+    folder = Path(tempfile.mkdtemp(prefix="mocapbench-fuzz-"))
     codecs = {}
     stdin, stdout = sys.stdin.buffer, sys.stdout.buffer
     _send(stdout, {"ready": True})
@@ -387,9 +398,8 @@ def _worker_main() -> None:
         if message is None:
             return
         name, data = message
-        if name not in codecs:
+        if name not in codecs and name not in surfaces.SURFACES:
             codecs[name] = create(name, **CODECS[name].smoke_params)
-        codec = codecs[name]
         before = _current_rss()
         resetable = _reset_peak()
         cpu0, wall0 = time.process_time(), time.perf_counter()
@@ -398,11 +408,14 @@ def _worker_main() -> None:
         seen = caught.__enter__()
         warnings.simplefilter("always")
         try:
-            decoded = codec.decode(data, limits=limits)
-            result["output_bytes"] = decoded_bytes(decoded)
-            result["frames"], result["joints"] = decoded.positions.shape[:2]
-            del decoded
-        except BitstreamError as error:
+            if name in surfaces.SURFACES:
+                result["output_bytes"] = surfaces.read_input(name, data, folder, limits)
+            else:
+                decoded = codecs[name].decode(data, limits=limits)
+                result["output_bytes"] = decoded_bytes(decoded)
+                result["frames"], result["joints"] = decoded.positions.shape[:2]
+                del decoded
+        except clean as error:
             result["outcome"] = type(error).__name__
             result["error"] = str(error)[:300]
         except BaseException as error:  # noqa: BLE001 - every other outcome is a finding, reported as such
@@ -410,8 +423,9 @@ def _worker_main() -> None:
             result["error"] = str(error)[:300]
         finally:
             caught.__exit__(None, None, None)
+        # A decode must be silent: a warning is a line the user sees that says nothing (a finding). Readers may
+        # warn through their own channel (read_motion's warnings list), never through Python's warnings.
         if seen and not result["outcome"].startswith("other:"):
-            # A decode must be silent: a warning is a line the user sees that says nothing (a finding).
             result["outcome"] = f"other:{seen[0].category.__name__}"
             result["error"] = str(seen[0].message)[:300]
         result["wall_s"] = time.perf_counter() - wall0
@@ -467,6 +481,8 @@ class FuzzResult:
     max_cpu_s: dict[str, float] = field(default_factory=lambda: defaultdict(float))
     max_memory: dict[str, int] = field(default_factory=lambda: defaultdict(int))
     max_excess: dict[str, int] = field(default_factory=lambda: defaultdict(int))  # memory - 2 x output, bytes
+    slow: Counter = field(default_factory=Counter)  # inputs over the CPU limit that still answered
+    over_output: Counter = field(default_factory=Counter)  # inputs whose output exceeded the output limit
     findings: list[tuple[str, str, bytes, dict]] = field(default_factory=list)
 
     @property
@@ -481,6 +497,10 @@ class FuzzResult:
         memory = result.get("memory_bytes", 0)
         self.max_memory[name] = max(self.max_memory[name], memory)
         self.max_excess[name] = max(self.max_excess[name], memory - 2 * result.get("output_bytes", 0))
+        if result.get("cpu_s", 0.0) > slow_s and outcome != "timeout":
+            self.slow[name] += 1
+        if result.get("output_bytes", 0) > output_limit:
+            self.over_output[name] += 1
         bad = (
             outcome.startswith("other:") or outcome in ("timeout", "crash")
             or result.get("cpu_s", 0.0) > slow_s or result.get("output_bytes", 0) > output_limit
@@ -512,6 +532,41 @@ class FuzzResult:
             f"| {max(self.max_memory.values(), default=0) / 2**20:.1f} "
             f"| {max(self.max_excess.values(), default=0) / 2**20:.1f} |"
         )
+        return "\n".join(lines)
+
+    def surface_table(self) -> str:
+        """A markdown table per surface (streams of every codec; BVH, glTF and GLB, FBX, model files).
+
+        Columns: inputs; accepted (decoded or read); clean errors (a ``BitstreamError``, or the surface's one-line
+        error); other exceptions (any other class, a Python warning); hangs (over the CPU limit, or killed at the
+        wall-clock limit); memory failures (``MemoryError``, a crashed worker, an output over the limit); the peak
+        memory growth and the CPU time of the worst input.
+        """
+        from mocapbench.fuzz.surfaces import SURFACE_LABELS
+
+        groups: dict[str, list[str]] = defaultdict(list)
+        for name in self.counts:
+            groups[SURFACE_LABELS.get(name, "streams")].append(name)
+        lines = [
+            "| surface | inputs | accepted | clean errors | other exceptions | hangs | memory failures "
+            "| worst peak memory MB | worst CPU s |",
+            "|---|---:|---:|---:|---:|---:|---:|---:|---:|",
+        ]
+        order = ["streams", *dict.fromkeys(SURFACE_LABELS.values())]
+        for label in [label for label in order if label in groups]:
+            c = Counter()
+            for name in groups[label]:
+                c.update(self.counts[name])
+            memory_failures = c.get("crash", 0) + c.get("other:MemoryError", 0) + sum(
+                self.over_output[name] for name in groups[label])
+            other = sum(v for k, v in c.items() if k.startswith("other:") and k != "other:MemoryError")
+            hangs = c.get("timeout", 0) + sum(self.slow[name] for name in groups[label])
+            clean = sum(v for k, v in c.items() if k not in ("decoded", "timeout", "crash") and not k.startswith("other:"))
+            lines.append(
+                f"| {label} | {sum(c.values())} | {c.get('decoded', 0)} | {clean} | {other} | {hangs} "
+                f"| {memory_failures} | {max(self.max_memory[n] for n in groups[label]) / 2**20:.1f} "
+                f"| {max(self.max_cpu_s[n] for n in groups[label]):.2f} |"
+            )
         return "\n".join(lines)
 
     @staticmethod
@@ -590,23 +645,38 @@ def kill_seconds(timeout_s: float) -> float:
 
 def run_campaign(names: list[str], per_codec: int, *, seed: int = 0, workers: int = 2, timeout_s: float = 5.0,
                  memory_bytes: int = 3 << 30, output_bytes: int = FUZZ_OUTPUT_BYTES, progress: bool = False,
-                 kill_s: float | None = None) -> FuzzResult:
-    """Fuzz ``names`` with ``per_codec`` hostile streams each; returns the counts, extremes and findings.
+                 kill_s: float | None = None, per_surface: int = 0,
+                 surfaces: list[str] | None = None) -> FuzzResult:
+    """Fuzz ``names`` with ``per_codec`` hostile streams each, and every file surface (:mod:`.surfaces`) with
+    ``per_surface`` hostile files each; returns the counts, extremes and findings.
 
-    A decode over ``timeout_s`` of CPU is a finding; one that has not answered after ``kill_s`` wall seconds
-    (default :func:`kill_seconds`) is killed and counted as a timeout.
+    A decode or read over ``timeout_s`` of CPU is a finding; one that has not answered after ``kill_s`` wall
+    seconds (default :func:`kill_seconds`) is killed and counted as a timeout.
     """
+    from mocapbench.fuzz.surfaces import SURFACES, file_mutations, seed_files
+
     streams = seed_streams(names)
+    wanted = ([] if not per_surface else list(SURFACES) if surfaces is None else surfaces)
+    files = seed_files(wanted) if wanted else {}
     result = FuzzResult()
+
+    def split(seeds, count):
+        return [count // len(seeds) + (i < count % len(seeds)) for i in range(len(seeds))]
 
     def jobs():
         for index, name in enumerate(names):
             seeds = streams[name]
-            per_seed = [per_codec // len(seeds) + (i < per_codec % len(seeds)) for i in range(len(seeds))]
-            for seed_index, (stream, count) in enumerate(zip(seeds, per_seed)):
+            for seed_index, (stream, count) in enumerate(zip(seeds, split(seeds, per_codec))):
                 for kind, data in mutations(stream, count, seed=hash((seed, index, seed_index)) & 0xFFFFFFFF):
                     yield name, kind, data
+        for index, surface in enumerate(wanted):
+            seeds = files.get(surface, [])
+            for seed_index, (original, count) in enumerate(zip(seeds, split(seeds, per_surface) if seeds else [])):
+                value = hash((seed, "file", index, seed_index)) & 0xFFFFFFFF
+                for kind, data in file_mutations(surface, original, count, value):
+                    yield surface, kind, data
 
+    total = per_codec * len(names) + per_surface * sum(1 for surface in wanted if files.get(surface))
     done = [0]
     started = time.monotonic()
 
@@ -615,7 +685,7 @@ def run_campaign(names: list[str], per_codec: int, *, seed: int = 0, workers: in
         done[0] += 1
         if progress and done[0] % 1000 == 0:
             rate = done[0] / (time.monotonic() - started)
-            print(f"fuzz: {done[0]}/{per_codec * len(names)} streams, {rate:.0f}/s, "
+            print(f"fuzz: {done[0]}/{total} inputs, {rate:.0f}/s, "
                   f"{len(result.findings)} findings", file=sys.stderr, flush=True)
 
     fuzzer = Fuzzer(workers, memory_bytes, output_bytes, kill_seconds(timeout_s) if kill_s is None else kill_s)
@@ -723,11 +793,14 @@ def memory_check(names: list[str], num_frames: int, *, timeout_s: float = 600.0)
 
 
 def save_findings(result: FuzzResult, folder: Path = REGRESSION_DIR) -> list[Path]:
-    """Write each finding's stream to ``folder/<codec>-<sha1 12>.mcb`` (kept by name; duplicates once)."""
+    """Write each finding's input to ``folder/<codec or surface>-<sha1 12><suffix>`` (``.mcb`` for a stream, the
+    surface's suffix for a file; kept by name, duplicates once)."""
+    from mocapbench.fuzz.surfaces import SURFACES
+
     folder.mkdir(parents=True, exist_ok=True)
     written = []
     for name, _, data, _ in result.findings:
-        path = folder / f"{name}-{hashlib.sha1(data).hexdigest()[:12]}.mcb"
+        path = folder / f"{name}-{hashlib.sha1(data).hexdigest()[:12]}{SURFACES.get(name, '.mcb')}"
         if not path.exists():
             path.write_bytes(data)
             written.append(path)
@@ -747,6 +820,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--memory-mb", type=int, default=3072, help="address-space cap of each worker (RLIMIT_AS)")
     parser.add_argument("--output-mb", type=int, default=FUZZ_OUTPUT_BYTES >> 20, help="DecodeLimits.max_output_bytes")
     parser.add_argument("--save-findings", action="store_true", help=f"write findings to {REGRESSION_DIR}")
+    parser.add_argument("--per-surface", type=int, default=2000,
+                        help="hostile files per surface: BVH, glTF, GLB, FBX, model files (default 2000; 0: streams only)")
+    parser.add_argument("--surfaces", nargs="*", default=None, help="file surfaces (default: all)")
     parser.add_argument("--memory-frames", type=int, default=0,
                         help="instead of fuzzing: decode one valid stream of this many frames per codec, print memory")
     args = parser.parse_args(argv)
@@ -760,9 +836,12 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     started, cpu = time.perf_counter(), time.process_time()
     result = run_campaign(names, args.per_codec, seed=args.seed, workers=args.workers, timeout_s=args.timeout_s,
-                          memory_bytes=args.memory_mb << 20, output_bytes=args.output_mb << 20, progress=True)
+                          memory_bytes=args.memory_mb << 20, output_bytes=args.output_mb << 20, progress=True,
+                          per_surface=args.per_surface, surfaces=args.surfaces)
     print(result.table())
-    print(f"\n{result.total} streams in {time.perf_counter() - started:.0f} s wall ({args.workers} workers; "
+    print()
+    print(result.surface_table())
+    print(f"\n{result.total} inputs in {time.perf_counter() - started:.0f} s wall ({args.workers} workers; "
           f"parent CPU {time.process_time() - cpu:.0f} s), load average {os.getloadavg()[0]:.2f}; "
           f"{len(result.findings)} findings")
     for name, kind, data, outcome in result.findings[:20]:

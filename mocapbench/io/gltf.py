@@ -191,6 +191,9 @@ def _glb_json(data: bytes) -> bytes:
     """The JSON chunk of a GLB file (glTF 2.0, 4.4: a 12-byte header, then a chunk of type ``JSON``)."""
     if len(data) < 20:
         raise ValueError(f"a GLB of {len(data)} bytes has no JSON chunk")
+    version = struct.unpack_from("<I", data, 4)[0]
+    if version != 2:
+        raise ValueError(f"binary glTF version {version}; expected 2")
     length, kind = struct.unpack_from("<I4s", data, 12)
     if kind != b"JSON" or 20 + length > len(data):
         raise ValueError(f"expected a JSON chunk of {length} bytes at byte 12, found type {kind!r} in {len(data)} bytes")
