@@ -60,7 +60,7 @@ def _user_error_message(error: Exception) -> str | None:
 
 
 def _out_of_memory_message(args: argparse.Namespace) -> str:
-    """"out of memory", naming the limit that applies to the command (``--limit``), or none where none does."""
+    """The "out of memory" line, naming the limit that applies to the command (``--limit``), or none where none does."""
     if not hasattr(args, "limit"):
         return "out of memory"
     from mocapbench.cli.arguments import limits_of
