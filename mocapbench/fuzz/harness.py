@@ -561,7 +561,8 @@ class FuzzResult:
                 self.over_output[name] for name in groups[label])
             other = sum(v for k, v in c.items() if k.startswith("other:") and k != "other:MemoryError")
             hangs = c.get("timeout", 0) + sum(self.slow[name] for name in groups[label])
-            clean = sum(v for k, v in c.items() if k not in ("decoded", "timeout", "crash") and not k.startswith("other:"))
+            clean = sum(v for k, v in c.items()
+                        if k not in ("decoded", "timeout", "crash") and not k.startswith("other:"))
             lines.append(
                 f"| {label} | {sum(c.values())} | {c.get('decoded', 0)} | {clean} | {other} | {hangs} "
                 f"| {memory_failures} | {max(self.max_memory[n] for n in groups[label]) / 2**20:.1f} "
@@ -821,7 +822,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--output-mb", type=int, default=FUZZ_OUTPUT_BYTES >> 20, help="DecodeLimits.max_output_bytes")
     parser.add_argument("--save-findings", action="store_true", help=f"write findings to {REGRESSION_DIR}")
     parser.add_argument("--per-surface", type=int, default=2000,
-                        help="hostile files per surface: BVH, glTF, GLB, FBX, model files (default 2000; 0: streams only)")
+                        help="hostile files per surface: BVH, glTF, GLB, FBX, model files (0: streams only)")
     parser.add_argument("--surfaces", nargs="*", default=None, help="file surfaces (default: all)")
     parser.add_argument("--memory-frames", type=int, default=0,
                         help="instead of fuzzing: decode one valid stream of this many frames per codec, print memory")

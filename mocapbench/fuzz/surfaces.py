@@ -3,8 +3,8 @@
 Beside the streams (:mod:`.harness`), every input a user hands mocapbench is a surface: a motion file read by
 ``compress`` and ``inspect`` (:func:`mocapbench.io.formats.read_motion`) and a model file read by ``--model``
 (:func:`mocapbench.codecs.model_file.load_model`). Each surface has seeds (valid files written by mocapbench's own
-writers, the ASCII FBX one of :mod:`mocapbench.io.fbx_ascii` among them) and two kinds of hostile inputs, drawn in turn from a seeded
-generator:
+writers, the ASCII FBX one of :mod:`mocapbench.io.fbx_ascii` among them) and two kinds of hostile inputs, drawn
+in turn from a seeded generator:
 
 * ``mutated``: a seed edited: a number replaced by a boundary or absurd value (NaN, inf, 1e308, 4294967296, ...),
   a line deleted or repeated, a byte replaced or inserted (NUL, 0xFF, a byte-order mark), the file truncated; for
@@ -293,9 +293,10 @@ def _generated(surface: str, rng: np.random.Generator, seed: bytes) -> bytes:
         kind = int(rng.integers(0, 3))
         if kind == 0:  # a chain of thousands of joints
             depth = int(rng.choice([100, 4096, 5000]))
-            text = "HIERARCHY\nROOT j0\n{\nOFFSET 0 0 0\nCHANNELS 6 Xposition Yposition Zposition Zrotation Xrotation " \
-                   "Yrotation\n" + "".join(f"JOINT j{i}\n{{\nOFFSET 0 1 0\nCHANNELS 3 Zrotation Xrotation Yrotation\n"
-                                            for i in range(1, depth)) + "}\n" * depth
+            root = "ROOT j0\n{\nOFFSET 0 0 0\nCHANNELS 6 Xposition Yposition Zposition Zrotation Xrotation Yrotation\n"
+            chain = "".join(f"JOINT j{i}\n{{\nOFFSET 0 1 0\nCHANNELS 3 Zrotation Xrotation Yrotation\n"
+                            for i in range(1, depth))
+            text = "HIERARCHY\n" + root + chain + "}\n" * depth
             return (text + "MOTION\nFrames: 1\nFrame Time: 0.0083333\n" + "0 " * (3 * depth + 3) + "\n").encode()
         if kind == 1:  # a Frames: of billions over a few bytes of data
             return re.sub(rb"Frames: \d+", b"Frames: " + str(int(rng.integers(10**6, 10**12))).encode(), seed)
