@@ -12,6 +12,7 @@ import json
 import os
 import struct
 import sys
+import warnings
 
 import numpy as np
 import pytest
@@ -230,3 +231,22 @@ def test_a_field_of_the_wrong_json_type_is_one_line_naming_it(tmp_path, edit, fr
         path = tmp_path / "typed.gltf"
         path.write_text(json.dumps(document))
     _refused(path, fragment)
+
+
+@pytest.mark.parametrize(
+    "nodes",
+    [
+        {14: {"translation": [1e308, 0, 0]}},
+        {0: {"scale": [1e200] * 3}, 3: {"translation": [1e200, 0, 0]}},
+        {0: {"rotation": [1e300, 1e300, 0, 0]}},
+    ],
+)
+def test_finite_values_whose_products_overflow_are_one_line_without_warnings(tmp_path, nodes):
+    document = _document(tmp_path)
+    for index, fields in nodes.items():
+        document["nodes"][index].update(fields)
+    path = tmp_path / "huge.gltf"
+    path.write_text(json.dumps(document))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        _refused(path, "")

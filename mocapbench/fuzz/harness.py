@@ -673,7 +673,7 @@ def run_campaign(names: list[str], per_codec: int, *, seed: int = 0, workers: in
         for index, surface in enumerate(wanted):
             seeds = files.get(surface, [])
             for seed_index, (original, count) in enumerate(zip(seeds, split(seeds, per_surface) if seeds else [])):
-                value = hash((seed, "file", index, seed_index)) & 0xFFFFFFFF
+                value = hash((seed, 1 << 20, index, seed_index)) & 0xFFFFFFFF  # ints only: hash() of a str varies by process
                 for kind, data in file_mutations(surface, original, count, value):
                     yield surface, kind, data
 

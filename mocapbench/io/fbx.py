@@ -40,6 +40,7 @@ from scipy.spatial.transform import Rotation
 from mocapbench.io.keyframes import sample_keys
 from mocapbench.io.node_motion import motion_from_nodes
 from mocapbench.io.read_limits import check_array_bytes, check_motion_size
+from mocapbench.io.reader_errors import one_line_errors
 from mocapbench.motion import Motion, MotionFormatError
 
 __all__ = ["read_fbx"]
@@ -59,6 +60,7 @@ def _matrix(m) -> np.ndarray:
     return out
 
 
+@one_line_errors
 def read_fbx(
     path: str | Path,
     *,

@@ -47,6 +47,7 @@ from mocapbench.io.gltf_schema import check_document
 from mocapbench.io.keyframes import sample_keys as _sample
 from mocapbench.io.node_motion import motion_from_nodes
 from mocapbench.io.read_limits import check_array_bytes, check_motion_size
+from mocapbench.io.reader_errors import one_line_errors
 from mocapbench.motion import Motion, MotionFormatError
 
 __all__ = ["read_gltf", "write_gltf"]
@@ -241,6 +242,7 @@ def _frames_per_second(key_times: list[np.ndarray]) -> float:
     return float(round(fps)) if abs(fps - round(fps)) < 1e-3 * fps else fps
 
 
+@one_line_errors
 def read_gltf(
     path: str | Path,
     *,
