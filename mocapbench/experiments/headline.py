@@ -28,7 +28,7 @@ TRAIT_COLUMNS = ("codes_rotations", "family", "needs_model", "random_access", "l
 
 _METRICS = {
     "compression_ratio": "CR", "bits_per_joint_frame": "bits/joint/frame", "max_err_cm": "L∞ cm",
-    "mean_err_cm": "mean cm", "encode_fps": "encode frames/s", "decode_fps": "decode frames/s",
+    "mean_err_cm": "mean cm", "encode_fps": "encode frames/s", "decode_fps": "decode frames/s (via Python)",
 }
 
 
@@ -143,7 +143,7 @@ def headline_table(
     DataFrame
         ``dataset, L∞ bound, rank, codec, config, CR, bits/joint/frame, L∞ cm``, what animators see
         (:data:`mocapbench.experiments.animator_report.HEADLINE_COLUMNS` and the ``animators`` flag: a flagged
-        codec keeps its rank), ``mean cm, encode frames/s, decode frames/s, rotations (BVH/glTF), needs model, model bytes, latency frames, random access, family,
+        codec keeps its rank), ``mean cm, encode frames/s, decode frames/s (via Python), rotations (BVH/glTF), needs model, model bytes, latency frames, random access, family,
         clips, note``; ranked rows first (rank 1 = highest ratio), then the rows without a rank, whose ``config``
         cell says why (no config under the bound, failed, not run on this dataset, unavailable here); ``note`` holds failures of ranked
         codecs' other jobs.
@@ -217,7 +217,7 @@ def headline_table(
     # columns fit a laptop screen, the others scroll.
     columns = ["dataset", "L∞ bound", "rank", "codec", "config", "CR", EQUAL_CR, EQUAL_FACTOR, EQUAL_AT,
                "bits/joint/frame", "L∞ cm", *HEADLINE_COLUMNS.values(), FLAG_COLUMN,
-               "rotations (BVH/glTF)", "needs model", "latency frames", "random access", "decode frames/s",
+               "rotations (BVH/glTF)", "needs model", "latency frames", "random access", "decode frames/s (via Python)",
                "encode frames/s", "mean cm", "model bytes", "family", "clips", "note"]
     table = pd.DataFrame(out)
     for column in columns:

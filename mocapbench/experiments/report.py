@@ -125,7 +125,7 @@ def headline_text(rows: pd.DataFrame, points: pd.DataFrame, errors: pd.DataFrame
     if note:
         lines += [note, ""]
     lines += [f"- {sentence}" for sentence in winner_sentences(table)]
-    shown = ["rank", "codec", "config", "CR", EQUAL_FACTOR, EQUAL_AT, "bits/joint/frame", "L∞ cm", "decode frames/s",
+    shown = ["rank", "codec", "config", "CR", EQUAL_FACTOR, EQUAL_AT, "bits/joint/frame", "L∞ cm", "decode frames/s (via Python)",
              "rotations (BVH/glTF)", "needs model", "latency frames"]
     for (dataset, bound), group in table.groupby(["dataset", "L∞ bound"], sort=False):
         notes = [c for c in (FLAG_COLUMN, "note") if group[c].fillna("").astype(str).str.len().gt(0).any()]
