@@ -3,6 +3,15 @@
 Importing this package compiles nothing: it only checks that ACL's headers and a C++ compiler are there
 (:func:`build.quick_check`) and registers :class:`AclCodec`, or lists ``acl`` as unavailable with the one line
 saying what is missing. The shim is compiled on first use (:mod:`mocapbench.codecs.acl.build`).
+
+Modules
+-------
+codec
+    The registered codec: each joint one ACL transform track, the stream around ACL's compressed clip.
+build
+    Finding ACL's headers and the C++ compiler, and building the shim (once, cached).
+binding
+    ctypes calls into the compiled shim, its failures raised as one line.
 """
 
 from mocapbench.codecs.acl.build import quick_check
