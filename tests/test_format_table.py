@@ -25,3 +25,29 @@ def test_every_written_format_is_read_and_every_read_format_says_where_its_unit_
     assert ".fbx" in READ_SUFFIXES
     for suffix in READ_SUFFIXES:
         assert default_unit_source(f"clip{suffix}") != default_unit_source("clip.unknown")
+
+
+def test_read_motion_and_write_motion_dispatch_through_the_table(tmp_path, monkeypatch):
+    """A format is one row: a row added to the table is read and written through the one entry point."""
+    from mocapbench.io.format_table import FORMATS, MotionFormat
+    from mocapbench.io.formats import read_motion, write_motion
+    from mocapbench.synthetic import sinusoidal_motion
+
+    seen = {}
+
+    def read(path, request):
+        seen["read"] = (path, request.unit_cm, request.fps)
+        return sinusoidal_motion(num_frames=8), 2.0, "z"
+
+    def write(motion, path, unit_cm, force):
+        seen["write"] = (path, unit_cm, force)
+        return path
+
+    monkeypatch.setitem(FORMATS, ".toy", MotionFormat(read, write, "the toy's own"))
+    (tmp_path / "clip.toy").write_text("x")
+    motion, _ = read_motion(tmp_path / "clip.toy", fps=30)
+    assert seen["read"] == (tmp_path / "clip.toy", None, 30)
+    assert motion.source_unit_cm == 2.0 and motion.up_axis == "z"
+    assert write_motion(motion, tmp_path / "out.toy", units="m", force=True) == tmp_path / "out.toy"
+    assert seen["write"] == (tmp_path / "out.toy", 100.0, True)
+    assert default_unit_source("clip.toy") == "the toy's own"

@@ -1,7 +1,8 @@
 """Read and write motion files by suffix, with their unit and up axis recorded and checked.
 
 One entry point for every command that reads or writes motion (``compress``, ``decompress``, ``compare``,
-``fit``, ...), so that ``--units``/``--up`` mean the same everywhere:
+``fit``, ...), so that ``--units``/``--up`` mean the same everywhere. Both dispatch through the one table of
+formats, :data:`mocapbench.io.format_table.FORMATS`; what its rows do:
 
 ===========  ===============  ================================  ==========================================
 suffix       read             default unit                      write
@@ -18,15 +19,12 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from mocapbench.io.format_table import READ_SUFFIXES, WRITE_SUFFIXES, default_unit_source
+from mocapbench.io.format_table import FORMATS, READ_SUFFIXES, WRITE_SUFFIXES, ReadRequest, default_unit_source
 from mocapbench.io.text import MotionFileNotFoundError
 from mocapbench.io.units import parse_units, rest_height_warning, with_source
 from mocapbench.motion import Motion, MotionFormatError
 
 __all__ = ["READ_SUFFIXES", "WRITE_SUFFIXES", "UnitCheckError", "default_unit_source", "read_motion", "write_motion"]
-
-_GLTF_UNIT_CM = 100.0  # glTF 2.0: "the units for all linear distances are meters"
-
 
 class UnitCheckError(MotionFormatError):
     """Under ``--strict``, a file whose body is not a body's size in the unit it is read with."""
@@ -92,32 +90,13 @@ def read_motion(
     unit_cm = None if units is None else parse_units(units)
     up_axis = None if up is None else parse_up_axis(up)
     suffix = path.suffix.lower()
-    if suffix == ".bvh":
-        from mocapbench.io.bvh import read_bvh
-
-        motion = read_bvh(path, length_unit_cm=unit_cm or 1.0, drop_first_frame=drop_first_frame)
-        unit_cm = unit_cm or 1.0
-    elif suffix == ".amc":
-        from mocapbench.io.asf_amc import find_asf, read_amc, read_asf
-
-        skeleton = read_asf(Path(asf) if asf else find_asf(path), cm_per_unit=unit_cm)
-        motion = read_amc(path, skeleton, **({"fps": fps} if fps else {}))
-        unit_cm = skeleton.cm_per_unit
-    elif suffix in (".gltf", ".glb"):
-        from mocapbench.io.gltf import read_gltf
-
-        unit_cm = unit_cm or _GLTF_UNIT_CM
-        motion = read_gltf(path, length_unit_cm=unit_cm, fps=fps)
-        up_axis = up_axis or "y"
-    elif suffix == ".fbx":
-        from mocapbench.io.fbx import read_fbx
-
-        motion = read_fbx(path, length_unit_cm=unit_cm, fps=fps)
-        unit_cm, up_axis = motion.source_unit_cm, up_axis or motion.up_axis
-    else:
+    row = FORMATS.get(suffix)
+    if row is None:
         raise MotionFormatError(
             f"{path}: expected a motion file ({', '.join(READ_SUFFIXES)}), got {suffix or 'no extension'}."
         )
+    request = ReadRequest(unit_cm, up_axis, Path(asf) if asf else None, drop_first_frame, fps)
+    motion, unit_cm, up_axis = row.read(path, request)
     motion = with_source(motion, unit_cm=unit_cm, up_axis=up_axis)
     warning = rest_height_warning(motion)
     if warning and strict:
@@ -136,12 +115,9 @@ def write_motion(motion: Motion, path: str | Path, *, units: str | float | None 
     path = Path(path)
     unit_cm = None if units is None else parse_units(units)
     suffix = path.suffix.lower()
-    if suffix == ".bvh":
-        from mocapbench.io.bvh import write_bvh
-
-        return write_bvh(motion, path, length_unit_cm=unit_cm or motion.source_unit_cm, overwrite=force)
-    if suffix in (".gltf", ".glb"):
-        from mocapbench.io.gltf import write_gltf
-
-        return write_gltf(motion, path, length_unit_cm=unit_cm or _GLTF_UNIT_CM, force=force)
-    raise MotionFormatError(f"{path}: expected a {', '.join(WRITE_SUFFIXES)} output, got {suffix or 'no extension'}.")
+    row = FORMATS.get(suffix)
+    if row is None or row.write is None:
+        raise MotionFormatError(
+            f"{path}: expected a {', '.join(WRITE_SUFFIXES)} output, got {suffix or 'no extension'}."
+        )
+    return row.write(motion, path, unit_cm, force)
