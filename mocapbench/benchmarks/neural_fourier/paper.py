@@ -169,7 +169,8 @@ def run_baselines(clips, data_dir, iterations) -> list[dict]:
 def run_ablation(clips, data_dir, k, iterations) -> None:
     """Train one network the naive codec's way ((K + 1) x iterations steps, one schedule) on the first K frequencies
     that Algorithm 1 found, and compare with Algorithm 1's round K and with Ω = {1..K} (needs adaptive.json)."""
-    from mocapbench.codecs.neural_fourier.codec import _Trainer, _TorchThreads
+    from mocapbench.codecs.neural_fourier.codec import _TorchThreads
+    from mocapbench.codecs.neural_fourier.training import Network, TrainingSettings, train_round
 
     adaptive = {r["clip"]: r for r in json.loads((OUT / "adaptive.json").read_text())}
     print(f"## Frequencies or training? L-inf (% of height) at K = {k}\n")
@@ -186,10 +187,10 @@ def run_ablation(clips, data_dir, k, iterations) -> None:
         for omegas in (row["omegas"][:k], [float(i) for i in range(1, k + 1)]):
             codec = create("fourier-mlp-int", K=k, iterations_per_round=iterations)
             prep = codec._prepare(motion)
+            network = Network((prep["y"] - prep["mean"]) / prep["std"], prep["w"] * prep["std"], codec.config.seed)
             with _TorchThreads():
-                trainer = _Trainer((prep["y"] - prep["mean"]) / prep["std"], prep["w"] * prep["std"], codec.config)
-                trainer.train_round(list(omegas), iterations * (k + 1))
-            _, _, error = codec._evaluate(prep, motion, trainer.weights(), list(omegas))
+                train_round([network], [list(omegas)], iterations * (k + 1), TrainingSettings.from_config(codec.config))
+            _, _, error = codec._evaluate(prep, motion, network.weights64(), list(omegas))
             results.append(100 * error / height)
         print(f"| {name} | {row['rounds'][k]['max_err_percent']:.2f} | {results[0]:.2f} | {results[1]:.2f} |", flush=True)
 

@@ -4,7 +4,10 @@
 Modules
 -------
 codec
-    ``fourier-mlp-int`` and ``fourier-mlp-dct`` (Algorithm 1): the network, its training and its stream.
+    ``fourier-mlp-int`` and ``fourier-mlp-dct`` (Algorithm 1): the network, Algorithm 1 and the stream.
+training
+    Training the networks of many clips side by side (stacked weights, batched products, gradients and Adam by
+    hand); torch, imported only when a codec trains.
 svd
     ``svd``: low-rank approximation of the pose matrix (§4.1).
 pose_params

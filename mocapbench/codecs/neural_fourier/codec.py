@@ -47,6 +47,16 @@ Where this departs from the paper, and why
   warm start, at full rate, kicks the copied near-optimal weights back up (measured: loss 0.006 → 17 on a
   900-frame clip); the warmup and the per-round decay keep the loss from jumping back. The naive baseline is
   trained once with ``iterations_per_round · (K + 1)`` steps, the budget the adaptive codec spends to reach K.
+* **Stopping.** Each round runs its steps unless a network's loss has stopped falling: a change of at most
+  ``stop_tolerance`` (relative) over the last 200 steps after the warm-up ends its round there. On the CMU clips
+  the loss still falls by a few tenths of a percent per 200 steps at the end of every round (the cosine decay is
+  what finishes the fit), and fewer steps give a larger L∞, so the step counts stay as they are and the test
+  seldom fires; it saves the steps of a clip that the network already fits.
+* **Many clips at once.** :meth:`encode_many` trains the networks of many clips side by side (stacked weights,
+  batched matrix products, gradients and Adam written out: :mod:`mocapbench.codecs.neural_fourier.training`);
+  Algorithm 1 runs in lockstep, round r training every clip still searching. Each network keeps its own
+  initialization, schedule and stopping, so a clip's stream is the one it gets alone, up to the order of
+  floating-point sums. ``device=cuda`` trains on a GPU when torch sees one (optional; the CPU is the default).
 * **Warm start.** New input columns, new hidden units' outgoing weights are zero and the new units' incoming
   weights are drawn like a fresh layer: the grown network computes exactly the old function at its first step.
 * **PCA on the residual** centres the weighted residual's columns first (the usual PCA); the DC bin of the DCT
@@ -79,6 +89,7 @@ from mocapbench.codecs.neural_fourier.pose_params import (
     read_tensor,
     write_tensor,
 )
+from mocapbench.codecs.neural_fourier.training import Network, TrainingSettings, train_round
 from mocapbench.codecs.registry import register_codec, register_unavailable
 from mocapbench.codecs.skeleton_blob import pack_skeleton, unpack_skeleton
 from mocapbench.entropy.bitio import ByteReader, ByteWriter
@@ -98,8 +109,6 @@ __all__ = [
 MAX_FREQUENCIES = 256  # decoder's limit on K
 _FORMAT_CODES = {name: code for code, name in enumerate(TENSOR_FORMATS)}
 _MIN_STD = 1e-3  # a column with a smaller standard deviation is scaled by 1 (constant channels of CMU data)
-_LR_FLOOR = 0.1  # the per-round peak learning rate never falls below this fraction of `learning_rate`
-_COSINE_END = 0.05  # the cosine decay ends at this fraction of the round's peak rate
 
 
 # -- the network (numpy: what the decoder runs) -------------------------------------------------------------------
@@ -180,113 +189,7 @@ def _time_grid(num_frames: int) -> np.ndarray:
 
 
 # -- training (torch, imported lazily so that decoding and the rest of mocapbench never load it) ----------------
-
-
-class _Trainer:
-    """Full-batch Adam on eq. (3) for one clip; grows the network with warm start (Algorithm 1, line 11).
-
-    Parameters
-    ----------
-    targets : ndarray, shape (N, m)
-        Normalized pose matrix ``(Y − mean) / std``.
-    loss_weights : ndarray, shape (m,)
-        ``w · std``: eq. (3)'s weights in the normalized coordinates.
-    config : the codec's config (iterations, learning rate, warmup, decay, seed).
-    """
-
-    def __init__(self, targets: np.ndarray, loss_weights: np.ndarray, config: Any) -> None:
-        import torch
-
-        self.torch = torch
-        self.dtype = torch.float32
-        self.config = config
-        self.generator = torch.Generator().manual_seed(int(config.seed))
-        self.targets = torch.tensor(targets, dtype=self.dtype)
-        self.loss_weights = torch.tensor(loss_weights, dtype=self.dtype)
-        self.t = torch.tensor(_time_grid(targets.shape[0]), dtype=self.dtype)
-        self.params: list[Any] | None = None
-        self.rounds = 0
-        # Per round, the loss before each step and after the last one (iterations + 1 values).
-        self.loss_history: list[np.ndarray] = []
-
-    def _uniform(self, shape: tuple[int, ...], fan_in: int):
-        bound = 1.0 / math.sqrt(fan_in)
-        # Private generator: the global torch RNG is left alone.
-        return (self.torch.rand(shape, generator=self.generator, dtype=self.dtype) * 2.0 - 1.0) * bound
-
-    def _grow(self, num_frequencies: int, num_outputs: int) -> None:
-        """Build the network for K frequencies; copy the previous (smaller) network into it, function-preserving."""
-        shapes = network_shapes(num_frequencies, num_outputs)
-        hidden, inputs = shapes[0]
-        fresh = [
-            self._uniform(shapes[0], inputs),
-            self._uniform(shapes[1], inputs),
-            self._uniform(shapes[2], hidden),
-            self._uniform(shapes[3], hidden),
-            self._uniform(shapes[4], hidden),
-            self._uniform(shapes[5], hidden),
-        ]
-        if self.params is not None:
-            w0, b0, w1, b1, w2, b2 = (p.detach() for p in self.params)
-            old_hidden, old_inputs = w0.shape
-            fresh[0][:old_hidden, :old_inputs] = w0
-            fresh[0][:old_hidden, old_inputs:] = 0.0  # old units ignore the new features
-            fresh[1][:old_hidden] = b0
-            fresh[2][:old_hidden, :old_hidden] = w1
-            fresh[2][:old_hidden, old_hidden:] = 0.0  # old units ignore the new units
-            fresh[3][:old_hidden] = b1
-            fresh[4][:, :old_hidden] = w2
-            fresh[4][:, old_hidden:] = 0.0  # new units do not reach the output yet
-            fresh[5][:] = b2
-        self.params = [p.requires_grad_(True) for p in fresh]
-
-    def features(self, omegas: list[float]):
-        torch = self.torch
-        t = self.t[:, None]
-        columns = [t]
-        for omega in omegas:
-            phase = (2.0 * math.pi * float(omega)) * t
-            columns += [torch.sin(phase), torch.cos(phase)]
-        return torch.cat(columns, dim=1)
-
-    def train_round(self, omegas: list[float], iterations: int) -> None:
-        """Grow to ``len(omegas)`` frequencies (warm start) and run one round of Adam."""
-        torch = self.torch
-        self._grow(len(omegas), self.targets.shape[1])
-        features = self.features(omegas)
-        config = self.config
-        peak = config.learning_rate * max(config.round_lr_decay**self.rounds, _LR_FLOOR)
-        warmup = max(1, int(round(config.warmup_fraction * iterations))) if config.warmup_fraction > 0 else 0
-        optimizer = torch.optim.Adam(self.params, lr=peak, fused=True)
-        functional = torch.nn.functional
-        elu, linear = functional.elu, functional.linear
-        w0, b0, w1, b1, w2, b2 = self.params
-        weighted_targets = self.targets * self.loss_weights
-        losses = np.empty(iterations + 1)
-        for step in range(iterations):
-            if step < warmup:
-                rate = peak * (step + 1) / warmup
-            else:
-                progress = (step - warmup) / max(1, iterations - warmup)
-                rate = peak * (_COSINE_END + (1 - _COSINE_END) * 0.5 * (1.0 + math.cos(math.pi * progress)))
-            for group in optimizer.param_groups:
-                group["lr"] = rate
-            optimizer.zero_grad(set_to_none=True)
-            output = linear(elu(linear(elu(linear(features, w0, b0)), w1, b1)), w2, b2)  # eq. (2)
-            # eq. (3) up to a constant factor: mean over entries of ((y - F(x)) o w)^2 (fewer torch ops this way).
-            loss = functional.mse_loss(output * self.loss_weights, weighted_targets)
-            loss.backward()
-            optimizer.step()
-            losses[step] = float(loss.detach())
-        with torch.no_grad():  # the loss of the weights this round ends with (the last step's is one step behind)
-            output = linear(elu(linear(elu(linear(features, w0, b0)), w1, b1)), w2, b2)
-            losses[iterations] = float(functional.mse_loss(output * self.loss_weights, weighted_targets))
-        self.rounds += 1
-        self.loss_history.append(losses)
-
-    def weights(self) -> list[np.ndarray]:
-        """The current network ``[W0, b0, W1, b1, W2, b2]`` as float64 numpy arrays."""
-        return [p.detach().numpy().astype(np.float64) for p in self.params]
+# The networks are trained by mocapbench.codecs.neural_fourier.training, many clips side by side.
 
 
 class _TorchThreads:
@@ -322,6 +225,8 @@ class _TrainingConfig(CodecConfig):
     weight_format: str = param("float16", choices=TENSOR_FORMATS, doc="storage of the weights: float16 or uniform n-bit per tensor")
     weight_bits: int = param(12, low=2, high=16, unit="bits", doc="bits per weight for the uniform format")
     seed: int = param(0, low=0, high=2**31 - 1, doc="seed of the weight initialization")
+    stop_tolerance: float = param(1e-4, low=0.0, high=1.0, doc="a network whose loss changed by at most this fraction over the last 200 steps (after the warm-up) stops; 0: never")
+    device: str = param("cpu", choices=("cpu", "cuda"), doc="where the networks train: cpu, or cuda when torch sees a GPU (optional)")
 
 
 class _FourierMlpCodec(Codec):
@@ -355,9 +260,12 @@ class _FourierMlpCodec(Codec):
         error = float(np.linalg.norm(decoded.positions() - prep["reference"], axis=-1).max())
         return stored, y_hat, error
 
-    def _train(self, motion: Motion, prep: dict[str, Any]) -> tuple[list[float], list[np.ndarray], float, dict[str, Any]]:
-        """Train on ``prep`` (from :meth:`_prepare`); return (Ω, stored weights, L∞ cm, extra stats)."""
+    def _train_many(self, motions: list[Motion], preps: list[dict[str, Any]]) -> list[tuple]:
+        """Train one network per motion, side by side; per motion (Ω, stored weights, L∞ cm, extra stats)."""
         raise NotImplementedError
+
+    def _networks(self, preps: list[dict[str, Any]]) -> list[Network]:
+        return [Network((p["y"] - p["mean"]) / p["std"], p["w"] * p["std"], int(self.config.seed)) for p in preps]
 
     def _serialize(self, motion: Motion, prep: dict[str, Any], omegas: list[float], stored: list[np.ndarray]) -> bytes:
         """The payload for network ``stored`` (already quantized) with frequencies ``omegas``."""
@@ -377,25 +285,59 @@ class _FourierMlpCodec(Codec):
             write_tensor(writer, tensor, config.weight_format, config.weight_bits)
         return writer.getvalue()
 
+    encodes_many = True
+
     def encode_payload(self, motion: Motion) -> bytes:
-        start = time.perf_counter()
-        self._start = start
-        prep = self._prepare(motion)
-        omegas, stored, error, extra = self._train(motion, prep)
-        payload = self._serialize(motion, prep, omegas, stored)
-        train_s = time.perf_counter() - start
-        m = num_pose_parameters(motion.num_joints)
-        num_params = num_network_parameters(len(omegas), m)
-        self.last_encode_stats = {
-            "K": len(omegas),
-            "omegas": [round(float(o), 4) for o in omegas],
-            "train_s": train_s,
-            "num_parameters": num_params,
-            "paper_compression_ratio": motion.num_frames * m / num_params,
-            "encoder_max_err_cm": error,
-            **extra,
-        }
+        [(payload, stats)] = self._encode_payloads([motion], [self._prepare(motion)])
+        self.last_encode_stats = stats
+        self.last_training_log = self.last_training_logs[0]
         return payload
+
+    def encode_many(self, motions) -> list[tuple[bytes | Exception, dict[str, Any]]]:
+        """Encode every motion, their networks trained side by side (one batched computation per group of clips
+        of similar length); per motion its stream, or the error that refused it, and its encode stats.
+
+        Each stream is the one :meth:`encode` writes for the motion alone, up to the order of floating-point sums.
+        ``train_s`` and ``round_train_s`` are then the batch's times. ``last_training_logs`` holds each motion's
+        loss log (see the module docstring).
+        """
+        results: list[Any] = [None] * len(motions)
+        ready = []
+        for index, motion in enumerate(motions):
+            try:
+                if not isinstance(motion, Motion):
+                    raise TypeError(f"{self.name}: encode expects a Motion, got {type(motion).__name__}.")
+                self.check_motion_fits(motion)
+                ready.append((index, motion, self._prepare(motion)))
+            except Exception as error:  # noqa: BLE001 - handed back per motion
+                results[index] = (error, {})
+        if ready:
+            encoded = self._encode_payloads([m for _, m, _ in ready], [p for _, _, p in ready])
+            for (index, motion, _), (payload, stats) in zip(ready, encoded):
+                results[index] = (self.pack_stream(motion, payload), stats)
+        return results
+
+    def _encode_payloads(self, motions: list[Motion], preps: list[dict[str, Any]]) -> list[tuple[bytes, dict]]:
+        """Train the motions' networks together and write each one's payload and stats."""
+        self._start = time.perf_counter()
+        trained = self._train_many(motions, preps)
+        train_s = time.perf_counter() - self._start
+        out = []
+        for motion, prep, (omegas, stored, error, extra) in zip(motions, preps, trained):
+            payload = self._serialize(motion, prep, omegas, stored)
+            m = num_pose_parameters(motion.num_joints)
+            num_params = num_network_parameters(len(omegas), m)
+            stats = {
+                "K": len(omegas),
+                "omegas": [round(float(o), 4) for o in omegas],
+                "train_s": train_s,
+                "num_parameters": num_params,
+                "paper_compression_ratio": motion.num_frames * m / num_params,
+                "encoder_max_err_cm": error,
+                **extra,
+            }
+            out.append((payload, stats))
+        return out
 
     # -- decoding -----------------------------------------------------------------------------------------
     def _read(self, header: Header, payload: memoryview) -> dict[str, Any]:
@@ -504,15 +446,19 @@ class FourierMlpIntCodec(_FourierMlpCodec):
     class Config(_TrainingConfig):
         K: int = param(10, low=0, high=MAX_FREQUENCIES, doc="number of frequencies, Ω = {1, ..., K} cycles per clip")
 
-    def _train(self, motion: Motion, prep: dict[str, Any]):
+    def _train_many(self, motions: list[Motion], preps: list[dict[str, Any]]):
         config = self.config
         omegas = [float(k) for k in range(1, config.K + 1)]
+        networks = self._networks(preps)
         with _TorchThreads():
-            trainer = _Trainer((prep["y"] - prep["mean"]) / prep["std"], prep["w"] * prep["std"], config)
-            trainer.train_round(omegas, config.iterations_per_round * (config.K + 1))
-        self.last_training_log = trainer.loss_history
-        stored, _, error = self._evaluate(prep, motion, trainer.weights(), omegas)
-        return omegas, stored, error, {}
+            train_round(networks, [omegas] * len(networks), config.iterations_per_round * (config.K + 1),
+                        TrainingSettings.from_config(config))
+        self.last_training_logs = [network.loss_history for network in networks]
+        out = []
+        for motion, prep, network in zip(motions, preps, networks):
+            stored, _, error = self._evaluate(prep, motion, network.weights64(), omegas)
+            out.append((omegas, stored, error, {}))
+        return out
 
 
 @_register_if_torch
@@ -542,41 +488,51 @@ class FourierMlpDctCodec(_FourierMlpCodec):
             return self.config.threshold
         return self.config.threshold / 100.0 * motion.skeleton.rest_height()
 
-    def _train(self, motion: Motion, prep: dict[str, Any]):
+    def _train_many(self, motions: list[Motion], preps: list[dict[str, Any]]):
+        """Algorithm 1 for every motion, in lockstep: round r trains every clip still searching (all with r
+        frequencies, so of one width) side by side; a clip leaves when it meets its threshold or K_max."""
         config = self.config
-        limit = self.threshold_cm(motion)
-        num_frames = motion.num_frames
-        omegas: list[float] = []
-        used: set[int] = set()
-        errors: list[float] = []
-        round_bytes: list[int] = []
-        round_seconds: list[float] = []
+        settings = TrainingSettings.from_config(config)
+        networks = self._networks(preps)
+        state = [{"limit": self.threshold_cm(motion), "omegas": [], "used": set(), "errors": [], "bytes": [],
+                  "seconds": [], "stored": None} for motion in motions]
+        searching = list(range(len(motions)))
         with _TorchThreads():
-            trainer = _Trainer((prep["y"] - prep["mean"]) / prep["std"], prep["w"] * prep["std"], config)
-            while True:
-                trainer.train_round(omegas, config.iterations_per_round)  # Algorithm 1, lines 3-4
-                stored, y_hat, error = self._evaluate(prep, motion, trainer.weights(), omegas)
-                errors.append(error)
-                # What the stream would be if Algorithm 1 stopped here (a larger threshold stops exactly here:
-                # training does not depend on the threshold), for rate-distortion curves from a single run.
-                round_bytes.append(len(self._serialize(motion, prep, omegas, stored)))
-                round_seconds.append(time.perf_counter() - self._start)
-                if error <= limit or len(omegas) >= config.K_max:  # line 5
-                    break
-                index = _dominant_dct_index(prep["y"] - y_hat, prep["w"], used)  # lines 7-9
-                if index is None:
-                    break
-                used.add(index)
-                omegas.append(dct_index_to_omega(index, num_frames))  # line 10 (line 11 in train_round)
-        self.last_training_log = trainer.loss_history
-        extra = {
-            "threshold_cm": limit,
-            "threshold_met": bool(errors[-1] <= limit),
-            "round_max_err_cm": [round(e, 4) for e in errors],
-            "round_payload_bytes": round_bytes,
-            "round_train_s": [round(t, 3) for t in round_seconds],
-        }
-        return omegas, stored, error, extra
+            while searching:
+                # Algorithm 1, lines 3-4 (line 11, the warm start, in train_round)
+                train_round([networks[i] for i in searching], [state[i]["omegas"] for i in searching],
+                            config.iterations_per_round, settings)
+                still = []
+                for i in searching:
+                    motion, prep, clip = motions[i], preps[i], state[i]
+                    stored, y_hat, error = self._evaluate(prep, motion, networks[i].weights64(), clip["omegas"])
+                    clip["stored"] = stored
+                    clip["errors"].append(error)
+                    # What the stream would be if Algorithm 1 stopped here (a larger threshold stops exactly here:
+                    # training does not depend on the threshold), for rate-distortion curves from a single run.
+                    clip["bytes"].append(len(self._serialize(motion, prep, clip["omegas"], stored)))
+                    clip["seconds"].append(time.perf_counter() - self._start)
+                    if error <= clip["limit"] or len(clip["omegas"]) >= config.K_max:  # line 5
+                        continue
+                    index = _dominant_dct_index(prep["y"] - y_hat, prep["w"], clip["used"])  # lines 7-9
+                    if index is None:
+                        continue
+                    clip["used"].add(index)
+                    clip["omegas"].append(dct_index_to_omega(index, motion.num_frames))  # line 10
+                    still.append(i)
+                searching = still
+        self.last_training_logs = [network.loss_history for network in networks]
+        out = []
+        for clip in state:
+            extra = {
+                "threshold_cm": clip["limit"],
+                "threshold_met": bool(clip["errors"][-1] <= clip["limit"]),
+                "round_max_err_cm": [round(e, 4) for e in clip["errors"]],
+                "round_payload_bytes": clip["bytes"],
+                "round_train_s": [round(t, 3) for t in clip["seconds"]],
+            }
+            out.append((clip["omegas"], clip["stored"], clip["errors"][-1], extra))
+        return out
 
 
 def _dominant_dct_index(residual: np.ndarray, weights: np.ndarray, used: set[int]) -> int | None:

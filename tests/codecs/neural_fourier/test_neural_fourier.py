@@ -124,12 +124,12 @@ def test_a_cold_start_would_jump_back_up(adaptive_run):
     codec, motion, _ = adaptive_run
     omegas = codec.last_encode_stats["omegas"]
     cold = create("fourier-mlp-int", K=0, iterations_per_round=1)  # a fresh network, one step
-    from mocapbench.codecs.neural_fourier.codec import _Trainer
+    from mocapbench.codecs.neural_fourier.training import Network, TrainingSettings, train_round
 
     prep = cold._prepare(motion)
-    trainer = _Trainer((prep["y"] - prep["mean"]) / prep["std"], prep["w"] * prep["std"], cold.config)
-    trainer.train_round(list(omegas), 1)
-    assert trainer.loss_history[0][0] > 10 * codec.last_training_log[-1][0]
+    network = Network((prep["y"] - prep["mean"]) / prep["std"], prep["w"] * prep["std"], cold.config.seed)
+    train_round([network], [list(omegas)], 1, TrainingSettings.from_config(cold.config))
+    assert network.loss_history[0][0] > 10 * codec.last_training_log[-1][0]
 
 
 @pytest.mark.torch

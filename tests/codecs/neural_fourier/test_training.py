@@ -1,0 +1,157 @@
+"""Training many neural Fourier networks side by side (mocapbench.codecs.neural_fourier.training)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from mocapbench.codecs import create
+from mocapbench.codecs.neural_fourier.training import (
+    Network,
+    TrainingSettings,
+    frame_groups,
+    learning_rate,
+    train_round,
+)
+from mocapbench.synthetic import sinusoidal_motion
+
+SETTINGS = TrainingSettings(learning_rate=0.01, warmup_fraction=0.2, round_lr_decay=0.8, seed=0)
+
+
+def _network(frames: int, outputs: int = 13, seed: int = 0) -> Network:
+    rng = np.random.default_rng(frames * 31 + outputs)
+    t = np.linspace(0, 1, frames)[:, None]
+    targets = np.sin(2 * np.pi * (1 + rng.random((1, outputs)) * 3) * t + rng.random((1, outputs)) * 6)
+    return Network(targets, 0.5 + rng.random(outputs), seed)
+
+
+def _reference_losses(network: Network, omegas: list[float], iterations: int) -> np.ndarray:
+    """The same round through autograd and torch.optim.Adam: one network, the codec's loss and schedule."""
+    import torch
+
+    from mocapbench.codecs.neural_fourier.codec import fourier_features
+
+    x = torch.tensor(fourier_features(np.linspace(0, 1, network.num_frames), np.asarray(omegas)), dtype=torch.float32)
+    y = torch.tensor(network.targets, dtype=torch.float32)
+    w = torch.tensor(network.loss_weights, dtype=torch.float32)
+    params = [torch.tensor(p).requires_grad_(True) for p in network.weights]
+    optimizer = torch.optim.Adam(params, lr=SETTINGS.learning_rate)
+    warmup = max(1, int(round(SETTINGS.warmup_fraction * iterations)))
+    elu, linear = torch.nn.functional.elu, torch.nn.functional.linear
+    losses = []
+    for step in range(iterations + 1):
+        w0, b0, w1, b1, w2, b2 = params
+        loss = torch.mean(((linear(elu(linear(elu(linear(x, w0, b0)), w1, b1)), w2, b2) - y) * w) ** 2)
+        losses.append(float(loss.detach()))
+        if step == iterations:
+            break
+        for group in optimizer.param_groups:
+            group["lr"] = learning_rate(step, iterations, warmup, SETTINGS.learning_rate)
+        optimizer.zero_grad()
+        loss.backward()
+        optimizer.step()
+    return np.array(losses)
+
+
+@pytest.mark.torch
+def test_hand_written_gradients_and_adam_follow_autograd_and_torch_adam():
+    pytest.importorskip("torch")
+    omegas = [1.0, 2.5]
+    network = _network(90)
+    network.grow(len(omegas))
+    reference = _reference_losses(network, omegas, 60)
+    network.weights = None  # the same draw again: the generator restarts from the seed
+    network._generator = None
+    train_round([network], [omegas], 60, SETTINGS)
+    np.testing.assert_allclose(network.loss_history[0], reference, rtol=2e-4)
+    assert reference[-1] < 0.7 * reference[0]  # the round did train
+
+
+@pytest.mark.torch
+def test_networks_trained_together_match_each_trained_alone():
+    """Different lengths and output counts in one call (padded frames and outputs) change nothing but sum order."""
+    pytest.importorskip("torch")
+    shapes = [(40, 13), (75, 13), (75, 7), (120, 13)]
+    omegas = [[1.0, 3.0]] * len(shapes)
+    together = [_network(f, m) for f, m in shapes]
+    train_round(together, omegas, 120, SETTINGS)
+    for (frames, outputs), network in zip(shapes, together):
+        alone = _network(frames, outputs)
+        train_round([alone], omegas[:1], 120, SETTINGS)
+        np.testing.assert_allclose(network.loss_history[0], alone.loss_history[0], rtol=1e-3)
+        for a, b in zip(network.weights, alone.weights):
+            assert a.shape == b.shape
+            np.testing.assert_allclose(a, b, atol=1e-3)
+
+
+@pytest.mark.torch
+def test_each_network_stops_on_its_own_loss_whatever_shares_its_batch():
+    pytest.importorskip("torch")
+    stopping = TrainingSettings(**{**SETTINGS.__dict__, "stop_tolerance": 1e-2, "stop_window": 50})
+    together = [_network(60, 5), _network(45, 5)]
+    train_round(together, [[1.0], [1.0]], 1500, stopping)
+    lengths = [len(n.loss_history[0]) for n in together]
+    assert min(lengths) < 1501  # the test fired
+    for network in together:
+        alone = _network(network.num_frames, 5)
+        train_round([alone], [[1.0]], 1500, stopping)
+        assert len(alone.loss_history[0]) == len(network.loss_history[0])
+        np.testing.assert_allclose(alone.weights[4], network.weights[4], atol=1e-4)
+        history = network.loss_history[0]
+        if len(history) < 1501:  # it stopped where its loss changed by at most 1 % over 50 steps
+            assert abs(history[-51] - history[-1]) <= 1e-2 * history[-51]
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.integers(1, 3000), min_size=1, max_size=30), st.integers(0, 1000))
+def test_frame_groups_cover_every_network_once_and_bound_padding(frames, overhead):
+    groups = frame_groups(frames, overhead_frames=overhead, max_group_frames=8000)
+    assert sorted(i for g in groups for i in g) == list(range(len(frames)))
+    for group in groups:
+        padded = len(group) * max(frames[i] for i in group)
+        assert padded <= 8000 or len(group) == 1
+    # Never worse than one group per network or (when it fits) one group for all.
+    cost = sum(len(g) * max(frames[i] for i in g) + overhead for g in groups)
+    assert cost <= sum(frames) + overhead * len(frames)
+    if len(frames) * max(frames) <= 8000:
+        assert cost <= len(frames) * max(frames) + overhead
+
+
+def test_learning_rate_warms_up_then_decays_to_five_percent():
+    rates = [learning_rate(s, 100, 20, 1.0) for s in range(100)]
+    assert rates[0] == pytest.approx(1 / 20) and rates[19] == pytest.approx(1.0)
+    assert all(a >= b for a, b in zip(rates[19:], rates[20:]))
+    assert rates[-1] == pytest.approx(0.05 + 0.95 * 0.5 * (1 + math.cos(math.pi * 79 / 80)))
+
+
+@pytest.mark.torch
+@pytest.mark.parametrize("name", ["fourier-mlp-int", "fourier-mlp-dct"])
+def test_encode_many_gives_each_clip_its_own_stream_and_refuses_bad_ones_alone(name):
+    pytest.importorskip("torch")
+    codec = create(name, **create(name).smoke_params)
+    good = [sinusoidal_motion(num_frames=f, seed=s) for f, s in ((50, 1), (80, 2))]
+    results = codec.encode_many([good[0], "not a motion", good[1]])
+    assert isinstance(results[1][0], TypeError)
+    for motion, (data, stats) in zip(good, (results[0], results[2])):
+        alone = create(name, **create(name).smoke_params)
+        single = alone.decode(alone.encode(motion))
+        batched = codec.decode(data)
+        assert batched.positions.shape == motion.positions().shape
+        assert stats["K"] == alone.last_encode_stats["K"]
+        # Same network up to the order of sums: the decoded motions agree far inside the codec's error.
+        assert np.abs(batched.positions - single.positions).max() < 0.05 * max(
+            1e-3, np.abs(single.positions - motion.positions()).max()) + 0.05
+
+
+@pytest.mark.torch
+def test_cuda_asked_for_without_a_gpu_is_one_clear_error():
+    torch = pytest.importorskip("torch")
+    if torch.cuda.is_available():
+        pytest.skip("this machine has CUDA")
+    codec = create("fourier-mlp-int", **{**create("fourier-mlp-int").smoke_params, "device": "cuda"})
+    with pytest.raises(ValueError, match="device=cuda"):
+        codec.encode(sinusoidal_motion(num_frames=30, seed=1))
