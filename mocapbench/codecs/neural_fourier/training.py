@@ -265,9 +265,12 @@ def _train_group(networks: Sequence[Network], omegas: Sequence[Sequence[float]],
     params = torch.zeros(count, int(offsets[-1]), dtype=dtype)
     features = torch.zeros(count, frames, shapes[0][1], dtype=dtype)
     targets = torch.zeros(count, frames, outputs, dtype=dtype)
-    # d loss / d output = (output − y) ∘ gain, gain = 2 (w · std)² / (N m) on real entries, 0 on padding: eq. (3)
-    # as a mean over the clip's entries (the single-network codec's loss), per network.
-    gain = torch.zeros(count, frames, outputs, dtype=dtype)
+    # eq. (3) as the mean over the clip's entries (the single-network codec's loss), per network: with
+    # s = w · std · sqrt(2 / (N m)) per output (0 on padded outputs), loss = |(F(x) − y) ∘ s|² / 2 and
+    # d loss / d output = (F(x) − y) ∘ s². The scaled residual (F(x) − y) ∘ s is one batched product:
+    # [a2, 1] [s ∘ W2, s ∘ b2]ᵀ − y ∘ s, and padded frames give 0 in it (their [a2, 1] row is set to 0).
+    scale = torch.zeros(count, 1, outputs, dtype=dtype)
+    row_mask = torch.zeros(count, frames, 1, dtype=dtype)
     for b, (network, frequencies) in enumerate(zip(networks, omegas)):
         n, m = network.targets.shape
         packed = []
@@ -278,10 +281,16 @@ def _train_group(networks: Sequence[Network], omegas: Sequence[Sequence[float]],
         params[b] = torch.from_numpy(np.concatenate(packed))
         t = torch.tensor(_time_grid(n), dtype=dtype)
         features[b, :n] = _features(torch, t, frequencies)
-        targets[b, :n, :m] = torch.from_numpy(np.asarray(network.targets, dtype=np.float32))
-        weights = torch.from_numpy(np.asarray(network.loss_weights, dtype=np.float32))
-        gain[b, :n, :m] = weights**2 * (2.0 / (n * m))
-    params, features, targets, gain = (x.to(device) for x in (params, features, targets, gain))
+        scale[b, 0, :m] = torch.from_numpy(np.asarray(network.loss_weights, dtype=np.float32)) * math.sqrt(2.0 / (n * m))
+        targets[b, :n, :m] = torch.from_numpy(np.asarray(network.targets, dtype=np.float32)) * scale[b, 0, :m]
+        row_mask[b, :n] = 1.0
+    padded_rows = bool((row_mask == 0).any())
+    params, features, targets, scale, row_mask = (x.to(device) for x in (params, features, targets, scale, row_mask))
+    hidden = shapes[2][0]
+    # [a2, 1] of every frame (0 on padded frames), the left factor of the output layer's product.
+    a2_ones = row_mask.expand(count, frames, 1).repeat(1, 1, hidden + 1)
+    a2 = a2_ones[:, :, :hidden]
+    column_scale = scale.transpose(1, 2)  # (B, m, 1)
     w0, b0, w1, b1, w2, b2 = (params[:, offsets[i]:offsets[i + 1]].unflatten(1, tuple(shapes[i])) for i in range(6))
     first_moment = torch.zeros_like(params)
     second_moment = torch.zeros_like(params)
@@ -300,29 +309,31 @@ def _train_group(networks: Sequence[Network], omegas: Sequence[Sequence[float]],
         a1 = torch.maximum(z1, e1 - 1.0)
         z2 = torch.baddbmm(b1.unsqueeze(1), a1, w1.transpose(1, 2))
         e2 = torch.clamp_max(z2, 0.0).exp_()
-        a2 = torch.maximum(z2, e2 - 1.0)
-        residual = torch.baddbmm(b2.unsqueeze(1), a2, w2.transpose(1, 2)).sub_(targets)
-        d3 = residual * gain
-        # eq. (3) as the mean over entries of ((y − F(x)) ∘ w)²: residual · d3 / 2 summed.
-        losses[step] = torch.einsum("bfm,bfm->b", residual, d3) * 0.5
+        torch.maximum(z2, e2 - 1.0, out=a2)
+        if padded_rows:
+            a2.mul_(row_mask)
+        scaled_out = torch.cat([w2, b2.unsqueeze(2)], dim=2).mul_(column_scale)  # (B, m, h + 1)
+        residual = torch.baddbmm(targets, a2_ones, scaled_out.transpose(1, 2), beta=-1.0)  # (F(x) − y) ∘ s
+        losses[step] = torch.linalg.vector_norm(residual, dim=(1, 2)).square_().mul_(0.5)
         if step == iterations:
             break
         if stopping and step >= warmup + settings.stop_window and step % 50 == 0:
             before, now = losses[step - settings.stop_window], losses[step]
-            converged = (before - now <= settings.stop_tolerance * before).unsqueeze(1) & (active > 0)
+            converged = ((before - now).abs() <= settings.stop_tolerance * before).unsqueeze(1) & (active > 0)
             if bool(converged.any()):
                 for b in torch.nonzero(converged[:, 0]).flatten().tolist():
                     stopped[b] = step
                 active = active.masked_fill(converged, 0.0)
                 if not bool(active.any()):
                     break
-        gradient_w2 = torch.bmm(d3.transpose(1, 2), a2)
-        d2 = torch.bmm(d3, w2).mul_(e2)
+        # d loss / d [W2, b2] = ((F(x) − y) ∘ s²)ᵀ [a2, 1] = s ∘ (residualᵀ [a2, 1]); d loss / d a2 = residual (s ∘ W2).
+        gradient_out = torch.bmm(residual.transpose(1, 2), a2_ones).mul_(column_scale)  # (B, m, h + 1)
+        d2 = torch.bmm(residual, scaled_out[:, :, :hidden]).mul_(e2)
         gradient_w1 = torch.bmm(d2.transpose(1, 2), a1)
         d1 = torch.bmm(d2, w1).mul_(e1)
         gradient_w0 = torch.bmm(d1.transpose(1, 2), features)
         gradient = torch.cat([gradient_w0.flatten(1), d1.sum(1), gradient_w1.flatten(1), d2.sum(1),
-                              gradient_w2.flatten(1), d3.sum(1)], dim=1)
+                              gradient_out[:, :, :hidden].flatten(1), gradient_out[:, :, hidden]], dim=1)
         # Adam (torch.optim.Adam's update, per network): moments, bias corrections, step.
         t = step + 1
         rate = learning_rate(step, iterations, warmup, peak)
