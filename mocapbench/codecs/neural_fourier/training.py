@@ -342,7 +342,7 @@ def _train_group(networks: Sequence[Network], omegas: Sequence[Sequence[float]],
         denominator = (second_moment.sqrt() / math.sqrt(1 - beta2**t)).add_(_ADAM_EPS)
         update = first_moment * active if stopping else first_moment
         params.addcdiv_(update, denominator, value=-rate / (1 - beta1**t))
-    losses = losses.cpu().numpy().astype(np.float64)
+    losses = losses[: step + 1].cpu().numpy().astype(np.float64)  # rows after an early stop were never written
     params = params.cpu().numpy()
     for b, network in enumerate(networks):
         n, m = network.targets.shape
