@@ -156,63 +156,101 @@ def headline_table(
     failures = failure_reasons(errors) if errors is not None else {}
     datasets = sorted(set(points["dataset"]) if not points.empty else set())
     datasets += sorted({d for d, _ in failures if d and d not in datasets})
-    everywhere = set(points["codec"]) if not points.empty else set()
     out = []
     for dataset in datasets:
-        ds = points[points["dataset"] == dataset] if not points.empty else points
-        measured = sorted(set(ds["codec"])) if not ds.empty else []
-        # Measured on another dataset of this report but not on this one (left out of this dataset's sweep).
-        not_run = sorted(everywhere - set(measured))
-        failed_only = sorted({c for (d, c) in failures if d in (dataset, "") and c not in measured})
-        previous = None  # (bound, the ranked codecs and configs) of the last bound
-        for bound in bounds:
-            ranked, unranked = [], []
-            for codec in measured:
-                group = ds[(ds["codec"] == codec) & ds["complete"]]
-                ok = group[group["max_err_cm"] < bound]
-                if ok.empty:
-                    best = ds[ds["codec"] == codec]
-                    least = best["max_err_cm"].min() if not best.empty else float("nan")
-                    note = f"no config under {bound:g} cm (lowest L∞ {least:.3g} cm)"
-                    if (dataset, codec) in failures:
-                        note += "; " + failures[(dataset, codec)]
-                    unranked.append({"codec": codec, **_traits(codec, best.iloc[0] if not best.empty else None),
-                                     "config": note})
-                    continue
-                best = ok.loc[ok["compression_ratio"].idxmax()]
-                row = {"codec": codec, "config": config_text(best)}
-                row.update({label: best[column] for column, label in _METRICS.items() if column in best.index})
-                row.update(_traits(codec, best))
-                row.update({**headline_values(best), FLAG_COLUMN: animator_flag(best)})
-                row["model bytes"] = int(best["model_bytes"]) if _present(best.get("model_bytes")) else 0
-                row["clips"] = int(best["clips"])
-                row["note"] = failures.get((dataset, codec)) or failures.get(("", codec), "")
-                ranked.append(row)
-            for codec in failed_only:
-                reason = failures.get((dataset, codec)) or failures.get(("", codec), "failed")
-                unranked.append({"codec": codec, **_traits(codec, None), "config": reason})
-            for codec in not_run:
-                if codec not in failed_only:
-                    unranked.append({"codec": codec, **_traits(codec, None),
-                                     "config": "not run on this dataset (left out of its sweep)"})
-            for codec, reason in sorted(unavailable.items()):
-                if codec not in measured and codec not in failed_only:
-                    unranked.append({"codec": codec, **_traits(codec, None),
-                                     "config": f"unavailable here: {reason}"})
-            ranked.sort(key=lambda r: -float(r["CR"]))
-            _equal_error_columns(ranked, ds, bound)
-            same = [(row["codec"], row["config"], float(row["CR"])) for row in ranked]
-            if ranked and previous is not None and previous[1] == same:
-                # A wider bound that admits no other config repeats the table: one line says so instead.
-                out.append({"dataset": dataset, "L∞ bound": f"< {bound:g} cm", "rank": "–", "codec": "",
-                            "config": f"the same codecs and configs as under {previous[0]:g} cm (no codec has a "
-                                      f"config between {previous[0]:g} and {bound:g} cm)"})
-                continue
-            previous = (bound, same)
-            for rank, row in enumerate(ranked, 1):
-                out.append({"dataset": dataset, "L∞ bound": f"< {bound:g} cm", "rank": rank, **row})
-            for row in unranked:
-                out.append({"dataset": dataset, "L∞ bound": f"< {bound:g} cm", "rank": "–", **row})
+        out += _dataset_rows(points, dataset, bounds, failures, unavailable, config_text)
+    return _as_table(out)
+
+
+def _dataset_rows(points: pd.DataFrame, dataset: str, bounds: Sequence[float], failures: dict, unavailable: dict,
+                  config_text) -> list[dict]:
+    """The rows of one dataset, bound by bound; a bound that ranks what the previous one ranked is one line."""
+    ds = points[points["dataset"] == dataset] if not points.empty else points
+    measured = sorted(set(ds["codec"])) if not ds.empty else []
+    # Measured on another dataset of this report but not on this one (left out of this dataset's sweep).
+    everywhere = set(points["codec"]) if not points.empty else set()
+    not_run = sorted(everywhere - set(measured))
+    failed_only = sorted({c for (d, c) in failures if d in (dataset, "") and c not in measured})
+    out = []
+    previous = None  # (bound, the ranked codecs and configs) of the last bound
+    for bound in bounds:
+        ranked = _ranked_rows(ds, dataset, bound, measured, failures, config_text)
+        unranked = [_unranked_row(ds, dataset, bound, codec, failures) for codec in measured
+                    if _qualifying(ds, codec, bound).empty]
+        unranked += _rows_without_results(dataset, measured, failed_only, not_run, failures, unavailable)
+        same = [(row["codec"], row["config"], float(row["CR"])) for row in ranked]
+        if ranked and previous is not None and previous[1] == same:
+            # A wider bound that admits no other config repeats the table: one line says so instead.
+            out.append({"dataset": dataset, "L∞ bound": f"< {bound:g} cm", "rank": "–", "codec": "",
+                        "config": f"the same codecs and configs as under {previous[0]:g} cm (no codec has a "
+                                  f"config between {previous[0]:g} and {bound:g} cm)"})
+            continue
+        previous = (bound, same)
+        for rank, row in enumerate(ranked, 1):
+            out.append({"dataset": dataset, "L∞ bound": f"< {bound:g} cm", "rank": rank, **row})
+        for row in unranked:
+            out.append({"dataset": dataset, "L∞ bound": f"< {bound:g} cm", "rank": "–", **row})
+    return out
+
+
+def _qualifying(ds: pd.DataFrame, codec: str, bound: float) -> pd.DataFrame:
+    """A codec's complete configs whose worst-clip L∞ is strictly below ``bound`` cm."""
+    group = ds[(ds["codec"] == codec) & ds["complete"]]
+    return group[group["max_err_cm"] < bound]
+
+
+def _ranked_rows(ds: pd.DataFrame, dataset: str, bound: float, measured: list[str], failures: dict,
+                 config_text) -> list[dict]:
+    """One row per codec with a config under ``bound``: its highest-ratio one, highest ratio first, with the
+    equal-error columns filled."""
+    ranked = []
+    for codec in measured:
+        ok = _qualifying(ds, codec, bound)
+        if ok.empty:
+            continue
+        best = ok.loc[ok["compression_ratio"].idxmax()]
+        row = {"codec": codec, "config": config_text(best)}
+        row.update({label: best[column] for column, label in _METRICS.items() if column in best.index})
+        row.update(_traits(codec, best))
+        row.update({**headline_values(best), FLAG_COLUMN: animator_flag(best)})
+        row["model bytes"] = int(best["model_bytes"]) if _present(best.get("model_bytes")) else 0
+        row["clips"] = int(best["clips"])
+        row["note"] = failures.get((dataset, codec)) or failures.get(("", codec), "")
+        ranked.append(row)
+    ranked.sort(key=lambda r: -float(r["CR"]))
+    _equal_error_columns(ranked, ds, bound)
+    return ranked
+
+
+def _unranked_row(ds: pd.DataFrame, dataset: str, bound: float, codec: str, failures: dict) -> dict:
+    """The row of a measured codec with no config under ``bound``: its lowest L∞ (and its failures) in ``config``."""
+    best = ds[ds["codec"] == codec]
+    least = best["max_err_cm"].min() if not best.empty else float("nan")
+    note = f"no config under {bound:g} cm (lowest L∞ {least:.3g} cm)"
+    if (dataset, codec) in failures:
+        note += "; " + failures[(dataset, codec)]
+    return {"codec": codec, **_traits(codec, best.iloc[0] if not best.empty else None), "config": note}
+
+
+def _rows_without_results(dataset: str, measured: list[str], failed_only: list[str], not_run: list[str],
+                          failures: dict, unavailable: dict) -> list[dict]:
+    """The rows of codecs without a result on ``dataset``, the reason in ``config``: failed, not run, unavailable."""
+    rows = []
+    for codec in failed_only:
+        reason = failures.get((dataset, codec)) or failures.get(("", codec), "failed")
+        rows.append({"codec": codec, **_traits(codec, None), "config": reason})
+    for codec in not_run:
+        if codec not in failed_only:
+            rows.append({"codec": codec, **_traits(codec, None),
+                         "config": "not run on this dataset (left out of its sweep)"})
+    for codec, reason in sorted(unavailable.items()):
+        if codec not in measured and codec not in failed_only:
+            rows.append({"codec": codec, **_traits(codec, None), "config": f"unavailable here: {reason}"})
+    return rows
+
+
+def _as_table(out: list[dict]) -> pd.DataFrame:
+    """The rows as a frame with every headline column, in the order a reader needs them."""
     # What decides first (rate, error, rotations, model, latency), then speeds and the rest: the leading
     # columns fit a laptop screen, the others scroll.
     columns = ["dataset", "L∞ bound", "rank", "codec", "config", "CR", EQUAL_CR, EQUAL_FACTOR, EQUAL_AT,
