@@ -36,6 +36,7 @@ import base64
 import json
 import math
 import struct
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -85,7 +86,9 @@ class _Reader:
         try:
             if data[:4] == b"glTF":
                 check_document(json.loads(_glb_json(data)), self.error)
-                self.gltf = pygltflib.GLTF2.load_from_bytes(data)
+                with warnings.catch_warnings():  # chunks of unknown type are ignored, as the specification says
+                    warnings.simplefilter("ignore")
+                    self.gltf = pygltflib.GLTF2.load_from_bytes(data)
                 self.blob = self.gltf.binary_blob()
             else:
                 if path.suffix.lower() == ".glb":
