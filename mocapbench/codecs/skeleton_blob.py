@@ -173,19 +173,7 @@ def unpack_skeleton_compact(reader: ByteReader, stepped: bool = False) -> Skelet
         codes = zigzag_decode(codes.astype(np.int64))
     offsets = codes.astype(np.float64).reshape(-1, 3) * step
     end_parents = inner.read_varints(num_ends, "end-site parents").astype(np.int64)
-    names = bytes(inner.read_blob("joint names")).decode("utf-8", errors="strict").split("\0")
-    inner.expect_end("skeleton")
-    try:
-        return Skeleton(
-            names=tuple(names),
-            parents=parents,
-            offsets=offsets[:num_joints],
-            channel_orders=tuple([_ORDERS[i] for i in order_index.tolist()]),
-            end_site_parents=end_parents,
-            end_site_offsets=offsets[num_joints:],
-        )
-    except (ValueError, UnicodeDecodeError) as error:
-        raise BitstreamError(f"Skeleton in the stream is invalid: {error}") from error
+    return skeleton_from_fields(inner, num_joints, parents, offsets, order_index, end_parents)
 
 
 def _pack_offsets(codes: np.ndarray) -> bytes:
@@ -253,3 +241,26 @@ def _values(bits: np.ndarray, width: int) -> np.ndarray:
     if width == 0:
         return np.zeros(len(bits), dtype=np.int64)
     return bits.reshape(-1, width) @ (np.int64(1) << np.arange(width - 1, -1, -1))
+
+
+def skeleton_from_fields(inner, num_joints: int, parents: np.ndarray, offsets: np.ndarray, order_index: np.ndarray,
+                         end_parents: np.ndarray) -> Skeleton:
+    """The last step of reading a skeleton blob (formats of :mod:`skeleton_blob` and mcb-rot format 6 alike): the
+    joint names, the end of the blob, and the :class:`Skeleton` built from the fields read before.
+
+    ``offsets``: (J + E, 3) float, cm, the joints' then the end sites'. A field the skeleton refuses (a parent after
+    its child, names not UTF-8, ...) raises :class:`BitstreamError`.
+    """
+    names = bytes(inner.read_blob("joint names")).decode("utf-8", errors="strict").split("\0")
+    inner.expect_end("skeleton")
+    try:
+        return Skeleton(
+            names=tuple(names),
+            parents=parents,
+            offsets=offsets[:num_joints],
+            channel_orders=tuple([_ORDERS[i] for i in order_index.tolist()]),
+            end_site_parents=end_parents,
+            end_site_offsets=offsets[num_joints:],
+        )
+    except (ValueError, UnicodeDecodeError) as error:
+        raise BitstreamError(f"Skeleton in the stream is invalid: {error}") from error

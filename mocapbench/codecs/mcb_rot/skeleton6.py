@@ -24,6 +24,7 @@ from mocapbench.codecs.skeleton_blob import (
     STEP_EXPONENTS,
     _pack_offsets,
     _unpack_offsets,
+    skeleton_from_fields,
 )
 from mocapbench.entropy.backend import zstd_compress, zstd_decompress
 from mocapbench.entropy.bitio import ByteReader, ByteWriter
@@ -81,16 +82,4 @@ def unpack_skeleton_runtime(reader: ByteReader) -> Skeleton:
     order_index = inner.read_array(num_joints, np.uint8, "channel orders")
     if order_index.size and order_index.max() >= len(_ORDERS):
         raise BitstreamError(f"Skeleton: channel order index must be < 6, found {order_index.max()}.")
-    names = bytes(inner.read_blob("joint names")).decode("utf-8", errors="strict").split("\0")
-    inner.expect_end("skeleton")
-    try:
-        return Skeleton(
-            names=tuple(names),
-            parents=parents,
-            offsets=offsets[:num_joints],
-            channel_orders=tuple([_ORDERS[i] for i in order_index.tolist()]),
-            end_site_parents=end_parents,
-            end_site_offsets=offsets[num_joints:],
-        )
-    except (ValueError, UnicodeDecodeError) as error:
-        raise BitstreamError(f"Skeleton in the stream is invalid: {error}") from error
+    return skeleton_from_fields(inner, num_joints, parents, offsets, order_index, end_parents)

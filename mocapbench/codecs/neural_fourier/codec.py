@@ -89,7 +89,13 @@ from mocapbench.codecs.neural_fourier.pose_params import (
     read_tensor,
     write_tensor,
 )
-from mocapbench.codecs.neural_fourier.training import Network, TrainingSettings, train_round
+from mocapbench.codecs.neural_fourier.training import (
+    Network,
+    TrainingSettings,
+    network_shapes,
+    time_grid as _time_grid,
+    train_round,
+)
 from mocapbench.codecs.registry import register_codec, register_unavailable
 from mocapbench.codecs.skeleton_blob import pack_skeleton, unpack_skeleton
 from mocapbench.entropy.bitio import ByteReader, ByteWriter
@@ -161,13 +167,6 @@ def mlp_forward(x: np.ndarray, weights: list[np.ndarray]) -> np.ndarray:
     return hidden @ w2.T + b2
 
 
-def network_shapes(num_frequencies: int, num_outputs: int) -> list[tuple[int, ...]]:
-    """Shapes of ``α`` for K frequencies and m outputs (h = 2 (2K + 1), §3.1)."""
-    inputs = 2 * num_frequencies + 1
-    hidden = 2 * inputs
-    return [(hidden, inputs), (hidden,), (hidden, hidden), (hidden,), (num_outputs, hidden), (num_outputs,)]
-
-
 def num_network_parameters(num_frequencies: int, num_outputs: int) -> int:
     """``|α|``, the paper's parameter count."""
     return sum(math.prod(shape) for shape in network_shapes(num_frequencies, num_outputs))
@@ -179,13 +178,6 @@ def dct_index_to_omega(index: int, num_frames: int) -> float:
     ``cos(π k (2n + 1) / 2N)`` with ``n = t (N − 1)`` has ``k (N − 1) / 2N`` cycles over ``t ∈ [0, 1]``.
     """
     return index * (num_frames - 1) / (2.0 * num_frames)
-
-
-def _time_grid(num_frames: int) -> np.ndarray:
-    """``t_i = i / (F − 1)``; a single frame sits at t = 0."""
-    if num_frames == 1:
-        return np.zeros(1)
-    return np.arange(num_frames) / (num_frames - 1)
 
 
 # -- training (torch, imported lazily so that decoding and the rest of mocapbench never load it) ----------------

@@ -36,7 +36,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-__all__ = ["Network", "TrainingSettings", "train_round", "frame_groups", "resolve_device"]
+__all__ = ["Network", "TrainingSettings", "train_round", "frame_groups", "resolve_device", "network_shapes", "time_grid"]
 
 _LR_FLOOR = 0.1  # the per-round peak learning rate never falls below this fraction of `learning_rate`
 _COSINE_END = 0.05  # the cosine decay ends at this fraction of the round's peak rate
@@ -47,6 +47,20 @@ _ADAM_EPS = 1e-8
 _STEP_OVERHEAD_FRAMES = 200
 # The most padded frames in one group (bounds the group's activations: about 2.5 kB per frame at K = 16).
 _MAX_GROUP_FRAMES = 65_536
+
+
+def network_shapes(num_frequencies: int, num_outputs: int) -> list[tuple[int, ...]]:
+    """Shapes of ``α`` for K frequencies and m outputs (h = 2 (2K + 1), §3.1)."""
+    inputs = 2 * num_frequencies + 1
+    hidden = 2 * inputs
+    return [(hidden, inputs), (hidden,), (hidden, hidden), (hidden,), (num_outputs, hidden), (num_outputs,)]
+
+
+def time_grid(num_frames: int) -> np.ndarray:
+    """``t_i = i / (F − 1)``; a single frame sits at t = 0."""
+    if num_frames == 1:
+        return np.zeros(1)
+    return np.arange(num_frames) / (num_frames - 1)
 
 
 @dataclass(frozen=True)
@@ -134,7 +148,6 @@ class Network:
         the new units' incoming weights are drawn like a fresh layer, so the grown network computes exactly the
         old function at its first step.
         """
-        from mocapbench.codecs.neural_fourier.codec import network_shapes
 
         shapes = network_shapes(num_frequencies, self.num_outputs)
         hidden, inputs = shapes[0]
@@ -250,7 +263,6 @@ def _train_group(networks: Sequence[Network], omegas: Sequence[Sequence[float]],
     """One round for networks of the same width: lockstep full-batch Adam on stacked weights."""
     import torch
 
-    from mocapbench.codecs.neural_fourier.codec import _time_grid
 
     device = resolve_device(settings.device)
     dtype = torch.float32
@@ -279,7 +291,7 @@ def _train_group(networks: Sequence[Network], omegas: Sequence[Sequence[float]],
             padded[tuple(slice(0, s) for s in w.shape)] = w
             packed.append(padded.ravel())
         params[b] = torch.from_numpy(np.concatenate(packed))
-        t = torch.tensor(_time_grid(n), dtype=dtype)
+        t = torch.tensor(time_grid(n), dtype=dtype)
         features[b, :n] = _features(torch, t, frequencies)
         scale[b, 0, :m] = torch.from_numpy(np.asarray(network.loss_weights, dtype=np.float32)) * math.sqrt(2.0 / (n * m))
         targets[b, :n, :m] = torch.from_numpy(np.asarray(network.targets, dtype=np.float32)) * scale[b, 0, :m]
