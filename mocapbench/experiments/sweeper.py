@@ -193,24 +193,31 @@ class RdSweeper(Sweeper):
     def build_jobs(self, arguments: list[str]) -> list[tuple[str, list[str]]]:
         """Every job as ``(folder, overrides)``, folder relative to the sweep dir."""
         parsed: list[Override] = self._parser().parse_overrides(list(arguments))
-        fixed = [a for a, o in zip(arguments, parsed) if not o.is_sweep_override()]
         swept = [a for a, o in zip(arguments, parsed) if o.is_sweep_override()]
         codec_arg = [o for o in parsed if o.get_key_element() == "codec"]
-        jobs: list[tuple[str, list[str]]] = []
         if not self.union:
-            codec = self.config.codec.name if "codec" in self.config else "job"
-            if codec_arg and not codec_arg[0].is_sweep_override():
-                codec = codec_arg[0].get_value_element_as_str()
-            params = [f"{k}={v}" for k, v in (self.params or {}).items()]
-            points = _evenly(self._grid(params + swept), self.max_points)
-            for point in points:
-                names = [p for p in point if p.split("=", 1)[0] == "codec"]
-                name = names[0].split("=", 1)[1] if names else codec
-                jobs.append((job_folder(name, [p for p in point if p not in names]), [*fixed, *point]))
-            return jobs
+            fixed = [a for a, o in zip(arguments, parsed) if not o.is_sweep_override()]
+            return self._single_jobs(fixed, swept, codec_arg)
+        fixed = [a for a, o in zip(arguments, parsed) if not o.is_sweep_override() and o.get_key_element() != "sweep"]
+        return self._union_jobs(fixed, swept, codec_arg)
+
+    def _single_jobs(self, fixed: list[str], swept: list[str], codec_arg: list[Override]) -> list[tuple[str, list[str]]]:
+        """The jobs of one sweep: the grid of ``hydra.sweeper.params`` and the command line's swept overrides."""
+        codec = self.config.codec.name if "codec" in self.config else "job"
+        if codec_arg and not codec_arg[0].is_sweep_override():
+            codec = codec_arg[0].get_value_element_as_str()
+        params = [f"{k}={v}" for k, v in (self.params or {}).items()]
+        jobs: list[tuple[str, list[str]]] = []
+        for point in _evenly(self._grid(params + swept), self.max_points):
+            names = [p for p in point if p.split("=", 1)[0] == "codec"]
+            name = names[0].split("=", 1)[1] if names else codec
+            jobs.append((job_folder(name, [p for p in point if p not in names]), [*fixed, *point]))
+        return jobs
+
+    def _union_codecs(self, codec_arg: list[Override]) -> list[str]:
+        """The codecs of a union sweep: ``hydra.sweeper.codecs`` (or every registered one), narrowed by ``codec=``."""
         from mocapbench.codecs import codec_names
 
-        fixed = [a for a, o in zip(arguments, parsed) if not o.is_sweep_override() and o.get_key_element() != "sweep"]
         names = self.codecs or codec_names()
         unknown = sorted(set(names) - set(codec_names()))
         if unknown:
@@ -222,20 +229,33 @@ class RdSweeper(Sweeper):
                 for value in (o.sweep_string_iterator() if o.is_sweep_override() else [o.get_value_element_as_str()])
             ]
             names = [n for n in names if n in wanted]
+        return names
+
+    def _codec_selector(self, name: str) -> tuple[str, list[str]] | None:
+        """How a union sweep selects one codec: ``(selector override, rd params)``, or None to leave it out."""
+        if name in self.exclude:
+            return None
+        if name not in self.hydra_context.config_loader.get_group_options("codec"):
+            log.warning("codec %s is registered but has no configs/codec/%s.yaml: left out", name, name)
+            return None
+        rd = self._rd_params(name)
+        if rd is None:
+            log.warning("codec %s has no configs/sweep/rd_%s.yaml: running its default config only", name, name)
+            return f"codec={name}", []
+        return f"sweep=rd_{name}", [f"{k}={v}" for k, v in rd.items()]
+
+    def _union_jobs(self, fixed: list[str], swept: list[str], codec_arg: list[Override]) -> list[tuple[str, list[str]]]:
+        """The jobs of a union sweep: every codec's own rd grid, times the command line's swept overrides."""
+        names = self._union_codecs(codec_arg)
+        if codec_arg:
             fixed = [a for a in fixed if not a.startswith("codec=")]
             swept = [a for a in swept if not a.startswith("codec=")]
+        jobs: list[tuple[str, list[str]]] = []
         for name in names:
-            if name in self.exclude:
+            chosen = self._codec_selector(name)
+            if chosen is None:
                 continue
-            if name not in self.hydra_context.config_loader.get_group_options("codec"):
-                log.warning("codec %s is registered but has no configs/codec/%s.yaml: left out", name, name)
-                continue
-            rd = self._rd_params(name)
-            if rd is None:
-                log.warning("codec %s has no configs/sweep/rd_%s.yaml: running its default config only", name, name)
-                selector, params = f"codec={name}", []
-            else:
-                selector, params = f"sweep=rd_{name}", [f"{k}={v}" for k, v in rd.items()]
+            selector, params = chosen
             points = _evenly(self._grid(params), self.max_points_for.get(name, self.max_points))
             for point, extra in itertools.product(points, self._grid(swept)):
                 jobs.append((job_folder(name, [*point, *extra]), [selector, *fixed, *point, *extra]))
