@@ -322,27 +322,37 @@ class _JointTree:
     end_site_offsets: np.ndarray  # (E, 3) file units, in the joint's node frame
 
 
-def _joint_tree(reader: _Reader, skin: int) -> _JointTree:
-    """The joint tree of ``skins[skin]``: one root joint, joints directly under joints, leaf children as end sites."""
-    gltf = reader.gltf
-    nodes = gltf.nodes or []
-    if not gltf.skins:
+def _skin_joints(reader: _Reader, skin: int) -> list[int]:
+    """The node indices ``skins[skin].joints`` lists, checked distinct and in range."""
+    nodes = reader.gltf.nodes or []
+    if not reader.gltf.skins:
         raise reader.error("has no skin; mocapbench reads skinned animation (a skin lists the skeleton's joints)")
     joints = list(reader.item("skins", skin, "skin=").joints or [])
     if not joints or len(set(joints)) != len(joints) or any(not 0 <= j < len(nodes) for j in joints):
         raise reader.error(f"skins[{skin}].joints must list distinct node indices below {len(nodes)}, got {joints}")
+    return joints
+
+
+def _parent_map(reader: _Reader) -> dict[int, int]:
+    """Each node's parent node; a child that is missing or listed by two nodes is an error."""
+    nodes = reader.gltf.nodes or []
     parent_of: dict[int, int] = {}
     for index, node in enumerate(nodes):
         for child in node.children or []:
             if not isinstance(child, int) or not 0 <= child < len(nodes) or child in parent_of:
                 raise reader.error(f"node {index} ({node.name!r}) lists child {child}, which is missing or shared")
             parent_of[child] = index
+    return parent_of
+
+
+def _depth_first_joints(reader: _Reader, skin: int, joints: list[int], parent_of: dict[int, int]) -> list[int]:
+    """The skin's joints depth first from its one root joint, following each node's children list."""
+    nodes = reader.gltf.nodes or []
     joint_set = set(joints)
     roots = [j for j in joints if parent_of.get(j) not in joint_set]
     if len(roots) != 1:
         names = [nodes[j].name for j in roots]
         raise reader.error(f"skins[{skin}] has {len(roots)} root joints {names}; expected one joint tree")
-    # Joints in depth-first order following each node's children list.
     order, stack = [], [roots[0]]
     while stack:
         node = stack.pop()
@@ -355,19 +365,39 @@ def _joint_tree(reader: _Reader, skin: int) -> _JointTree:
             f"joint node {first} ({nodes[first].name!r}) hangs from node {parent_of.get(first)}, which is not a joint "
             f"of skins[{skin}]; expected joints directly under joints"
         )
-    position = {node: i for i, node in enumerate(order)}
-    # Static transform above the root: a similarity (rotation, uniform scale, translation).
+    return order
+
+
+def _above_root(nodes: list, root: int, parent_of: dict[int, int]) -> tuple[np.ndarray, list[int]]:
+    """The static transform above the root joint (a similarity: rotation, uniform scale, translation), and its nodes."""
     above, ancestors = np.eye(4), []
-    ancestor = parent_of.get(roots[0])
+    ancestor = parent_of.get(root)
     while ancestor is not None:
         ancestors.append(ancestor)
         above = _trs_matrix(nodes[ancestor]) @ above
         ancestor = parent_of.get(ancestor)
-    # End sites: childless nodes under a joint that are not joints and carry nothing (no mesh, skin or camera).
-    ends = [(position[parent_of[n]], n) for n in range(len(nodes)) if parent_of.get(n) in joint_set
-            and n not in joint_set and not nodes[n].children and nodes[n].mesh is None and nodes[n].skin is None
+    return above, ancestors
+
+
+def _end_sites(nodes: list, position: dict[int, int], parent_of: dict[int, int]) -> list[tuple[int, int]]:
+    """``(joint index, node)`` of each end site, sorted: a childless node under a joint that is no joint and carries
+    nothing (no mesh, skin or camera)."""
+    ends = [(position[parent_of[n]], n) for n in range(len(nodes)) if parent_of.get(n) in position
+            and n not in position and not nodes[n].children and nodes[n].mesh is None and nodes[n].skin is None
             and nodes[n].camera is None]
     ends.sort()
+    return ends
+
+
+def _joint_tree(reader: _Reader, skin: int) -> _JointTree:
+    """The joint tree of ``skins[skin]``: one root joint, joints directly under joints, leaf children as end sites."""
+    nodes = reader.gltf.nodes or []
+    joints = _skin_joints(reader, skin)
+    parent_of = _parent_map(reader)
+    order = _depth_first_joints(reader, skin, joints, parent_of)
+    position = {node: i for i, node in enumerate(order)}
+    above, ancestors = _above_root(nodes, order[0], parent_of)
+    ends = _end_sites(nodes, position, parent_of)
     return _JointTree(
         order=order,
         parents=np.array([-1] + [position[parent_of[node]] for node in order[1:]]),
