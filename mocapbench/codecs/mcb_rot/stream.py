@@ -173,46 +173,64 @@ class Settings:
     def read(cls, reader: ByteReader, version: int) -> "Settings":
         """The settings of a payload of format ``version`` (its format byte already read)."""
         eps = reader.read_f32("eps")
-        defaults = _DEFAULTS_5 if version == 5 else _DEFAULTS
-        if version >= 4:
-            bound = reader.read_f32("bound")
-            flags = reader.read_varint("settings flags", max_bytes=2)
-            known = _DEFAULT_BIT + len(defaults) + (2 if version >= 6 else 0)  # format 6: bits 10, 11
-            if flags >> known:
-                raise BitstreamError(f"mcb-rot: unknown settings flags {flags:#x}.")
-            tracks, ends = bool(flags & _TRACKS) and version >= 6, bool(flags & _ENDS) and version >= 6
-            if flags & _MULTIPLIER_F32:
-                multiplier = reader.read_f32("multiplier")
-            else:
-                multiplier = _f32(2.0 ** ((reader.read_u8("multiplier code") - _GRID_ZERO) / 2))
-            values = {}
-            for bit, (name, default, kind) in enumerate(defaults, start=_DEFAULT_BIT):
-                if flags & (1 << bit):
-                    values[name] = reader.read_f32(name) if kind == "f32" else reader.read_varint(name)
-                else:
-                    values[name] = 0.0 if name == "slope" and flags & _FLAT else default
-            slope, rounding, root_share, free, power, segment_frames, chunk_frames, shell = (
-                values[n] for n in ("slope", "rounding", "root_share", "free_angle_rad", "allocation_power",
-                                    "segment_frames", "chunk_frames", "shell_cm"))
+        fields = _read_flagged_settings(reader, version) if version >= 4 else _read_listed_settings(reader, version)
+        _check_settings_range(eps, *fields[:10])
+        return cls(eps, *fields)
+
+
+def _read_flagged_settings(reader: ByteReader, version: int) -> tuple:
+    """Formats 4 to 6: f32 bound | varint flags | multiplier | the settings that differ from the defaults.
+
+    Returns ``(bound, multiplier, slope, rounding, root_share, free_angle_rad, allocation_power, segment_frames,
+    chunk_frames, shell_cm, tracks, ends)``, the fields of :class:`Settings` after ``eps_cm``.
+    """
+    defaults = _DEFAULTS_5 if version == 5 else _DEFAULTS
+    bound = reader.read_f32("bound")
+    flags = reader.read_varint("settings flags", max_bytes=2)
+    known = _DEFAULT_BIT + len(defaults) + (2 if version >= 6 else 0)  # format 6: bits 10, 11
+    if flags >> known:
+        raise BitstreamError(f"mcb-rot: unknown settings flags {flags:#x}.")
+    tracks, ends = bool(flags & _TRACKS) and version >= 6, bool(flags & _ENDS) and version >= 6
+    if flags & _MULTIPLIER_F32:
+        multiplier = reader.read_f32("multiplier")
+    else:
+        multiplier = _f32(2.0 ** ((reader.read_u8("multiplier code") - _GRID_ZERO) / 2))
+    values = {}
+    for bit, (name, default, kind) in enumerate(defaults, start=_DEFAULT_BIT):
+        if flags & (1 << bit):
+            values[name] = reader.read_f32(name) if kind == "f32" else reader.read_varint(name)
         else:
-            bound = reader.read_f64("bound")
-            multiplier, slope, rounding, root_share, free, power = (reader.read_f32("setting") for _ in range(6))
-            segment_frames = reader.read_varint("segment frames")
-            chunk_frames = reader.read_varint("chunk frames")
-            shell = reader.read_f32("shell distance") if version >= 3 else 0.0
-            tracks = ends = False
-        if not (
-            0 < bound <= 100 and 0 < eps <= 101 and 0 < multiplier <= 1e6 and 0 <= slope <= 64
-            and 0 <= rounding <= 0.5 and 0 < root_share < 1 and 0 < free <= np.pi and 0 <= power <= 64
-            and 1 <= segment_frames <= 4096 and 1 <= chunk_frames <= 1 << 20 and 0 <= shell <= 100
-        ):
-            raise BitstreamError(
-                f"mcb-rot: settings out of range: eps {eps}, bound {bound}, multiplier {multiplier}, slope {slope}, "
-                f"rounding {rounding}, root share {root_share}, free angle {free}, allocation power {power}, "
-                f"segment frames {segment_frames}, chunk frames {chunk_frames}, shell distance {shell}."
-            )
-        return cls(eps, bound, multiplier, slope, rounding, root_share, free, power, segment_frames, chunk_frames, shell,
-                   tracks, ends)
+            values[name] = 0.0 if name == "slope" and flags & _FLAT else default
+    listed = (values[n] for n in ("slope", "rounding", "root_share", "free_angle_rad", "allocation_power",
+                                  "segment_frames", "chunk_frames", "shell_cm"))
+    return (bound, multiplier, *listed, tracks, ends)
+
+
+def _read_listed_settings(reader: ByteReader, version: int) -> tuple:
+    """Formats 2 and 3: f64 bound, then every setting in turn (the shell distance from format 3); no tracks, no end
+    sites. Returns the fields of :class:`Settings` after ``eps_cm``, as :func:`_read_flagged_settings`."""
+    bound = reader.read_f64("bound")
+    multiplier, slope, rounding, root_share, free, power = (reader.read_f32("setting") for _ in range(6))
+    segment_frames = reader.read_varint("segment frames")
+    chunk_frames = reader.read_varint("chunk frames")
+    shell = reader.read_f32("shell distance") if version >= 3 else 0.0
+    return (bound, multiplier, slope, rounding, root_share, free, power, segment_frames, chunk_frames, shell,
+            False, False)
+
+
+def _check_settings_range(eps, bound, multiplier, slope, rounding, root_share, free, power, segment_frames,
+                          chunk_frames, shell) -> None:
+    """Refuse settings no encoder writes (a hostile stream), in one line naming every value."""
+    if not (
+        0 < bound <= 100 and 0 < eps <= 101 and 0 < multiplier <= 1e6 and 0 <= slope <= 64
+        and 0 <= rounding <= 0.5 and 0 < root_share < 1 and 0 < free <= np.pi and 0 <= power <= 64
+        and 1 <= segment_frames <= 4096 and 1 <= chunk_frames <= 1 << 20 and 0 <= shell <= 100
+    ):
+        raise BitstreamError(
+            f"mcb-rot: settings out of range: eps {eps}, bound {bound}, multiplier {multiplier}, slope {slope}, "
+            f"rounding {rounding}, root share {root_share}, free angle {free}, allocation power {power}, "
+            f"segment frames {segment_frames}, chunk frames {chunk_frames}, shell distance {shell}."
+        )
 
 
 @dataclass(frozen=True, eq=False)
