@@ -528,10 +528,35 @@ def _read(path: Path, handle: BinaryIO, length_unit_cm: float, drop_first_frame:
     joints = parser.joints
     num_frames, fps, frames_line = reader.motion_header()
     first_data_line = reader.line + 1
-    data_bytes = reader.size - handle.tell()
     num_channels = sum(len(joint.channels) for joint in joints)
     if num_channels == 0:
         raise reader.error(frames_line, "the HIERARCHY declares no channels, so there is no motion to read.")
+    capacity = _frame_capacity(reader, joints, num_frames, num_channels, reader.size - handle.tell(), frames_line)
+    block = _MotionBlock(reader, joints, max(capacity, 1))
+    data_lines, last_data_line = _read_frames(reader, handle, block, capacity, num_channels, first_data_line)
+    if data_lines != num_frames:
+        span = f"lines {first_data_line}-{last_data_line}" if data_lines else f"after line {first_data_line - 1}"
+        raise reader.error(
+            frames_line, f"'Frames: {num_frames}' but the MOTION section has {data_lines} data lines ({span})."
+        )
+    start = 0
+    if drop_first_frame:
+        if num_frames < 2:
+            raise reader.error(frames_line, "drop_first_frame needs 2 frames or more, got 1.")
+        start = 1
+    skeleton = _skeleton(parser, length_unit_cm)
+    root = block.root[start:]
+    root *= length_unit_cm
+    translations = block.joint_translations(start, root, length_unit_cm)
+    rotations = OwnedQuaternions(block.rotations[start:])  # normalized in place by Motion: no second copy
+    del block
+    return Motion(skeleton, fps, root, rotations, name=path.stem if name is None else name, translations=translations)
+
+
+def _frame_capacity(reader: _Reader, joints: list, num_frames: int, num_channels: int, data_bytes: int,
+                    frames_line: int) -> int:
+    """How many frames to allocate: the 'Frames:' count, bounded by what the file's bytes can hold; refuses a
+    skeleton whose tracks would take far more memory than the file, and sizes over the decode limits."""
     # A frame is C numbers, C - 1 separators and a newline: a file of B bytes holds at most (B + 1) / 2C frames, so
     # a 'Frames:' that claims more allocates only what the bytes can hold (and fails below naming the real count).
     capacity = min(num_frames, (data_bytes + 1) // (2 * num_channels))
@@ -547,7 +572,16 @@ def _read(path: Path, handle: BinaryIO, length_unit_cm: float, drop_first_frame:
         )
     # The decode limits too (--limit raises them), so that a reader and a decoder refuse the same sizes alike.
     check_motion_size(max(capacity, 1), len(joints), lambda message: reader.error(frames_line, message + "."))
-    block = _MotionBlock(reader, joints, max(capacity, 1))
+    return capacity
+
+
+def _read_frames(reader: _Reader, handle: BinaryIO, block: "_MotionBlock", capacity: int, num_channels: int,
+                 first_data_line: int) -> tuple[int, int]:
+    """Parse the MOTION section in chunks of whole lines into ``block`` (at most ``capacity`` rows).
+
+    Returns ``(data lines, line number of the last one)``: every data line is counted, stored or not, so that a
+    wrong 'Frames:' count is reported with the real one.
+    """
     row, line, data_lines, last_data_line = 0, first_data_line, 0, 0
     carry = b""
     while True:
@@ -573,17 +607,13 @@ def _read(path: Path, handle: BinaryIO, length_unit_cm: float, drop_first_frame:
             data_lines += len(values)
         if not read:
             break
-    if data_lines != num_frames:
-        span = f"lines {first_data_line}-{last_data_line}" if data_lines else f"after line {first_data_line - 1}"
-        raise reader.error(
-            frames_line, f"'Frames: {num_frames}' but the MOTION section has {data_lines} data lines ({span})."
-        )
-    start = 0
-    if drop_first_frame:
-        if num_frames < 2:
-            raise reader.error(frames_line, "drop_first_frame needs 2 frames or more, got 1.")
-        start = 1
-    skeleton = Skeleton(
+    return data_lines, last_data_line
+
+
+def _skeleton(parser: _HierarchyParser, length_unit_cm: float) -> Skeleton:
+    """The skeleton the HIERARCHY declares, offsets in cm."""
+    joints = parser.joints
+    return Skeleton(
         names=tuple(joint.name for joint in joints),
         parents=np.array([joint.parent for joint in joints]),
         offsets=np.array([joint.offset for joint in joints]) * length_unit_cm,
@@ -591,12 +621,6 @@ def _read(path: Path, handle: BinaryIO, length_unit_cm: float, drop_first_frame:
         end_site_parents=np.array(parser.end_parents, dtype=np.int64),
         end_site_offsets=np.array(parser.end_offsets, dtype=np.float64).reshape(-1, 3) * length_unit_cm,
     )
-    root = block.root[start:]
-    root *= length_unit_cm
-    translations = block.joint_translations(start, root, length_unit_cm)
-    rotations = OwnedQuaternions(block.rotations[start:])  # normalized in place by Motion: no second copy
-    del block
-    return Motion(skeleton, fps, root, rotations, name=path.stem if name is None else name, translations=translations)
 
 
 def _channel_order(joint: _Joint) -> str:
