@@ -80,6 +80,14 @@ def _check_object(item: object, fields: dict[str, object], where: str, error: _E
 
 
 def _check_value(value: object, kind: object, where: str, error: _Error) -> None:
+    if kind in (_INDEX, _SIZE, _STRING, _BOOL, _OBJECT):
+        _check_single(value, kind, where, error)
+    else:
+        _check_array(value, kind, where, error)
+
+
+def _check_single(value: object, kind: str, where: str, error: _Error) -> None:
+    """A value of one of the single kinds: an index or size, a string, a boolean, an object."""
     if kind in (_INDEX, _SIZE):
         if isinstance(value, bool) or not isinstance(value, int) or value < 0:
             raise error(f"{where} must be an integer >= 0, got {_shown(value)}")
@@ -92,7 +100,11 @@ def _check_value(value: object, kind: object, where: str, error: _Error) -> None
     elif kind == _OBJECT:
         if not isinstance(value, dict):
             raise error(f"{where} must be a JSON object, got a JSON {_json_type(value)}")
-    elif kind[0] == "numbers":
+
+
+def _check_array(value: object, kind: tuple, where: str, error: _Error) -> None:
+    """A value of one of the array kinds: ``("numbers", length)``, ``("indices",)``, ``("objects",)``."""
+    if kind[0] == "numbers":
         length = kind[1]
         if (not isinstance(value, list) or len(value) != length
                 or not all(_finite_number(v) for v in value)):
