@@ -307,22 +307,38 @@ def _iter_full_rate(spec: Mapping[str, Any], names: Sequence[str] | None) -> Ite
     """:func:`iter_clips` before ``frame_step``."""
     where = repr(spec.get("name", "?"))
     kind = _require(spec, "kind", where)
+    keep = _kept_clips(spec, names, where)
+    if kind == "synthetic":
+        yield from _iter_synthetic(spec, keep)
+    else:
+        yield from _iter_files(spec, kind, keep, where)
+
+
+def _kept_clips(spec: Mapping[str, Any], names: Sequence[str] | None, where: str) -> set[str]:
+    """The clip names to read: ``names`` (each checked to be a clip of the dataset), or every clip."""
     wanted = None if names is None else list(names)
     known = [ref.name for ref in catalogue(spec)]
     if wanted is not None:
         missing = sorted(set(wanted) - set(known))
         if missing:
             raise DatasetError(f"dataset {where}: no clip named {missing[:5]}; it has {known[:5]}... ({len(known)})")
-    keep = set(known if wanted is None else wanted)
-    if kind == "synthetic":
-        from mocapbench.synthetic import sinusoidal_motion
+    return set(known if wanted is None else wanted)
 
-        clips = spec["clips"]
-        extra = {key: value for key, value in clips.items() if key != "seeds"}
-        for seed in clips["seeds"]:
-            if f"synthetic-seed{int(seed)}" in keep:
-                yield sinusoidal_motion(seed=int(seed), **extra)
-        return
+
+def _iter_synthetic(spec: Mapping[str, Any], keep: set[str]) -> Iterator[Motion]:
+    """The kept clips of a ``kind: synthetic`` spec, one sinusoidal motion per seed."""
+    from mocapbench.synthetic import sinusoidal_motion
+
+    clips = spec["clips"]
+    extra = {key: value for key, value in clips.items() if key != "seeds"}
+    for seed in clips["seeds"]:
+        if f"synthetic-seed{int(seed)}" in keep:
+            yield sinusoidal_motion(seed=int(seed), **extra)
+
+
+def _iter_files(spec: Mapping[str, Any], kind: str, keep: set[str], where: str) -> Iterator[Motion]:
+    """The kept clips of a spec whose clips are files (``cmu``, ``folder``, ``cmu_tree``, ``bandai``), each ASF read
+    once."""
     from mocapbench.datasets import cmu
     from mocapbench.io.asf_amc import read_amc, read_asf
     from mocapbench.io.bvh import read_bvh
