@@ -100,6 +100,17 @@ def _product(overrides: Sequence[Override]) -> list[list[str]]:
     return [list(point) for point in itertools.product(*lists.values())]
 
 
+def _saved_plan(plan_path: Path, jobs: list[tuple[str, list[str]]]) -> tuple[str, dict[str, int]]:
+    """``(packing, {folder: shard count})`` of ``shards.json``; a new sweep takes the packing its jobs ask for."""
+    from mocapbench.experiments import shards
+
+    asked = [o.split("=", 1)[1] for _, overrides in jobs for o in overrides if o.startswith("shard.packing=")]
+    saved = json.loads(plan_path.read_text()) if plan_path.exists() else {"packing": (asked or shards.PACKINGS)[0]}
+    if "counts" in saved or set(saved) == {"packing"}:
+        return saved["packing"], dict(saved.get("counts", {}))
+    return "contiguous", dict(saved)  # the older file: counts only, contiguous shards
+
+
 class RdSweeper(Sweeper):
     """Basic sweeper + ``union`` of every codec's ``rd_<name>`` grid + stable job folders + skipping finished jobs.
 
@@ -279,31 +290,16 @@ class RdSweeper(Sweeper):
         before the ``balanced`` packing existed, and its sweep resumes with the ``contiguous`` one
         (:mod:`mocapbench.experiments.shards`).
         """
-        from mocapbench.experiments import cost, datasets, shards
+        from mocapbench.experiments import cost, shards
 
         plan_path = sweep_dir / SHARDS_FILE
-        asked = [o.split("=", 1)[1] for _, overrides in jobs for o in overrides if o.startswith("shard.packing=")]
-        saved = json.loads(plan_path.read_text()) if plan_path.exists() else {"packing": (asked or shards.PACKINGS)[0]}
-        if "counts" in saved or set(saved) == {"packing"}:
-            packing, plan = saved["packing"], dict(saved.get("counts", {}))
-        else:  # the older file: counts only, contiguous shards
-            packing, plan = "contiguous", dict(saved)
+        packing, plan = _saved_plan(plan_path, jobs)
         costs = cost.load_costs()
         catalogues: dict[tuple[str, ...], Any] = {}
         out: list[tuple[str, list[str]]] = []
         self.estimates = {}
         for folder, overrides in jobs:
-            key = tuple(o for o in overrides if o.split("=", 1)[0].split(".", 1)[0] in self._DATASET_KEYS)
-            if key not in catalogues:
-                cfg = self._job_config(overrides)
-                spec = OmegaConf.to_container(cfg.dataset, resolve=True)
-                try:
-                    refs = datasets.catalogue(spec)
-                except Exception as error:  # noqa: BLE001 - the job itself reports a bad dataset
-                    log.warning("dataset of %s: %s (one shard; the job will say why)", folder, error)
-                    refs = []
-                catalogues[key] = (refs, cfg.shard)
-            refs, shard_cfg = catalogues[key]
+            refs, shard_cfg = self._job_catalogue(catalogues, folder, overrides)
             per_frame, per_clip = cost.cpu_cost(costs, folder)
             if folder not in plan:
                 fixed = [o for o in overrides if o.split("=", 1)[0] == "shard.count"]
@@ -313,18 +309,41 @@ class RdSweeper(Sweeper):
                     plan[folder] = shards.shard_count([r.frames for r in refs], per_frame, shard_cfg.max_cpu_s,
                                                       per_clip, packing)
             count = plan[folder]
-            frames = [r.frames for r in refs]
-            job_costs = cost.job_costs(costs, folder, frames, count, packing)
-            if count == 1:
-                out.append((folder, [o for o in overrides if not o.startswith("shard.count=")]))
-                self.estimates[folder] = job_costs[0]
-                continue
-            base = [o for o in overrides if o.split("=", 1)[0] not in ("shard.index", "shard.count", "shard.packing")]
-            for index in range(count):
-                out.append((shards.shard_folder(folder, index, count),
-                            [*base, f"shard.index={index}", f"shard.count={count}", f"shard.packing={packing}"]))
-                self.estimates[out[-1][0]] = job_costs[index] if index < len(job_costs) else 0.0
+            job_costs = cost.job_costs(costs, folder, [r.frames for r in refs], count, packing)
+            out.extend(self._shards_of(folder, overrides, count, packing, job_costs))
         plan_path.write_text(json.dumps({"packing": packing, "counts": plan}, indent=1, sort_keys=True))
+        return out
+
+    def _job_catalogue(self, catalogues: dict, folder: str, overrides: Sequence[str]) -> tuple[list, Any]:
+        """``(clip refs, shard config)`` of a job's dataset, composed once per dataset and shard overrides."""
+        from mocapbench.experiments import datasets
+
+        key = tuple(o for o in overrides if o.split("=", 1)[0].split(".", 1)[0] in self._DATASET_KEYS)
+        if key not in catalogues:
+            cfg = self._job_config(overrides)
+            spec = OmegaConf.to_container(cfg.dataset, resolve=True)
+            try:
+                refs = datasets.catalogue(spec)
+            except Exception as error:  # noqa: BLE001 - the job itself reports a bad dataset
+                log.warning("dataset of %s: %s (one shard; the job will say why)", folder, error)
+                refs = []
+            catalogues[key] = (refs, cfg.shard)
+        return catalogues[key]
+
+    def _shards_of(self, folder: str, overrides: list[str], count: int, packing: str,
+                   job_costs: Sequence[float]) -> list[tuple[str, list[str]]]:
+        """The ``count`` shards of one job, each with its estimated CPU seconds recorded in :attr:`estimates`."""
+        from mocapbench.experiments import shards
+
+        if count == 1:
+            self.estimates[folder] = job_costs[0]
+            return [(folder, [o for o in overrides if not o.startswith("shard.count=")])]
+        base = [o for o in overrides if o.split("=", 1)[0] not in ("shard.index", "shard.count", "shard.packing")]
+        out = []
+        for index in range(count):
+            out.append((shards.shard_folder(folder, index, count),
+                        [*base, f"shard.index={index}", f"shard.count={count}", f"shard.packing={packing}"]))
+            self.estimates[out[-1][0]] = job_costs[index] if index < len(job_costs) else 0.0
         return out
 
     # -- running ---------------------------------------------------------------------------------------
