@@ -73,6 +73,37 @@ def _set_threads(threads: int | None) -> None:
     threadpool_limits(int(threads))
 
 
+def _shard_settings(cfg: Any) -> tuple[int, int, str]:
+    """``(index, count, packing)`` of the job's shard; a config without ``shard`` is the one shard of its job."""
+    from omegaconf import OmegaConf
+
+    shard = OmegaConf.to_container(cfg.shard, resolve=True) if cfg.get("shard") is not None else {}
+    return int(shard.get("index", 0)), int(shard.get("count", 1)), str(shard.get("packing", "balanced"))
+
+
+def _evaluate_clip(codec: Any, motion: Any, encoded: Any, timing: Any, output_dir: Path, example_clip: str | None,
+                   worst: float | None) -> tuple[dict[str, Any], float | None]:
+    """One clip's result row, and the largest error so far.
+
+    ``encoded`` is the clip's stream when the codec encodes clips in batches (an exception if that failed), else
+    None. The clip named ``example_clip`` is saved as the job's example; a clip whose largest error exceeds
+    ``worst`` is saved as the job's worst clip (``worst`` None: no worst clip is kept).
+    """
+    from mocapbench.experiments.evaluate import evaluate_with_decoded
+    from mocapbench.experiments.worst_clip import save_worst
+
+    if isinstance(encoded, Exception):
+        raise encoded
+    reference = motion.positions()
+    row, decoded = evaluate_with_decoded(codec, motion, reference_positions=reference, timing=timing, encoded=encoded)
+    if motion.name == example_clip:
+        _save_example(output_dir, motion, reference, decoded.positions)
+    if worst is not None and row["max_err_cm"] > worst:
+        save_worst(output_dir, motion, reference, decoded.positions, row)
+        worst = row["max_err_cm"]
+    return row, worst
+
+
 def run_job(cfg: Any, output_dir: Path, fitted_dir: Path | None = None) -> dict[str, Any]:
     """Run one benchmark job (a shard); every failure is caught, logged and recorded.
 
@@ -99,8 +130,7 @@ def run_job(cfg: Any, output_dir: Path, fitted_dir: Path | None = None) -> dict[
     from tqdm import tqdm
 
     from mocapbench.experiments import datasets, fitted, shards
-    from mocapbench.experiments.evaluate import evaluate_with_decoded
-    from mocapbench.experiments.worst_clip import save_worst, worst_error
+    from mocapbench.experiments.worst_clip import worst_error
     from mocapbench.experiments.sweeper import JOB_FILE
 
     start, start_cpu = time.perf_counter(), time.process_time()
@@ -116,9 +146,7 @@ def run_job(cfg: Any, output_dir: Path, fitted_dir: Path | None = None) -> dict[
     count = len(rows)
     codec_cfg = OmegaConf.to_container(cfg.codec, resolve=True)
     dataset_cfg = OmegaConf.to_container(cfg.dataset, resolve=True)
-    shard = OmegaConf.to_container(cfg.shard, resolve=True) if cfg.get("shard") is not None else {}
-    index, total = int(shard.get("index", 0)), int(shard.get("count", 1))
-    packing = str(shard.get("packing", "balanced"))
+    index, total, packing = _shard_settings(cfg)
     context = {"codec": codec_cfg.get("name"), "config": {k: v for k, v in codec_cfg.items() if not k.startswith("_")}}
     errors = 0
 
@@ -171,16 +199,8 @@ def run_job(cfg: Any, output_dir: Path, fitted_dir: Path | None = None) -> dict[
                 if batches is not None:
                     motion, encoded = motion
                 try:
-                    if isinstance(encoded, Exception):
-                        raise encoded
-                    reference = motion.positions()
-                    row, decoded = evaluate_with_decoded(codec, motion, reference_positions=reference,
-                                                         timing=timing, encoded=encoded)
-                    if example and motion.name == clips[0]:
-                        _save_example(output_dir, motion, reference, decoded.positions)
-                    if keep_worst and row["max_err_cm"] > worst:
-                        save_worst(output_dir, motion, reference, decoded.positions, row)
-                        worst = row["max_err_cm"]
+                    row, worst = _evaluate_clip(codec, motion, encoded, timing, output_dir,
+                                                clips[0] if example else None, worst if keep_worst else None)
                 except TrackRefusal as error:  # the codec cannot carry this rig's tracks: its reason, not a failure
                     refuse(error, motion.name)
                     continue
