@@ -21,6 +21,10 @@
  * (chunk): its entropy decoding is done once while playback stays in it, so forward and backward playback pay it
  * once per chunk and random access once per call that lands in another chunk.
  *
+ * Game rigs: a stream may carry translation tracks (joints below the root that move relative to their parent);
+ * mcbrot_sample_pose gives every joint's translation with its rotation. Scale tracks are reserved by the format
+ * (MCBROT_E_UNSUPPORTED).
+ *
  * ABI: MCBROT_ABI_VERSION changes whenever a function's signature, the meaning of a status or the layout expected
  * of an output changes; mcbrot_abi_version() returns the library's, to compare with the header's.
  */
@@ -34,7 +38,7 @@
 extern "C" {
 #endif
 
-#define MCBROT_ABI_VERSION 1
+#define MCBROT_ABI_VERSION 2
 /* The newest payload format this library reads. */
 #define MCBROT_PAYLOAD_FORMAT 6
 /* Alignment the context must have. */
@@ -56,14 +60,15 @@ typedef enum mcbrot_status {
     MCBROT_E_CONTEXT_SMALL = 6,  /* the context is smaller than mcbrot_context_size says */
     MCBROT_E_TIME = 7,           /* t is NaN or outside [0, duration] */
     MCBROT_E_NOT_OPEN = 8,       /* the context holds no opened clip */
-    MCBROT_E_UNSUPPORTED = 9     /* a feature of the stream this version does not implement (translation tracks) */
+    MCBROT_E_UNSUPPORTED = 9     /* a feature of the stream this version does not implement (scale tracks) */
 } mcbrot_status;
 
+/* How a time between frames is rounded. A time within a millionth of a frame of a frame is that frame. */
 typedef enum mcbrot_rounding {
     MCBROT_NEAREST = 0,  /* the nearest frame (halfway: the later one) */
     MCBROT_FLOOR = 1,    /* the frame at or before t */
     MCBROT_CEIL = 2,     /* the frame at or after t */
-    MCBROT_LINEAR = 3    /* between the two: root lerp, rotations nlerp on the shorter arc */
+    MCBROT_LINEAR = 3    /* between the two: translations lerp, rotations nlerp on the shorter arc */
 } mcbrot_rounding;
 
 typedef struct mcbrot_clip_info {
@@ -76,6 +81,7 @@ typedef struct mcbrot_clip_info {
     uint32_t num_segments;
     uint32_t num_chunks;    /* random-access units */
     size_t context_bytes;   /* what this clip's context uses */
+    uint32_t num_tracks;    /* joints below the root with a translation track (game rigs; 0 for a rigid skeleton) */
 } mcbrot_clip_info;
 
 MCBROT_API int mcbrot_abi_version(void);
@@ -115,6 +121,20 @@ MCBROT_API int mcbrot_decode_frames(void *context, uint32_t start, uint32_t coun
 
 /* As mcbrot_sample, in float32 (what an engine's pose buffer usually holds). */
 MCBROT_API int mcbrot_sample_f32(void *context, double t, int rounding, float *rotations, float *root);
+
+/* The whole local pose at time t: rotations (J x 4) and translations (J x 3, cm): row 0 the root's translation,
+ * row j the joint's translation from its parent: its track's value on a game rig's translated joint (linear
+ * rounding: lerped), its skeleton offset otherwise. */
+MCBROT_API int mcbrot_sample_pose(void *context, double t, int rounding, double *rotations, double *translations);
+MCBROT_API int mcbrot_sample_pose_f32(void *context, double t, int rounding, float *rotations, float *translations);
+
+/* Frames [start, start + count) as whole poses: rotations (count x J x 4), translations (count x J x 3) as
+ * mcbrot_sample_pose's; either output may be NULL. */
+MCBROT_API int mcbrot_decode_pose_frames(void *context, uint32_t start, uint32_t count, double *rotations,
+                                         double *translations);
+
+/* The joints with a translation track (mcbrot_clip_info.num_tracks of them, increasing). */
+MCBROT_API int mcbrot_tracks(const void *context, uint32_t *joints);
 
 #ifdef __cplusplus
 }

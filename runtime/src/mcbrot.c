@@ -53,7 +53,8 @@ typedef struct ctx_t {
     double eps, bound, multiplier, slope, rounding, root_share, free_angle, power, shell;
     uint32_t segment_frames, chunk_frames;
     int dc_tilt, count_tilt, gap_class, value_class;
-    uint32_t num_overrides, num_turned, unit_values, max_length, max_chunk_segments;
+    uint32_t num_overrides, num_turned, unit_values, max_length, max_chunk_segments, max_chunk_frames;
+    uint32_t num_tracks;    /* translation tracks (flags bit 10) */
     /* arrays inside the context */
     int32_t *parents;       /* J */
     double *offsets;        /* (J + E) x 3: the joints', then the end sites' */
@@ -82,7 +83,15 @@ typedef struct ctx_t {
     double *cosines;        /* 4 n: cos(pi m / 2n) */
     double *ramp;           /* n: 1 + slope k / n */
     uint8_t *bands;         /* n: band of frequency k */
-    double *scratch;        /* J x 4 + 3 x 2 + C: two poses for linear sampling, the channel values */
+    int32_t *track_of;      /* J: the joint's track, or -1 */
+    uint32_t *track_joint;  /* T */
+    double *track_step;     /* T, cm */
+    double *track_base;     /* T x 3, cm */
+    double *track_reach;    /* T, cm: the track's bone length in the budgets */
+    uint8_t *track_class;   /* T x 3: side classes */
+    double *track_values;   /* max_chunk_frames x T x 3: the cached chunk's translations, cm */
+    double *scratch;        /* two poses (J x 4 rotations, 3 root, J x 3 steps) for linear sampling, C channel
+                             * values, a row of n basis values */
     char message[MESSAGE_BYTES];
 } ctx_t;
 
@@ -305,6 +314,9 @@ typedef struct header_t {
     size_t cuts_at, overrides_at, axes_at, classes_at, side_at;
     uint32_t num_cuts, num_overrides, num_turned, unit_values;
     uint32_t segments, chunks, max_length, max_chunk_segments;
+    int tracks;          /* flags bit 10: translation tracks */
+    uint32_t num_tracks;
+    size_t tracks_at;
 } header_t;
 
 static const double defaults_f32[] = {0.0, 0.0, 0.0, 1.0, 0.45f, 0.05f, 0.017453292519943295f, 0.0};
@@ -322,9 +334,7 @@ static int read_settings(reader_t *r, header_t *h) {
     if (flags >> 12)
         return fail(MSG(r), MCBROT_E_CORRUPT, "mcb-rot: unknown settings flags %#llx", (unsigned long long)flags);
     h->cover_ends = (int)((flags >> 11) & 1);
-    if (flags & (1u << 10))
-        return fail(MSG(r), MCBROT_E_UNSUPPORTED, "mcb-rot: the stream has translation/scale tracks, which this "
-                    "runtime does not read yet");
+    h->tracks = (int)((flags >> 10) & 1);
     if (flags & 1) {
         if ((s = read_f32(r, &h->multiplier, "multiplier"))) return s;
     } else {
@@ -519,6 +529,54 @@ static void segment_grid(uint32_t frames, const uint32_t *cuts, uint32_t num_cut
     *longest = most;
 }
 
+/* The tracks header (mocapbench/codecs/mcb_rot/tracks.py, read_tracks): varint T (1..J-1), then per track varint
+ * joint (increasing, 1..J-1) | u8 kind (0: translation; 1, scale, is reserved) | f32 step | 3 x f32 base |
+ * f32 reach | 3 x u8 class. Checked; written into the context when `x` is not NULL. */
+static int read_tracks_header(reader_t *r, header_t *h, ctx_t *x) {
+    int s;
+    uint32_t count;
+    h->tracks_at = r->pos;
+    if ((s = read_count(r, &count, h->joints - 1, "track count"))) return s;
+    if (count < 1)
+        return fail(MSG(r), MCBROT_E_CORRUPT, "mcb-rot: expected 1..%u tracks, found 0", h->joints - 1);
+    uint32_t previous = 0;
+    for (uint32_t t = 0; t < count; ++t) {
+        uint64_t joint;
+        uint32_t kind;
+        double step, base[3], reach;
+        if ((s = read_varint(r, &joint, "tracked joint", 10))) return s;
+        if (!(joint > previous && joint < h->joints))
+            return fail(MSG(r), MCBROT_E_CORRUPT, "mcb-rot: a track's joint must be in 1..%u, after the previous "
+                        "track's, found %llu", h->joints - 1, (unsigned long long)joint);
+        previous = (uint32_t)joint;
+        if ((s = read_u8(r, &kind, "track kind"))) return s;
+        if (kind == 1)
+            return fail(MSG(r), MCBROT_E_UNSUPPORTED, "mcb-rot: track %u is a scale track (kind 1, reserved)", t);
+        if (kind != 0)
+            return fail(MSG(r), MCBROT_E_CORRUPT, "mcb-rot: track %u has kind %u (0: translation)", t, kind);
+        if ((s = read_f32(r, &step, "track step")) || (s = read_f32(r, &base[0], "track base")) ||
+            (s = read_f32(r, &base[1], "track base")) || (s = read_f32(r, &base[2], "track base")) ||
+            (s = read_f32(r, &reach, "track reach")) || (s = need(r, 3, "track classes")))
+            return s;
+        const uint8_t *classes = r->data + r->pos;
+        r->pos += 3;
+        if (!(step > 0 && step <= 1e6 && fabs(base[0]) <= 1e6 && fabs(base[1]) <= 1e6 && fabs(base[2]) <= 1e6 &&
+              reach >= 0 && reach <= 4e6 && classes[0] < SIDE && classes[1] < SIDE && classes[2] < SIDE))
+            return fail(MSG(r), MCBROT_E_CORRUPT, "mcb-rot: track %u: step %g, base (%g, %g, %g), reach %g or a "
+                        "class outside the format's range", t, step, base[0], base[1], base[2], reach);
+        if (x) {
+            x->track_joint[t] = (uint32_t)joint;
+            x->track_of[joint] = (int32_t)t;
+            x->track_step[t] = step;
+            memcpy(x->track_base + 3 * (size_t)t, base, sizeof base);
+            x->track_reach[t] = reach;
+            memcpy(x->track_class + 3 * (size_t)t, classes, 3);
+        }
+    }
+    h->num_tracks = count;
+    return MCBROT_OK;
+}
+
 /* Pass 1 over the payload header: every field up to the side unit read and checked, sizes found. The cuts are
  * needed for the segment count: they are read into `cuts` (at most F - 1 values) when not NULL, else only
  * counted. */
@@ -633,6 +691,7 @@ static int plan(const container_t *c, header_t *h, reader_t *r, uint32_t *cuts_o
     if (dc_tilt >= NUM_CLASSES || count_tilt >= NUM_CLASSES || gap >= NUM_CLASSES || value >= NUM_CLASSES)
         return fail(MSG(r), MCBROT_E_CORRUPT, "mcb-rot: classes must be < %d", NUM_CLASSES);
     r->pos += 4;
+    if (h->tracks && (s = read_tracks_header(r, h, NULL))) return s;
     uint64_t longest = h->max_length > h->chunk_frames ? h->max_length : h->chunk_frames;
     uint64_t most = longest * (channels + 4 * ((uint64_t)h->joints + 1));
     if ((s = read_count(r, &h->unit_values, most, "largest unit"))) return s;
@@ -730,7 +789,8 @@ static int unit_end(reader_t *r, unit_t *u, uint32_t count, const char *what) {
 
 typedef struct layout_t {
     size_t parents, offsets, end_parents, base_step, correction_step, turned, axes, overrides, seg_start, chunk_first,
-        chunk_offset, class_table, dc, counts, values, coef_start, longest, corr_flat, cosines, ramp, bands, scratch, total;
+        chunk_offset, class_table, dc, counts, values, coef_start, longest, corr_flat, cosines, ramp, bands, track_of,
+        track_joint, track_step, track_base, track_reach, track_class, track_values, scratch, total;
 } layout_t;
 
 static size_t place(size_t *at, size_t bytes) {
@@ -739,7 +799,11 @@ static size_t place(size_t *at, size_t bytes) {
     return here;
 }
 
-static void layout_of(const header_t *h, uint32_t chunks, uint32_t max_chunk_segments, layout_t *l) {
+/* Doubles of one pose in the scratch area: rotations (4 J), root (3), steps (3 J). */
+#define POSE_DOUBLES(J) (7 * (size_t)(J) + 3)
+
+static void layout_of(const header_t *h, uint32_t chunks, uint32_t max_chunk_segments, uint32_t max_chunk_frames,
+                      layout_t *l) {
     size_t at = sizeof(ctx_t);
     size_t J = h->joints, C = 3 + 3 * J, S = h->segments, n = h->max_length;
     l->parents = place(&at, 4 * J);
@@ -763,7 +827,15 @@ static void layout_of(const header_t *h, uint32_t chunks, uint32_t max_chunk_seg
     l->cosines = place(&at, 8 * 4 * n);
     l->ramp = place(&at, 8 * n);
     l->bands = place(&at, n);
-    l->scratch = place(&at, 8 * (2 * (4 * J + 3) + C + n + 1));
+    size_t T = h->tracks ? h->num_tracks : 0;
+    l->track_of = place(&at, 4 * J);
+    l->track_joint = place(&at, 4 * T);
+    l->track_step = place(&at, 8 * T);
+    l->track_base = place(&at, 24 * T);
+    l->track_reach = place(&at, 8 * T);
+    l->track_class = place(&at, 3 * T);
+    l->track_values = place(&at, 24 * T * (T ? max_chunk_frames : 0));
+    l->scratch = place(&at, 8 * (2 * POSE_DOUBLES(J) + C + n + 1));
     l->total = (at + 15) & ~(size_t)15;
 }
 
@@ -790,14 +862,15 @@ static void chunk_grid(const uint32_t *seg_start, uint32_t segments, uint32_t ch
 }
 
 /* The chunk count and the most segments of one chunk, without memory: the grid walked twice. */
-static void count_chunks(const container_t *c, const header_t *h, reader_t *r, uint32_t *chunks, uint32_t *most) {
+static void count_chunks(const container_t *c, const header_t *h, reader_t *r, uint32_t *chunks, uint32_t *most,
+                         uint32_t *most_frames) {
     /* walk the segments (from the cuts in the stream) and group them */
     reader_t cr = *r;
     cr.pos = h->cuts_at;
     uint32_t n;
     read_count(&cr, &n, c->frames - 1, "cut count");
     uint64_t begin = 0, position = 0;
-    uint32_t groups = 0, largest = 0, in_chunk = 0, held = 0;
+    uint32_t groups = 0, largest = 0, in_chunk = 0, held = 0, held_most = 0;
     uint32_t total_segments = 0;
     for (uint32_t i = 0; i <= n; ++i) {
         uint64_t gap = 0;
@@ -812,6 +885,7 @@ static void count_chunks(const container_t *c, const header_t *h, reader_t *r, u
             if (held >= h->chunk_frames && total_segments < h->segments) {
                 ++groups;
                 if (in_chunk > largest) largest = in_chunk;
+                if (held > held_most) held_most = held;
                 in_chunk = 0;
                 held = 0;
             }
@@ -820,18 +894,20 @@ static void count_chunks(const container_t *c, const header_t *h, reader_t *r, u
     }
     ++groups;
     if (in_chunk > largest) largest = in_chunk;
+    if (held > held_most) held_most = held;
     *chunks = groups;
     *most = largest;
+    *most_frames = held_most;
 }
 
 static int size_of(const uint8_t *stream, size_t n, container_t *c, header_t *h, layout_t *l, uint32_t *chunks,
-                   uint32_t *most, char *message, size_t bytes) {
+                   uint32_t *most, uint32_t *most_frames, char *message, size_t bytes) {
     int s = c->payload ? MCBROT_OK : read_container(stream, n, c, message, bytes);
     if (s) return s;
     reader_t r = {c->payload, 0, c->payload_bytes, message, bytes};
     if ((s = plan(c, h, &r, NULL))) return s;
-    count_chunks(c, h, &r, chunks, most);
-    layout_of(h, *chunks, *most, l);
+    count_chunks(c, h, &r, chunks, most, most_frames);
+    layout_of(h, *chunks, *most, *most_frames, l);
     return MCBROT_OK;
 }
 
@@ -842,8 +918,8 @@ MCBROT_API int mcbrot_context_size(const uint8_t *stream, size_t stream_bytes, s
     container_t c = {0};
     header_t h;
     layout_t l;
-    uint32_t chunks, most;
-    int s = size_of(stream, stream_bytes, &c, &h, &l, &chunks, &most, message, message_bytes);
+    uint32_t chunks, most, most_frames;
+    int s = size_of(stream, stream_bytes, &c, &h, &l, &chunks, &most, &most_frames, message, message_bytes);
     if (s) return s;
     *size = l.total;
     return MCBROT_OK;
@@ -871,9 +947,9 @@ MCBROT_API int mcbrot_payload_context_size(const uint8_t *payload, size_t payloa
     container_t c = {0};
     header_t h;
     layout_t l;
-    uint32_t chunks, most;
+    uint32_t chunks, most, most_frames;
     int s = payload_container(payload, payload_bytes, frames, joints, fps, &c, message, message_bytes);
-    if (s || (s = size_of(NULL, 0, &c, &h, &l, &chunks, &most, message, message_bytes))) return s;
+    if (s || (s = size_of(NULL, 0, &c, &h, &l, &chunks, &most, &most_frames, message, message_bytes))) return s;
     *size = l.total;
     return MCBROT_OK;
 }
@@ -914,9 +990,10 @@ static void budgets(ctx_t *x, double *rotation, double *base, double *dist, doub
         }
     for (uint32_t j = 0; j < J; ++j) vertices |= reach[j] > 0;
     dist[0] = 0.0;
-    for (uint32_t j = 1; j < J; ++j) {
+    for (uint32_t j = 1; j < J; ++j) { /* a translated joint's bone is its track's reach */
         const double *o = x->offsets + 3 * j;
-        dist[j] = dist[parent[j]] + sqrt(o[0] * o[0] + o[1] * o[1] + o[2] * o[2]);
+        double bone = x->track_of[j] >= 0 ? x->track_reach[x->track_of[j]] : sqrt(o[0] * o[0] + o[1] * o[1] + o[2] * o[2]);
+        dist[j] = dist[parent[j]] + bone;
     }
     /* lever[a] = max over the points a's rotation moves: proper descendants k (chain dist k - dist a) and, with
      * virtual children, those of a (reach a) and of its proper descendants (chain + reach k) */
@@ -1047,8 +1124,8 @@ static int open_with(void *context, size_t context_bytes, container_t *given, co
     container_t c = *given;
     header_t h;
     layout_t l;
-    uint32_t chunks, most;
-    int s = size_of(stream, stream_bytes, &c, &h, &l, &chunks, &most, message, MESSAGE_BYTES);
+    uint32_t chunks, most, most_frames;
+    int s = size_of(stream, stream_bytes, &c, &h, &l, &chunks, &most, &most_frames, message, MESSAGE_BYTES);
     if (s) return s;
     if (context_bytes < l.total)
         return fail(message, MESSAGE_BYTES, MCBROT_E_CONTEXT_SMALL, "mcb-rot: the context holds %zu bytes, this "
@@ -1075,6 +1152,13 @@ static int open_with(void *context, size_t context_bytes, container_t *given, co
     x->cosines = (double *)(base + l.cosines);
     x->ramp = (double *)(base + l.ramp);
     x->bands = base + l.bands;
+    x->track_of = (int32_t *)(base + l.track_of);
+    x->track_joint = (uint32_t *)(base + l.track_joint);
+    x->track_step = (double *)(base + l.track_step);
+    x->track_base = (double *)(base + l.track_base);
+    x->track_reach = (double *)(base + l.track_reach);
+    x->track_class = base + l.track_class;
+    x->track_values = (double *)(base + l.track_values);
     x->scratch = (double *)(base + l.scratch);
     x->bytes_used = l.total;
     x->payload = c.payload;
@@ -1103,6 +1187,8 @@ static int open_with(void *context, size_t context_bytes, container_t *given, co
     x->unit_values = h.unit_values;
     x->max_length = h.max_length;
     x->max_chunk_segments = most;
+    x->max_chunk_frames = most_frames;
+    x->num_tracks = h.tracks ? h.num_tracks : 0;
     x->cached_chunk = -1;
     x->table_length = 0;
     uint32_t J = x->joints, C = x->channels, S = x->segments;
@@ -1200,6 +1286,9 @@ static int open_with(void *context, size_t context_bytes, container_t *given, co
     x->count_tilt = (int)r.data[r.pos + 1] - NUM_CLASSES;
     x->gap_class = r.data[r.pos + 2];
     x->value_class = r.data[r.pos + 3];
+    r.pos += 4;
+    for (uint32_t j = 0; j < J; ++j) x->track_of[j] = -1;
+    if (h.tracks) read_tracks_header(&r, &h, x);
     /* the class table (C x bands), built in place from the scales (last channel first: row c's scale sits at
      * index c, row c spans c * 12 .. c * 12 + 11 >= c) */
     for (uint32_t ch = C; ch-- > 0;) {
@@ -1308,7 +1397,38 @@ static void set_length(ctx_t *x, uint32_t n) {
     x->table_length = n;
 }
 
-/* Decode chunk `k` into the cache: every coefficient and correction. */
+/* The chunk's translation tracks (tracks.py, Tracks.q_of_values): one unit of second-order differences of q, track
+ * by track, axis by axis, frame by frame; two running sums give q, value = base + step q (float64). The sums wrap
+ * as numpy's int64 cumsum does (a corrupt stream gives wrong values, never undefined behaviour). */
+static int load_tracks(ctx_t *x, reader_t *r, uint32_t k, uint32_t frames) {
+    char what[48];
+    snprintf(what, sizeof what, "chunk %u tracks", k);
+    uint32_t T = x->num_tracks;
+    uint64_t total = (uint64_t)T * 3 * frames;
+    if (frames > x->max_chunk_frames || total > 0xffffffffu)
+        return fail(x->message, MESSAGE_BYTES, MCBROT_E_CORRUPT, "mcb-rot: %s: %u frames in a chunk", what, frames);
+    unit_t u;
+    int s = unit_begin(r, &u, (uint32_t)total, r->end, what);
+    if (s) return s;
+    for (uint32_t t = 0; t < T; ++t)
+        for (uint32_t axis = 0; axis < 3; ++axis) {
+            uint32_t cls = SIDE + x->track_class[3 * t + axis];
+            double base = x->track_base[3 * t + axis], step = x->track_step[t];
+            uint64_t velocity = 0, q = 0;
+            double *out = x->track_values + 3 * (size_t)t + axis;
+            for (uint32_t i = 0; i < frames; ++i) {
+                int32_t d;
+                int e = unit_next(&u, cls, &d);
+                if (e) return unit_error(r, e, what);
+                velocity += (uint64_t)(int64_t)d;
+                q += velocity;
+                out[(size_t)i * 3 * T] = base + step * (double)(int64_t)q;
+            }
+        }
+    return unit_end(r, &u, (uint32_t)total, what);
+}
+
+/* Decode chunk `k` into the cache: every coefficient and correction (and the translation tracks' values). */
 static int load_chunk(ctx_t *x, uint32_t k) {
     if (x->cached_chunk == (int64_t)k) return MCBROT_OK;
     x->cached_chunk = -1;
@@ -1366,6 +1486,7 @@ static int load_chunk(ctx_t *x, uint32_t k) {
         if (e) return unit_error(&r, e, what);
     }
     if ((s = unit_end(&r, &u, (uint32_t)total, what))) return s;
+    if (x->num_tracks && (s = load_tracks(x, &r, k, frames))) return s;
     if (r.pos != r.end)
         return fail(x->message, MESSAGE_BYTES, MCBROT_E_CORRUPT, "mcb-rot: expected the end of chunk %u, found %zu "
                     "more bytes", k, r.end - r.pos);
@@ -1384,8 +1505,9 @@ static uint32_t upper_bound(const uint32_t *array, uint32_t n, uint32_t value) {
     return low;
 }
 
-/* The pose of frame f: rotations (J x 4), root (3). */
-static int decode_frame(ctx_t *x, uint32_t f, double *rotations, double *root) {
+/* The pose of frame f: rotations (J x 4), root (3); with `steps` (J x 3, row 0 untouched) every other joint's
+ * translation from its parent: its track's value, else its skeleton offset. */
+static int decode_frame(ctx_t *x, uint32_t f, double *rotations, double *root, double *steps) {
     uint32_t seg = upper_bound(x->seg_start, x->segments + 1, f) - 1;
     uint32_t chunk = upper_bound(x->chunk_first, x->chunks + 1, seg) - 1;
     int s = load_chunk(x, chunk);
@@ -1393,7 +1515,7 @@ static int decode_frame(ctx_t *x, uint32_t f, double *rotations, double *root) {
     uint32_t C = x->channels, J = x->joints, n = x->seg_start[seg + 1] - x->seg_start[seg];
     uint32_t i = f - x->seg_start[seg];
     set_length(x, n);
-    double *signal = x->scratch + 2 * (4 * J + 3);
+    double *signal = x->scratch + 2 * POSE_DOUBLES(J);
     double *row = signal + C; /* (ramp k) cos(pi (2 i + 1) k / 2 n), k = 0 .. n - 1: shared by every channel */
     const uint32_t *starts = x->coef_start + (size_t)(seg - x->chunk_first[chunk]) * C;
     uint32_t longest = x->longest[seg - x->chunk_first[chunk]];
@@ -1450,6 +1572,14 @@ static int decode_frame(ctx_t *x, uint32_t f, double *rotations, double *root) {
             memcpy(q, out, sizeof out);
         }
     }
+    if (steps) {
+        uint32_t T = x->num_tracks;
+        const double *values = T ? x->track_values + (size_t)(f - x->seg_start[x->chunk_first[chunk]]) * 3 * T : NULL;
+        for (uint32_t j = 1; j < J; ++j) {
+            int32_t t = x->track_of[j];
+            memcpy(steps + 3 * j, t >= 0 ? values + 3 * t : x->offsets + 3 * j, 3 * sizeof(double));
+        }
+    }
     /* corrections of this frame */
     if (x->num_corrections) {
         uint32_t slots = J + 1;
@@ -1498,6 +1628,7 @@ MCBROT_API int mcbrot_info(const void *context, mcbrot_clip_info *info) {
     info->num_segments = x->segments;
     info->num_chunks = x->chunks;
     info->context_bytes = x->bytes_used;
+    info->num_tracks = x->num_tracks;
     return MCBROT_OK;
 }
 
@@ -1515,28 +1646,41 @@ MCBROT_API int mcbrot_skeleton(const void *context, int32_t *parents, double *of
     return MCBROT_OK;
 }
 
-MCBROT_API int mcbrot_decode_frames(void *context, uint32_t start, uint32_t count, double *rotations, double *roots) {
-    int s = check_open(context);
-    if (s) return s;
-    ctx_t *x = (ctx_t *)context;
+/* Frames [start, start + count): rotations (count x J x 4), roots (count x 3) and/or translations (count x J x 3,
+ * row 0 the root's); any output may be NULL. */
+static int decode_range(ctx_t *x, uint32_t start, uint32_t count, double *rotations, double *roots,
+                        double *translations) {
     x->message[0] = 0;
     if (start > x->frames || count > x->frames - start)
         return fail(x->message, MESSAGE_BYTES, MCBROT_E_ARGUMENT, "mcb-rot: frames %u..%llu outside the clip's %u",
                     start, (unsigned long long)start + count, x->frames);
     size_t J = x->joints;
-    double *pose = x->scratch, *root = x->scratch + 4 * J;
+    double *pose = x->scratch, *moved = pose + 4 * J; /* J x 3: the root, then the steps */
     for (uint32_t f = 0; f < count; ++f) {
-        if ((s = decode_frame(x, start + f, pose, root))) return s;
+        int s = decode_frame(x, start + f, pose, moved, translations ? moved : NULL);
+        if (s) return s;
         if (rotations) memcpy(rotations + 4 * J * f, pose, 32 * J);
-        if (roots) memcpy(roots + 3 * (size_t)f, root, 24);
+        if (roots) memcpy(roots + 3 * (size_t)f, moved, 24);
+        if (translations) memcpy(translations + 3 * J * f, moved, 24 * J);
     }
     return MCBROT_OK;
 }
 
-MCBROT_API int mcbrot_sample(void *context, double t, int rounding, double *rotations, double *root) {
+MCBROT_API int mcbrot_decode_frames(void *context, uint32_t start, uint32_t count, double *rotations, double *roots) {
     int s = check_open(context);
     if (s) return s;
-    ctx_t *x = (ctx_t *)context;
+    return decode_range((ctx_t *)context, start, count, rotations, roots, NULL);
+}
+
+MCBROT_API int mcbrot_decode_pose_frames(void *context, uint32_t start, uint32_t count, double *rotations,
+                                         double *translations) {
+    int s = check_open(context);
+    if (s) return s;
+    return decode_range((ctx_t *)context, start, count, rotations, NULL, translations);
+}
+
+/* The pose at t into rotations (J x 4), root (3) and, when not NULL, steps (J x 3, rows 1..J-1). */
+static int sample_into(ctx_t *x, double t, int rounding, double *rotations, double *root, double *steps) {
     x->message[0] = 0;
     if (!rotations || !root || rounding < MCBROT_NEAREST || rounding > MCBROT_LINEAR)
         return fail(x->message, MESSAGE_BYTES, MCBROT_E_ARGUMENT, "mcb-rot: NULL output or unknown rounding %d",
@@ -1548,23 +1692,35 @@ MCBROT_API int mcbrot_sample(void *context, double t, int rounding, double *rota
     double position = t * x->fps;
     double last = (double)(x->frames - 1);
     if (position > last) position = last;
+    /* a time within a millionth of a frame of a frame is that frame (t = f / fps does not multiply back to f
+     * exactly: ceil would step to the next frame) */
+    double whole = floor(position + 0.5);
+    if (fabs(position - whole) <= 1e-6) position = whole;
     double low = floor(position);
     uint32_t f0 = (uint32_t)low;
     switch (rounding) {
     case MCBROT_NEAREST: {
         double near = floor(position + 0.5);
-        return decode_frame(x, (uint32_t)(near > last ? last : near), rotations, root);
+        return decode_frame(x, (uint32_t)(near > last ? last : near), rotations, root, steps);
     }
-    case MCBROT_FLOOR: return decode_frame(x, f0, rotations, root);
-    case MCBROT_CEIL: return decode_frame(x, (uint32_t)ceil(position), rotations, root);
+    case MCBROT_FLOOR: return decode_frame(x, f0, rotations, root, steps);
+    case MCBROT_CEIL: return decode_frame(x, (uint32_t)ceil(position), rotations, root, steps);
     default: break;
     }
     double alpha = position - low;
-    if (alpha == 0.0 || f0 + 1 >= x->frames) return decode_frame(x, f0, rotations, root);
+    if (alpha == 0.0 || f0 + 1 >= x->frames) return decode_frame(x, f0, rotations, root, steps);
     size_t J = x->joints;
-    double *second = x->scratch + (4 * J + 3), *second_root = second + 4 * J;
-    if ((s = decode_frame(x, f0, rotations, root)) || (s = decode_frame(x, f0 + 1, second, second_root))) return s;
+    double *second = x->scratch + POSE_DOUBLES(J), *second_root = second + 4 * J, *second_steps = second_root;
+    int s;
+    if ((s = decode_frame(x, f0, rotations, root, steps)) ||
+        (s = decode_frame(x, f0 + 1, second, second_root, steps ? second_steps : NULL)))
+        return s;
     for (int k = 0; k < 3; ++k) root[k] += alpha * (second_root[k] - root[k]);
+    if (steps && x->num_tracks)
+        for (uint32_t t = 0; t < x->num_tracks; ++t) {
+            size_t j = x->track_joint[t];
+            for (int k = 0; k < 3; ++k) steps[3 * j + k] += alpha * (second_steps[3 * j + k] - steps[3 * j + k]);
+        }
     for (size_t j = 0; j < J; ++j) {
         double *a = rotations + 4 * j, *b = second + 4 * j;
         double dot = a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + a[3] * b[3];
@@ -1579,22 +1735,48 @@ MCBROT_API int mcbrot_sample(void *context, double t, int rounding, double *rota
     return MCBROT_OK;
 }
 
-MCBROT_API int mcbrot_sample_f32(void *context, double t, int rounding, float *rotations, float *root) {
+MCBROT_API int mcbrot_sample(void *context, double t, int rounding, double *rotations, double *root) {
+    int s = check_open(context);
+    if (s) return s;
+    return sample_into((ctx_t *)context, t, rounding, rotations, root, NULL);
+}
+
+MCBROT_API int mcbrot_sample_pose(void *context, double t, int rounding, double *rotations, double *translations) {
+    int s = check_open(context);
+    if (s) return s;
+    return sample_into((ctx_t *)context, t, rounding, rotations, translations, translations);
+}
+
+/* float32 variants: sampled into the context's first pose, then narrowed. */
+static int sample_f32(void *context, double t, int rounding, float *rotations, float *root, float *translations) {
     int s = check_open(context);
     if (s) return s;
     ctx_t *x = (ctx_t *)context;
-    if (!rotations || !root) return fail(x->message, MESSAGE_BYTES, MCBROT_E_ARGUMENT, "mcb-rot: NULL output");
+    if (!rotations || (!root && !translations))
+        return fail(x->message, MESSAGE_BYTES, MCBROT_E_ARGUMENT, "mcb-rot: NULL output");
     size_t J = x->joints;
-    /* the second pose's scratch is used by linear sampling: the outputs go through the first slot's successor */
-    double pose[4 * 64 + 3];
-    double *q = J <= 64 ? pose : NULL;
-    if (!q) {
-        /* large rigs: sample into the context's scratch area reserved for it (after the two poses) */
-        return fail(x->message, MESSAGE_BYTES, MCBROT_E_UNSUPPORTED, "mcb-rot: float32 sampling supports up to 64 "
-                    "joints in this version");
-    }
-    if ((s = mcbrot_sample(context, t, rounding, q, q + 4 * J))) return s;
-    for (size_t i = 0; i < 4 * J; ++i) rotations[i] = (float)q[i];
-    for (int k = 0; k < 3; ++k) root[k] = (float)q[4 * J + k];
+    double *pose = x->scratch, *moved = pose + 4 * J;
+    if ((s = sample_into(x, t, rounding, pose, moved, translations ? moved : NULL))) return s;
+    for (size_t i = 0; i < 4 * J; ++i) rotations[i] = (float)pose[i];
+    if (root)
+        for (int k = 0; k < 3; ++k) root[k] = (float)moved[k];
+    if (translations)
+        for (size_t i = 0; i < 3 * J; ++i) translations[i] = (float)moved[i];
+    return MCBROT_OK;
+}
+
+MCBROT_API int mcbrot_sample_f32(void *context, double t, int rounding, float *rotations, float *root) {
+    return sample_f32(context, t, rounding, rotations, root, NULL);
+}
+
+MCBROT_API int mcbrot_sample_pose_f32(void *context, double t, int rounding, float *rotations, float *translations) {
+    return sample_f32(context, t, rounding, rotations, NULL, translations);
+}
+
+MCBROT_API int mcbrot_tracks(const void *context, uint32_t *joints) {
+    int s = check_open(context);
+    if (s) return s;
+    const ctx_t *x = (const ctx_t *)context;
+    if (joints && x->num_tracks) memcpy(joints, x->track_joint, 4 * (size_t)x->num_tracks);
     return MCBROT_OK;
 }

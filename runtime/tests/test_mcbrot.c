@@ -66,6 +66,58 @@ static void test_hostile(const unsigned char *data, size_t n) {
     free(copy);
 }
 
+/* Whole poses (translation tracks): row 0 is the root, the rotations are the frames', a tracked joint's translation
+ * changes over the clip while the others keep their offsets, every rounding mode gives its frame, linear lies
+ * between, float32 is the float64 pose narrowed. */
+static void test_poses(const char *path, void *context, const mcbrot_clip_info *info, const double *rotations,
+                       const double *roots) {
+    size_t J = info->num_joints, F = info->num_frames;
+    double *rot = malloc(sizeof(double) * 4 * J * F), *moved = malloc(sizeof(double) * 3 * J * F);
+    double *offsets = malloc(sizeof(double) * 3 * J), *pose = malloc(sizeof(double) * 7 * J);
+    float *narrow = malloc(sizeof(float) * 7 * J);
+    uint32_t tracked[4096];
+    CHECK(mcbrot_decode_pose_frames(context, 0, (uint32_t)F, rot, moved) == MCBROT_OK, "%s: poses", path);
+    CHECK(mcbrot_skeleton(context, NULL, offsets) == MCBROT_OK && mcbrot_tracks(context, tracked) == MCBROT_OK, "tracks");
+    CHECK(memcmp(rot, rotations, 32 * J * F) == 0, "%s: the poses' rotations differ from the frames'", path);
+    int moves = 0;
+    for (size_t f = 0; f < F; ++f) {
+        CHECK(memcmp(moved + 3 * J * f, roots + 3 * f, 24) == 0, "%s: row 0 of frame %zu is not the root", path, f);
+        for (size_t j = 1; j < J; ++j) {
+            int is_tracked = 0;
+            for (uint32_t t = 0; t < info->num_tracks; ++t) is_tracked |= tracked[t] == j;
+            const double *v = moved + 3 * (J * f + j);
+            if (!is_tracked)
+                CHECK(memcmp(v, offsets + 3 * j, 24) == 0, "%s: joint %zu without a track moves", path, j);
+            else if (f > 0)
+                moves |= memcmp(v, v - 3 * J, 24) != 0;
+        }
+    }
+    CHECK(!info->num_tracks || F < 3 || moves, "%s: no tracked joint moves", path);
+    for (size_t f = 0; f < F; f += 1 + F / 13) {
+        for (int mode = 0; mode < 3; ++mode) {
+            CHECK(mcbrot_sample_pose(context, (double)f / info->fps, mode, pose, pose + 4 * J) == MCBROT_OK, "pose");
+            CHECK(memcmp(pose + 4 * J, moved + 3 * J * f, 24 * J) == 0, "%s: pose mode %d, frame %zu", path, mode, f);
+        }
+        if (f + 1 < F) {
+            CHECK(mcbrot_sample_pose(context, (f + 0.5) / info->fps, MCBROT_LINEAR, pose, pose + 4 * J) == MCBROT_OK,
+                  "linear pose");
+            for (size_t i = 0; i < 3 * J; ++i) {
+                double a = moved[3 * J * f + i], b = moved[3 * J * (f + 1) + i], v = pose[4 * J + i];
+                CHECK(v >= fmin(a, b) - 1e-9 && v <= fmax(a, b) + 1e-9, "%s: a linear translation outside", path);
+            }
+        }
+        CHECK(mcbrot_sample_pose_f32(context, (double)f / info->fps, MCBROT_NEAREST, narrow, narrow + 4 * J) ==
+              MCBROT_OK, "f32 pose");
+        for (size_t i = 0; i < 3 * J; ++i)
+            CHECK(narrow[4 * J + i] == (float)moved[3 * J * f + i], "%s: f32 translation %zu", path, i);
+    }
+    free(rot);
+    free(moved);
+    free(offsets);
+    free(pose);
+    free(narrow);
+}
+
 static void test_stream(const char *path, const unsigned char *data, size_t n) {
     size_t size;
     int status;
@@ -116,6 +168,7 @@ static void test_stream(const char *path, const unsigned char *data, size_t n) {
     }
     float f32[4 * 64 + 3];
     if (J <= 64) CHECK(mcbrot_sample_f32(context, 0.0, MCBROT_NEAREST, f32, f32 + 4 * J) == MCBROT_OK, "f32");
+    test_poses(path, context, &info, rotations, roots);
     /* bad calls */
     CHECK(mcbrot_sample(context, NAN, MCBROT_NEAREST, pose, root) == MCBROT_E_TIME, "NaN time accepted");
     CHECK(mcbrot_sample(context, -1e-9, MCBROT_NEAREST, pose, root) == MCBROT_E_TIME, "negative time accepted");
@@ -129,7 +182,8 @@ static void test_stream(const char *path, const unsigned char *data, size_t n) {
     CHECK(mcbrot_sample(small, 0.0, MCBROT_NEAREST, pose, root) == MCBROT_E_NOT_OPEN, "a failed open samples");
     free(small);
     test_hostile(data, n);
-    printf("ok %s: %zu frames, %zu joints, context %zu bytes (+ %zu stream)\n", path, F, J, info.context_bytes, n);
+    printf("ok %s: %zu frames, %zu joints, %u tracks, context %zu bytes (+ %zu stream)\n", path, F, J, info.num_tracks,
+           info.context_bytes, n);
     free(rotations);
     free(roots);
     free(context);

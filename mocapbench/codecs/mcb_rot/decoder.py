@@ -82,12 +82,21 @@ def decode_range(
     translations = out[3] if len(out) > 3 else None  # (n, J, 3): the joints' steps, filled when the stream has tracks
     moving = None if info.tracks is None else info.tracks.moving(num_joints)
     clip = native_clip(info, payload)
-    if clip is not None:  # the runtime samples the rotations; forward kinematics here, as below
+    if clip is not None:  # the runtime samples the rotations (and tracks); forward kinematics here, as below
         into = quats if quats.flags.c_contiguous else np.empty(quats.shape)
-        roots_into = roots if roots.flags.c_contiguous else np.empty(roots.shape)
-        clip.frames(start, stop, roots_into, into)
-        roots[...] = roots_into
-        kinematics.positions(into, roots_into, info.skeleton, positions, quats)
+        if info.tracks is None:
+            roots_into = roots if roots.flags.c_contiguous else np.empty(roots.shape)
+            clip.frames(start, stop, roots_into, into)
+            roots[...] = roots_into
+            kinematics.positions(into, roots_into, info.skeleton, positions, quats)
+            return positions, roots, quats
+        steps = translations if translations is not None and translations.flags.c_contiguous else np.empty(
+            (count, num_joints, 3))
+        clip.poses(start, stop, steps, into)
+        roots[...] = steps[:, 0]
+        if translations is not None and translations is not steps:
+            translations[...] = steps
+        kinematics.positions(into, roots, info.skeleton, positions, quats, translations=steps, moving=moving)
         return positions, roots, quats
     scratch = thread_scratch()
     first_segment = int(np.searchsorted(layout.starts, start, side="right")) - 1  # the segment holding ``start``
@@ -113,7 +122,7 @@ def decode_range(
 def native_clip(info: StreamInfo, payload: memoryview):
     """The runtime's opened clip of a format 6 payload (kept in ``info``'s cache), or None: an older format, the
     runtime not built, or ``MOCAPBENCH_NATIVE=0``."""
-    if info.version < 6 or info.tracks is not None:  # (the runtime does not read translation tracks yet)
+    if info.version < 6:
         return None
     if "native" not in info._cache:
         lib = native.library()

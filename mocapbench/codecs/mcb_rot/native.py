@@ -34,7 +34,7 @@ __all__ = ["ABI_VERSION", "RUNTIME_DIR", "library", "NativeClip", "NativeError"]
 
 log = logging.getLogger(__name__)
 
-ABI_VERSION = 1
+ABI_VERSION = 2
 RUNTIME_DIR = Path(__file__).resolve().parents[3] / "runtime"
 _SOURCES = ("src/mcbrot.c", "src/mcbrot_tables.h", "include/mcbrot.h")
 _FLAGS = ["-O2", "-std=c99", "-fPIC", "-shared", "-fvisibility=hidden"]
@@ -106,6 +106,7 @@ def library() -> ctypes.CDLL | None:
     lib.mcbrot_open_payload.argtypes = [ctypes.c_void_p, ctypes.c_size_t, u8p, ctypes.c_size_t, ctypes.c_uint32,
                                         ctypes.c_uint32, ctypes.c_double]
     lib.mcbrot_decode_frames.argtypes = [ctypes.c_void_p, ctypes.c_uint32, ctypes.c_uint32, dp, dp]
+    lib.mcbrot_decode_pose_frames.argtypes = [ctypes.c_void_p, ctypes.c_uint32, ctypes.c_uint32, dp, dp]
     lib.mcbrot_message.argtypes = [ctypes.c_void_p]
     lib.mcbrot_message.restype = ctypes.c_char_p
     if lib.mcbrot_abi_version() != ABI_VERSION:
@@ -152,5 +153,14 @@ class NativeClip:
         dp = ctypes.POINTER(ctypes.c_double)
         status = self._lib.mcbrot_decode_frames(self._pointer, start, stop - start, quats.ctypes.data_as(dp),
                                                 roots.ctypes.data_as(dp))
+        if status:
+            _raise(status, self._lib.mcbrot_message(self._pointer).decode(errors="replace"))
+
+    def poses(self, start: int, stop: int, translations: np.ndarray, quats: np.ndarray) -> None:
+        """Write frames ``start:stop`` as whole poses: translations (n, J, 3) cm (row 0 the root's, row j the joint's
+        step from its parent: its track's value, else its offset) and rotations (n, J, 4), C-contiguous float64."""
+        dp = ctypes.POINTER(ctypes.c_double)
+        status = self._lib.mcbrot_decode_pose_frames(self._pointer, start, stop - start, quats.ctypes.data_as(dp),
+                                                     translations.ctypes.data_as(dp))
         if status:
             _raise(status, self._lib.mcbrot_message(self._pointer).decode(errors="replace"))

@@ -17,11 +17,13 @@ from mocapbench import metrics
 from mocapbench.codecs import BitstreamError, container, create
 from mocapbench.codecs.mcb_rot import decoder, native, stream
 from mocapbench.synthetic import sinusoidal_motion
+from mocapbench.synthetic.game import game_rig_motion as synthetic_game_rig
 
 ROOT = Path(__file__).resolve().parents[3]
 sys.path.insert(0, str(ROOT / "tests" / "codecs"))
 sys.path.insert(0, str(ROOT / "tests"))
 sys.path.insert(0, str(ROOT / "tests" / "fixtures" / "golden_decode"))
+from game_rig import game_rig_motion  # noqa: E402
 from make_golden import spinning  # noqa: E402
 from test_mcb_rot import random_motion  # noqa: E402
 
@@ -38,10 +40,11 @@ def lib():
     return found
 
 
-def _both(data: bytes):
-    """(native, numpy) positions, roots, rotations of a one-window stream."""
+def _both(data: bytes, start: int = 0, stop: int | None = None):
+    """(native, numpy) positions, roots, rotations and, on a stream with tracks, every joint's translation (n, J, 3)
+    (else None) of frames start:stop of a one-window stream."""
     header, payload = container.unpack(data, "mcb-rot")
-    count = header.num_frames
+    stop = header.num_frames if stop is None else stop
     results = []
     for use_native in (True, False):
         info = stream.read_info(header, payload)
@@ -49,15 +52,22 @@ def _both(data: bytes):
             info._cache["native"] = None
         else:
             assert decoder.native_clip(info, payload) is not None
-        results.append(decoder.decode_range(info, payload, 0, count))
+        count, joints = stop - start, header.num_joints
+        steps = None if info.tracks is None else np.full((count, joints, 3), np.nan)
+        out = (np.empty((count, joints, 3)), np.empty((count, 3)), np.empty((count, joints, 4)))
+        results.append(decoder.decode_range(info, payload, start, stop, out + (() if steps is None else (steps,)))
+                       + (steps,))
     return results
 
 
-def _assert_same(data: bytes) -> None:
-    (positions, roots, quats), (ref_positions, ref_roots, ref_quats) = _both(data)
+def _assert_same(data: bytes, start: int = 0, stop: int | None = None) -> None:
+    (positions, roots, quats, steps), (ref_positions, ref_roots, ref_quats, ref_steps) = _both(data, start, stop)
     np.testing.assert_allclose(positions, ref_positions, rtol=0, atol=1e-6)
     np.testing.assert_allclose(roots, ref_roots, rtol=0, atol=1e-6)
     np.testing.assert_allclose(quats, ref_quats, rtol=0, atol=1e-9)
+    if steps is not None:  # tracks: the same integers times the same steps
+        np.testing.assert_array_equal(steps[:, 1:], ref_steps[:, 1:])
+        np.testing.assert_allclose(steps[:, 0], ref_roots, rtol=0, atol=1e-6)
 
 
 @settings(max_examples=25, deadline=None, derandomize=True, suppress_health_check=list(HealthCheck))
@@ -80,6 +90,32 @@ def test_the_runtime_decodes_what_numpy_decodes_and_holds_the_bound(lib, seed, j
     data = create("mcb-rot", eps_cm=eps, segment_frames=segment, chunk_frames=chunk, shell_cm=shell,
                   allocation_power=power, frequency_slope=slope).encode(motion)
     _assert_same(data)
+    decoded = create("mcb-rot").decode(data)  # through the runtime
+    assert metrics.max_joint_error(motion.positions(), decoded.positions) <= eps
+
+
+@settings(max_examples=10, deadline=None, derandomize=True, suppress_health_check=list(HealthCheck))
+@given(
+    seed=st.integers(0, 10_000),
+    frames=st.integers(1, 260),
+    eps=st.sampled_from([0.1, 0.5, 2.0]),
+    rig=st.sampled_from(["bandai-like", "synthetic biped", "stretching spine"]),
+    chunk=st.sampled_from([32, 128, 300]),
+    part=st.tuples(st.floats(0, 1), st.floats(0, 1)),
+)
+def test_the_runtime_decodes_game_rigs_translation_tracks_as_numpy_does(lib, seed, frames, eps, rig, chunk, part):
+    """Streams with translation tracks (flags bit 10): the runtime gives numpy's rotations and tracks, on the whole
+    clip and on a part of it, and the bound holds on its output."""
+    if rig == "bandai-like":
+        motion = game_rig_motion(frames, seed=seed)
+    else:
+        motion = synthetic_game_rig(num_frames=frames, seed=seed, stretch_cm=8.0 if rig == "stretching spine" else 0.0)
+    data = create("mcb-rot", eps_cm=eps, segment_frames=min(chunk, 128), chunk_frames=chunk).encode(motion)
+    header, payload = container.unpack(data, "mcb-rot")
+    assert stream.read_info(header, payload).tracks is not None
+    _assert_same(data)
+    low, high = sorted(int(f * frames) for f in part)
+    _assert_same(data, low, max(high, low + 1) if low < frames else frames)
     decoded = create("mcb-rot").decode(data)  # through the runtime
     assert metrics.max_joint_error(motion.positions(), decoded.positions) <= eps
 

@@ -1,0 +1,56 @@
+"""Write the runtime's own streams: test streams (``runtime/tests/streams/``: game rigs with translation tracks,
+flags bit 10, which the repository's golden streams do not carry) and the fuzzer's small seeds
+(``runtime/fuzz/seeds/``: a few joints and frames each, so that one execution costs little and a campaign reaches
+millions of inputs, with every part of the format present: cuts, re-references, corrections, tracks). The C tests
+(``make test``) and the fuzz campaigns read them; the Python tests compare the runtime with numpy on freshly made
+streams, so these files only need to be valid.
+
+    PYTHONPATH=. python runtime/tools/make_streams.py
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+OUT = ROOT / "runtime" / "tests" / "streams"
+
+
+def main() -> None:
+    sys.path.insert(0, str(ROOT / "tests"))
+    sys.path.insert(0, str(ROOT / "tests" / "codecs" / "mcb_rot"))
+    sys.path.insert(0, str(ROOT / "tests" / "fixtures" / "golden_decode"))
+    from game_rig import game_rig_motion
+    from make_golden import spinning
+    from test_mcb_rot import random_motion
+
+    from mocapbench.codecs import create
+    from mocapbench.synthetic.game import game_rig_motion as synthetic_game_rig
+
+    OUT.mkdir(parents=True, exist_ok=True)
+    cases = {
+        "game-rig-tracks.mcb": (game_rig_motion(90, seed=3), dict(eps_cm=0.5, segment_frames=32, chunk_frames=32)),
+        "game-rig-stretch.mcb": (synthetic_game_rig(num_frames=150, seed=4, stretch_cm=8.0), dict(eps_cm=0.2)),
+    }
+    for name, (motion, settings) in cases.items():
+        (OUT / name).write_bytes(create("mcb-rot", **settings).encode(motion))
+        print(OUT / name)
+    seeds = ROOT / "runtime" / "fuzz" / "seeds"
+    seeds.mkdir(parents=True, exist_ok=True)
+    small = {
+        "rigid-4j-40f.mcb": (random_motion(1, 4, 40, 0.3, 0.3), dict(eps_cm=0.05, segment_frames=16, chunk_frames=16)),
+        "rigid-6j-24f-shell.mcb": (random_motion(2, 6, 24, 0.0, 0.02), dict(eps_cm=0.5, shell_cm=2.0,
+                                                                           segment_frames=7, chunk_frames=20)),
+        "spin-8j-60f.mcb": (spinning(random_motion(3, 8, 60, 0.0, 0.3)), dict(eps_cm=0.1, segment_frames=32,
+                                                                             chunk_frames=32)),
+        "rigid-1j-9f.mcb": (random_motion(4, 1, 9, 0.0, 0.3), dict(eps_cm=2.0, segment_frames=4, chunk_frames=4)),
+        "game-rig-12f.mcb": (game_rig_motion(12, seed=5), dict(eps_cm=1.0, segment_frames=8, chunk_frames=8)),
+    }
+    for name, (motion, settings) in small.items():
+        (seeds / name).write_bytes(create("mcb-rot", **settings).encode(motion))
+        print(seeds / name, (seeds / name).stat().st_size, "bytes")
+
+
+if __name__ == "__main__":
+    main()
