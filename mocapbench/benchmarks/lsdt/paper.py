@@ -243,45 +243,67 @@ def fig4(motions, out: Path, extra_sparsities=(), data_dir=None, iterations: int
 # -- Figs. 6 and 7 -----------------------------------------------------------------------------------------
 
 
+FIG67_CONFIGS = {
+    "lsdt-frame": ("lsdt-frame", {}),
+    "dct-spatial-frame (Kwak & Bajic)": ("dct-spatial-frame", {}),
+    "dwt-spatial-frame": ("dwt-spatial-frame", {}),
+    "lsdt-clip L=60": ("lsdt-clip", {"clip_length": 60}),
+    "lsdt-clip L=120": ("lsdt-clip", {"clip_length": 120}),
+    "lsdt-clip L=240": ("lsdt-clip", {"clip_length": 240}),
+    "dct-spatial-clip L=120": ("dct-spatial-clip", {"clip_length": 120}),
+    "dwt-spatial-clip L=120": ("dwt-spatial-clip", {"clip_length": 120}),
+    # Not in the paper: the per-vector nonzero counts Huffman-coded instead of fixed-length.
+    "lsdt-frame, Huffman counts": ("lsdt-frame", {"count_coding": "huffman"}),
+    "lsdt-clip L=120, Huffman counts": ("lsdt-clip", {"clip_length": 120, "count_coding": "huffman"}),
+}
+# The compression ratios at which Figs. 6/7's curves are compared.
+FIG67_TARGET_CRS = (5, 8, 10, 15, 20, 30, 40, 60, 80, 100, 150)
+
+
 def fig67(motions, out: Path) -> str:
-    configs = {
-        "lsdt-frame": ("lsdt-frame", {}),
-        "dct-spatial-frame (Kwak & Bajic)": ("dct-spatial-frame", {}),
-        "dwt-spatial-frame": ("dwt-spatial-frame", {}),
-        "lsdt-clip L=60": ("lsdt-clip", {"clip_length": 60}),
-        "lsdt-clip L=120": ("lsdt-clip", {"clip_length": 120}),
-        "lsdt-clip L=240": ("lsdt-clip", {"clip_length": 240}),
-        "dct-spatial-clip L=120": ("dct-spatial-clip", {"clip_length": 120}),
-        "dwt-spatial-clip L=120": ("dwt-spatial-clip", {"clip_length": 120}),
-        # Not in the paper: the per-vector nonzero counts Huffman-coded instead of fixed-length.
-        "lsdt-frame, Huffman counts": ("lsdt-frame", {"count_coding": "huffman"}),
-        "lsdt-clip L=120, Huffman counts": ("lsdt-clip", {"clip_length": 120, "count_coding": "huffman"}),
-    }
-    curves = {label: rd_curve(name, motions, **params) for label, (name, params) in configs.items()}
+    """Figs. 6 and 7: every curve of ``FIG67_CONFIGS``, written as CSV and plots; the RD points, the distortions
+    at equal CR and a check of each of the paper's claims, as markdown."""
+    curves = {label: rd_curve(name, motions, **params) for label, (name, params) in FIG67_CONFIGS.items()}
     _write_csv([dict(row, label=label) for label, rows in curves.items() for row in rows], out / "fig67_rd.csv")
     frame_curves = {k: v for k, v in curves.items() if "frame" in k and "Huffman" not in k}
     _plot_curves(frame_curves, out / "fig6_frame_based.png", "Fig. 6: frame-based schemes, cmu_test")
     _plot_curves(curves, out / "fig7_clip_based.png", "Fig. 7: clip-based schemes (and frame-based), cmu_test")
+    text = _rd_points_lines(curves)
+    text.append("\n**Distortion (cm) at equal CR** (log-log interpolation; — outside a curve's range)\n")
+    text.append(_rd_table(curves, FIG67_TARGET_CRS))
+    text.append("\n**Claims**\n")
+    text += _claims(curves)
+    return "\n".join(text)
+
+
+def _rd_points_lines(curves: dict[str, list[dict]]) -> list[str]:
+    """Every curve's RD points as a markdown table."""
     text = ["\n**RD points** (totals over cmu_test; CR = raw float32 bytes / stream bytes)\n"]
     text.append("| codec | step cm | CR | D cm | nonzero % |")
     text.append("|---|---:|---:|---:|---:|")
     for label, rows in curves.items():
         for row in rows:
-            text.append(f"| {label} | {row['step_cm']:g} | {row['cr']:.2f} | {row['distortion_cm']:.4f} | {row['nonzero_percent']:.2f} |")
-    targets = (5, 8, 10, 15, 20, 30, 40, 60, 80, 100, 150)
-    text.append("\n**Distortion (cm) at equal CR** (log-log interpolation; — outside a curve's range)\n")
-    text.append(_rd_table(curves, targets))
+            text.append(f"| {label} | {row['step_cm']:g} | {row['cr']:.2f} | {row['distortion_cm']:.4f} | "
+                        f"{row['nonzero_percent']:.2f} |")
+    return text
 
-    # Claims.
-    text.append("\n**Claims**\n")
-    frame_l, frame_d = curves["lsdt-frame"], curves["dct-spatial-frame (Kwak & Bajic)"]
+
+def _reductions(curve: list[dict], other: list[dict]) -> list[tuple[float, float]]:
+    """At each point of ``curve``: (CR, % less distortion of ``other`` there), where ``other`` reaches that CR."""
     reductions = []
-    for row in frame_d:
-        other = distortion_at(frame_l, row["cr"])
-        if not np.isnan(other):
-            reductions.append((row["cr"], 100 * (1 - other / row["distortion_cm"])))
-    text.append("LSDT vs DCT, frame-based: distortion reduction at the DCT curve's CRs: "
-                + ", ".join(f"CR {cr:.1f}: {r:.0f}%" for cr, r in reductions))
+    for row in curve:
+        distortion = distortion_at(other, row["cr"])
+        if not np.isnan(distortion):
+            reductions.append((row["cr"], 100 * (1 - distortion / row["distortion_cm"])))
+    return reductions
+
+
+def _claims(curves: dict[str, list[dict]]) -> list[str]:
+    """One line per claim of the paper (and for the Huffman-coded counts): the distortion reductions measured."""
+    frame_l = curves["lsdt-frame"]
+    reductions = _reductions(curves["dct-spatial-frame (Kwak & Bajic)"], frame_l)
+    text = ["LSDT vs DCT, frame-based: distortion reduction at the DCT curve's CRs: "
+            + ", ".join(f"CR {cr:.1f}: {r:.0f}%" for cr, r in reductions)]
     if reductions:
         text.append(f"max reduction {max(r for _, r in reductions):.0f}% (paper: up to 70% at high CR); "
                     f"LSDT better at every CR: {all(r > 0 for _, r in reductions)}")
@@ -292,26 +314,32 @@ def fig67(motions, out: Path) -> str:
             clip_vs_frame.append((row["cr"], 100 * (1 - row["distortion_cm"] / other)))
     text.append("lsdt-clip L=120 vs lsdt-frame: distortion reduction at equal CR: "
                 + ", ".join(f"CR {cr:.1f}: {r:.0f}%" for cr, r in clip_vs_frame))
+    text += _clip_length_claims(curves)
+    for label_a, label_b in (("lsdt-clip L=120", "dct-spatial-clip L=120"),
+                             ("lsdt-clip L=120", "dwt-spatial-clip L=120"), ("lsdt-frame", "dwt-spatial-frame")):
+        ratios = _reductions(curves[label_b], curves[label_a])
+        text.append(f"{label_a} vs {label_b}: distortion reduction at equal CR: "
+                    + ", ".join(f"CR {cr:.1f}: {r:.0f}%" for cr, r in ratios))
+    for base in ("lsdt-frame", "lsdt-clip L=120"):
+        pairs = [(a["step_cm"], 100 * (1 - b["bytes"] / a["bytes"]))
+                 for a, b in zip(curves[base], curves[f"{base}, Huffman counts"])]
+        text.append(f"{base} with Huffman-coded counts (not in the paper): bytes saved at the same step: "
+                    + ", ".join(f"step {step:g}: {saved:.0f}%" for step, saved in pairs))
+    return text
+
+
+def _clip_length_claims(curves: dict[str, list[dict]]) -> list[str]:
+    """Longer clips, less distortion: L = 60 -> 120 and 120 -> 240 at each target CR both curves reach."""
+    text = []
     for a, b in (("60", "120"), ("120", "240")):
         ratios = []
-        for cr in targets:
+        for cr in FIG67_TARGET_CRS:
             da, db = distortion_at(curves[f"lsdt-clip L={a}"], cr), distortion_at(curves[f"lsdt-clip L={b}"], cr)
             if not (np.isnan(da) or np.isnan(db)):
                 ratios.append((cr, 100 * (1 - db / da)))
-        text.append(f"L={a} → L={b}: distortion reduction at equal CR: " + ", ".join(f"CR {cr:g}: {r:.0f}%" for cr, r in ratios))
-    for label_a, label_b in (("lsdt-clip L=120", "dct-spatial-clip L=120"), ("lsdt-clip L=120", "dwt-spatial-clip L=120"),
-                             ("lsdt-frame", "dwt-spatial-frame")):
-        ratios = []
-        for row in curves[label_b]:
-            other = distortion_at(curves[label_a], row["cr"])
-            if not np.isnan(other):
-                ratios.append((row["cr"], 100 * (1 - other / row["distortion_cm"])))
-        text.append(f"{label_a} vs {label_b}: distortion reduction at equal CR: " + ", ".join(f"CR {cr:.1f}: {r:.0f}%" for cr, r in ratios))
-    for base in ("lsdt-frame", "lsdt-clip L=120"):
-        pairs = [(a["step_cm"], 100 * (1 - b["bytes"] / a["bytes"])) for a, b in zip(curves[base], curves[f"{base}, Huffman counts"])]
-        text.append(f"{base} with Huffman-coded counts (not in the paper): bytes saved at the same step: "
-                    + ", ".join(f"step {step:g}: {saved:.0f}%" for step, saved in pairs))
-    return "\n".join(text)
+        text.append(f"L={a} → L={b}: distortion reduction at equal CR: "
+                    + ", ".join(f"CR {cr:g}: {r:.0f}%" for cr, r in ratios))
+    return text
 
 
 # -- speed -------------------------------------------------------------------------------------------------

@@ -127,58 +127,99 @@ def _acl_points(motions: list[Motion], fps: float) -> tuple[list[dict], str]:
 
 def _rd_section(motions: list[Motion], label: str, sweep_points: list[dict], epsilons=EPSILONS_CM,
                 others_too: bool = True) -> None:
+    """Sections 1-4 of the report for one frame rate: mcb-rot's curve, then ACL, then every other codec."""
     print(f"\n## {label}: {len(motions)} clips, {sum(m.num_frames for m in motions)} frames at {motions[0].fps:g} fps")
     ours = rd_points("mcb-rot", motions, "eps_cm", epsilons, shell=True)
+    _print_bound(ours)
+    acl, source = _acl_points(motions, motions[0].fps)
+    print(f"\n### Against ACL ({source})")
+    if acl:
+        _print_against_acl(ours, acl)
+        shell3 = [a for a in acl if a["shell_cm"] == 3.0 and np.isfinite(a["shell_max_cm"])]
+        if shell3:
+            _print_on_acl_metric(ours, shell3)
+        if shell3 and others_too:  # mcb-rot's shell variant: a second mcb-rot curve
+            _print_shelled_on_acl_metric(rd_points("mcb-rot", motions, "eps_cm", epsilons, shell=True,
+                                                   shell_cm=SHELL_CM), shell3)
+        _print_acl_points(acl)
+    others = _other_curves(motions, sweep_points, acl, others_too)
+    _print_ratio_over_others(ours, others)
+    _print_bd_rates(ours, others)
+
+
+def _print_bound(ours: list[dict]) -> None:
+    """Section 1: mcb-rot's ratio and errors at each bound, and the bound check."""
     print("\n### mcb-rot: rate and the bound (margin = max over clips of L-inf - eps, must be <= 0)")
     _table(["eps cm", "ratio", "L-inf cm", "mean cm", "shell max cm (3 cm)", "bound margin cm"],
            [[p["eps_cm"], p["ratio"], p["linf_cm"], p["mean_cm"], p["shell_max_cm"], p["bound_margin_cm"]]
             for p in ours])
-    acl, source = _acl_points(motions, motions[0].fps)
-    print(f"\n### Against ACL ({source})")
-    if acl:
-        best = {}
-        rows = []
-        for p in ours:
-            if p["eps_cm"] not in TARGETS_CM:
-                continue
-            by_shell = {s: ratio_at([a for a in acl if a["shell_cm"] == s], "linf_cm", p["linf_cm"]) for s in (3.0, 0.0)}
-            # ACL at its best: the Pareto front of every setting (shell, pre-processing) together.
-            acl_best = ratio_at(acl, "linf_cm", p["linf_cm"])
-            acl_buffer = ratio_at(acl, "linf_cm", p["linf_cm"], "ratio_buffer")
-            best[p["eps_cm"]] = p["ratio"] / acl_best
-            rows.append([p["eps_cm"], p["ratio"], p["linf_cm"], by_shell[3.0], by_shell[0.0], p["ratio"] / acl_best,
-                         p["ratio"] / acl_buffer, "met" if p["ratio"] / acl_best >= TARGET_X else "not met"])
-        _table(["eps cm", "mcb-rot ratio", "L-inf cm", "ACL shell 3", "ACL shell 0", "x ACL best (stream)",
-                "x ACL best (buffer only)", f"target {TARGET_X:g}x"], rows)
-        shell3 = [a for a in acl if a["shell_cm"] == 3.0 and np.isfinite(a["shell_max_cm"])]
-        if shell3:
-            print("\n### On ACL's metric (max shell error at 3 cm), ACL at shell 3 cm")
-            rows = []
-            for p in ours:
-                other = ratio_at(shell3, "shell_max_cm", p["shell_max_cm"])
-                rows.append([p["eps_cm"], p["ratio"], p["shell_max_cm"], other, p["ratio"] / other,
-                             "met" if p["ratio"] / other >= 1.5 else ("not met" if np.isfinite(other) else "-")])
-            _table(["eps cm", "mcb-rot ratio", "shell max cm", "ACL ratio at that shell error", "x ACL", "target 1.5x"],
-                   rows)
-        if shell3 and others_too:  # mcb-rot's shell variant: a second mcb-rot curve
-            shelled = rd_points("mcb-rot", motions, "eps_cm", epsilons, shell=True, shell_cm=SHELL_CM)
-            print(f"\n### On ACL's metric, mcb-rot with shell_cm={SHELL_CM:g} (the bound also on the vertices)")
-            rows = []
-            for p in shelled:
-                other = ratio_at(shell3, "shell_max_cm", p["shell_max_cm"])
-                rows.append([p["eps_cm"], p["ratio"], p["shell_max_cm"], p["linf_cm"], other, p["ratio"] / other,
-                             "met" if p["ratio"] / other >= 1.5 else ("not met" if np.isfinite(other) else "-")])
-            _table(["eps cm", "mcb-rot ratio", "shell max cm", "L-inf cm", "ACL ratio at that shell error", "x ACL",
-                    "target 1.5x"], rows)
-        print("\nACL points: " + "; ".join(f"p {a.get('precision_cm', '-')}/s {a['shell_cm']:g}"
-                                          f"{'/pre' if a.get('pre_process') else ''}: {a['ratio']:.2f} "
-                                          f"(buffer {a['ratio_buffer']:.2f}) at {a['linf_cm']:.3g} cm" for a in acl))
+
+
+def _print_against_acl(ours: list[dict], acl: list[dict]) -> None:
+    """Section 2: mcb-rot's ratio over ACL's at mcb-rot's L-inf, per ACL shell and at ACL's best (its Pareto front)."""
+    rows = []
+    for p in ours:
+        if p["eps_cm"] not in TARGETS_CM:
+            continue
+        by_shell = {s: ratio_at([a for a in acl if a["shell_cm"] == s], "linf_cm", p["linf_cm"]) for s in (3.0, 0.0)}
+        # ACL at its best: the Pareto front of every setting (shell, pre-processing) together.
+        acl_best = ratio_at(acl, "linf_cm", p["linf_cm"])
+        acl_buffer = ratio_at(acl, "linf_cm", p["linf_cm"], "ratio_buffer")
+        rows.append([p["eps_cm"], p["ratio"], p["linf_cm"], by_shell[3.0], by_shell[0.0], p["ratio"] / acl_best,
+                     p["ratio"] / acl_buffer, "met" if p["ratio"] / acl_best >= TARGET_X else "not met"])
+    _table(["eps cm", "mcb-rot ratio", "L-inf cm", "ACL shell 3", "ACL shell 0", "x ACL best (stream)",
+            "x ACL best (buffer only)", f"target {TARGET_X:g}x"], rows)
+
+
+def _shell_verdict(ratio: float, other: float) -> str:
+    """The 1.5x target on ACL's metric: met, not met, or '-' where ACL's curve does not reach that error."""
+    return "met" if ratio / other >= 1.5 else ("not met" if np.isfinite(other) else "-")
+
+
+def _print_on_acl_metric(ours: list[dict], shell3: list[dict]) -> None:
+    """Section 3: the default mcb-rot (joints bounded) against ACL at shell 3 cm, at equal max shell error."""
+    print("\n### On ACL's metric (max shell error at 3 cm), ACL at shell 3 cm")
+    rows = []
+    for p in ours:
+        other = ratio_at(shell3, "shell_max_cm", p["shell_max_cm"])
+        rows.append([p["eps_cm"], p["ratio"], p["shell_max_cm"], other, p["ratio"] / other,
+                     _shell_verdict(p["ratio"], other)])
+    _table(["eps cm", "mcb-rot ratio", "shell max cm", "ACL ratio at that shell error", "x ACL", "target 1.5x"], rows)
+
+
+def _print_shelled_on_acl_metric(shelled: list[dict], shell3: list[dict]) -> None:
+    """Section 3, second table: mcb-rot with ``shell_cm`` (bound also on ACL's vertices) against ACL at shell 3 cm."""
+    print(f"\n### On ACL's metric, mcb-rot with shell_cm={SHELL_CM:g} (the bound also on the vertices)")
+    rows = []
+    for p in shelled:
+        other = ratio_at(shell3, "shell_max_cm", p["shell_max_cm"])
+        rows.append([p["eps_cm"], p["ratio"], p["shell_max_cm"], p["linf_cm"], other, p["ratio"] / other,
+                     _shell_verdict(p["ratio"], other)])
+    _table(["eps cm", "mcb-rot ratio", "shell max cm", "L-inf cm", "ACL ratio at that shell error", "x ACL",
+            "target 1.5x"], rows)
+
+
+def _print_acl_points(acl: list[dict]) -> None:
+    """Every ACL point of the run on one line: precision, shell, pre-processing, ratios and L-inf."""
+    print("\nACL points: " + "; ".join(f"p {a.get('precision_cm', '-')}/s {a['shell_cm']:g}"
+                                      f"{'/pre' if a.get('pre_process') else ''}: {a['ratio']:.2f} "
+                                      f"(buffer {a['ratio_buffer']:.2f}) at {a['linf_cm']:.3g} cm" for a in acl))
+
+
+def _other_curves(motions: list[Motion], sweep_points: list[dict], acl: list[dict],
+                  others_too: bool) -> dict[str, list[dict]]:
+    """Section 4's curves by codec name: the ``OTHERS`` run here, the sweep folders' points, and ACL at its best."""
     others = {name: rd_points(name, motions, key, values) for name, (key, values) in OTHERS.items()
               if name in CODECS and others_too}
     for point in sweep_points:
         others.setdefault(point["codec"], []).append(point)
     if acl:
         others["acl (best shell)"] = acl
+    return others
+
+
+def _print_ratio_over_others(ours: list[dict], others: dict[str, list[dict]]) -> None:
+    """Section 4: mcb-rot's ratio over each other codec's at equal L-inf."""
     print("\n### mcb-rot's ratio over each codec's at equal L-inf ('-': the other curve does not reach that error)")
     names = sorted(others)
     rows = []
@@ -189,11 +230,15 @@ def _rd_section(motions: list[Motion], label: str, sweep_points: list[dict], eps
             row.append(p["ratio"] / other if np.isfinite(other) else "-")
         rows.append(row)
     _table(["eps cm", "mcb-rot ratio"] + names, rows)
+
+
+def _print_bd_rates(ours: list[dict], others: dict[str, list[dict]]) -> None:
+    """Section 4: BD-rate of mcb-rot against each other codec as the anchor (L-inf axis)."""
     print("\n### BD-rate of mcb-rot (L-inf axis; negative: fewer bits than the anchor at equal L-inf)")
     rows = []
     our_rate = np.array([96.0 / p["ratio"] for p in ours])
     our_err = np.array([p["linf_cm"] for p in ours])
-    for name in names:
+    for name in sorted(others):
         anchor = others[name]
         try:
             value, method = bd_rate_percent(np.array([96.0 / a["ratio"] for a in anchor]),

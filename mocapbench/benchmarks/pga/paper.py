@@ -207,7 +207,7 @@ def total_row(rows: list[dict], label: str) -> dict:
 
 
 def run(data_dir: str | None, repeats: int, quick: bool) -> str:
-    """Run every section; returns the markdown report."""
+    """Run every section; returns the markdown report (each line is also printed as it comes)."""
     out: list[str] = []
 
     def emit(text: str = "") -> None:
@@ -215,6 +215,25 @@ def run(data_dir: str | None, repeats: int, quick: bool) -> str:
         sys.stdout.flush()
         out.append(text)
 
+    _header(emit)
+    _table2_section(emit, load_clip("09_06", data_dir=data_dir), repeats)
+    test_names = clip_names("cmu_test", data_dir=data_dir)
+    if quick:
+        test_names = test_names[:3]
+    motions = {name: load_clip(name, data_dir=data_dir) for name in test_names}
+    _cmu_test_section(emit, motions)
+    _paper_rows_section(emit, motions, data_dir, quick)
+    _fig3_section(emit, motions, data_dir, quick)
+    _speed_section(emit, motions, data_dir, repeats, quick)
+    return "\n".join(out)
+
+
+def _clip(motions: dict[str, Motion], name: str, data_dir: str | None) -> Motion:
+    """A clip of cmu_test already loaded in ``motions``, or read from the data folder."""
+    return motions.get(name) or load_clip(name, data_dir=data_dir)
+
+
+def _header(emit) -> None:
     emit("# pga-ik: reproduction of Tournier et al. 2008 (INRIA RR-6648)")
     emit()
     emit(f"Command: `python -m mocapbench.benchmarks.pga.paper {' '.join(sys.argv[1:])}`  ")
@@ -225,8 +244,9 @@ def run(data_dir: str | None, repeats: int, quick: bool) -> str:
     )
     emit()
 
-    # 1. Table 2, 09_06 ---------------------------------------------------------------------------------------
-    clip = load_clip("09_06", data_dir=data_dir)
+
+def _table2_section(emit, clip: Motion, repeats: int) -> None:
+    """Section 1: Table 2's clip 1 (09_06) at the paper's setting and diagnostic variants, then its error floors."""
     emit("## 1. Table 2, clip 1: 09_06 (running, 141 frames)")
     emit()
     emit("Paper: 6 geodesics, 4/9 levels kept (root and end joints) → 1:18, KG 0.36 %, 7.88 ms/frame (C++).")
@@ -254,11 +274,9 @@ def run(data_dir: str | None, repeats: int, quick: bool) -> str:
     emit(markdown_table(root_only_rows(clip), columns=_ORACLE_COLUMNS))
     emit()
 
-    # 2. cmu_test -------------------------------------------------------------------------------------------------
-    test_names = clip_names("cmu_test", data_dir=data_dir)
-    if quick:
-        test_names = test_names[:3]
-    motions = {name: load_clip(name, data_dir=data_dir) for name in test_names}
+
+def _cmu_test_section(emit, motions: dict[str, Motion]) -> None:
+    """Section 2: the protocol over cmu_test with k chosen the paper's ways; totals, then two settings per clip."""
     emit("## 2. The same protocol over cmu_test")
     emit()
     protocols = [
@@ -276,8 +294,7 @@ def run(data_dir: str | None, repeats: int, quick: bool) -> str:
     for label, params in protocols:
         clip_rows = [evaluate_setting(m, params, 1) for m in motions.values()]
         per_clip[label] = clip_rows
-        row = total_row(clip_rows, label)
-        totals.append(row)
+        totals.append(total_row(clip_rows, label))
     emit("Totals over the clips (ratios of summed sizes, KG averaged over clips, worst L∞, frame-weighted mean "
          "error and ms/frame; D = finest levels dropped for root and end joints):")
     emit()
@@ -289,7 +306,9 @@ def run(data_dir: str | None, repeats: int, quick: bool) -> str:
         emit(markdown_table(per_clip[label]))
         emit()
 
-    # 3. paper rows' settings on similar clips ------------------------------------------------------------------
+
+def _paper_rows_section(emit, motions: dict[str, Motion], data_dir: str | None, quick: bool) -> None:
+    """Section 3: the settings of the paper's other Table 2 rows on the most similar clips available."""
     emit("## 3. The paper's other rows' settings on similar clips")
     emit()
     emit("| paper row | paper k, LOD | paper ratio | paper KG % |")
@@ -302,14 +321,15 @@ def run(data_dir: str | None, repeats: int, quick: bool) -> str:
         if quick:
             names = names[:1]
         for name in names:
-            motion = motions.get(name) or load_clip(name, data_dir=data_dir)
-            row = evaluate_setting(motion, params, 1)
+            row = evaluate_setting(_clip(motions, name, data_dir), params, 1)
             row["paper_row"] = label
             rows.append(row)
     emit(markdown_table(rows, extra=[("paper_row", "paper row's setting")]))
     emit()
 
-    # 4. Fig. 3 ------------------------------------------------------------------------------------------------
+
+def _fig3_section(emit, motions: dict[str, Motion], data_dir: str | None, quick: bool) -> None:
+    """Section 4 (Fig. 3): geodesics reaching 95 % and 99 % of the tangent variance on every CMU clip here."""
     emit("## 4. Fig. 3: geodesics reaching 95 % / 99 % of the tangent variance")
     emit()
     names = clip_names(ALL_SPLIT, data_dir=data_dir)
@@ -317,7 +337,7 @@ def run(data_dir: str | None, repeats: int, quick: bool) -> str:
         names = names[:6]
     counts = []
     for name in names:
-        motion = motions.get(name) or load_clip(name, data_dir=data_dir)
+        motion = _clip(motions, name, data_dir)
         model = fit_pga(motion.rotations[:, 1:], 1)
         k95, k99 = variance_count(model.variances, 0.95), variance_count(model.variances, 0.99)
         counts.append((name, motion.num_frames, k95, k99))
@@ -337,13 +357,15 @@ def run(data_dir: str | None, repeats: int, quick: bool) -> str:
     )
     emit()
 
-    # 5. speed ---------------------------------------------------------------------------------------------------
+
+def _speed_section(emit, motions: dict[str, Motion], data_dir: str | None, repeats: int, quick: bool) -> None:
+    """Section 5: decoding and encoding time, one thread, by geodesic count and LM iterations."""
     emit("## 5. Speed (one thread)")
     emit()
     speed_clips = ["09_06"] if quick else ["09_06", "05_01", "16_07"]
     rows = []
     for name in speed_clips:
-        motion = motions.get(name) or load_clip(name, data_dir=data_dir)
+        motion = _clip(motions, name, data_dir)
         for k in (6, 12, 17):
             for iterations in (1, 2, 5):
                 row = evaluate_setting(motion, dict(num_geodesics=k, lm_iterations=iterations), repeats)
@@ -356,7 +378,6 @@ def run(data_dir: str | None, repeats: int, quick: bool) -> str:
     speed_cols = [c for c in _COLUMNS if c[0] in keep]
     emit(markdown_table(rows, columns=speed_cols, extra=[("iterations", "LM iterations")]))
     emit()
-    return "\n".join(out)
 
 
 def main(argv: list[str] | None = None) -> None:
