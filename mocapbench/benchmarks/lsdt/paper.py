@@ -18,6 +18,7 @@ and CSVs go to ``--out``; tables are printed as markdown.
 from __future__ import annotations
 
 import argparse
+import csv
 import platform
 from pathlib import Path
 
@@ -97,11 +98,12 @@ def _label(row: dict) -> str:
 
 
 def _write_csv(rows: list[dict], path: Path) -> None:
+    """Rows as CSV over the union of their keys (sorted); a label holding a comma is quoted, as CSV readers expect."""
     keys = sorted({key for row in rows for key in row})
-    with path.open("w") as handle:
-        handle.write(",".join(keys) + "\n")
-        for row in rows:
-            handle.write(",".join(str(row.get(key, "")) for key in keys) + "\n")
+    with path.open("w", newline="") as handle:
+        writer = csv.writer(handle, lineterminator="\n")
+        writer.writerow(keys)
+        writer.writerows([str(row.get(key, "")) for key in keys] for row in rows)
 
 
 def _rd_table(curves: dict[str, list[dict]], targets) -> str:
