@@ -26,18 +26,25 @@ it much, wall time does). A subprocess that runs past ``--timeout`` seconds or f
 from __future__ import annotations
 
 import argparse
+import inspect
 import json
 import os
 import subprocess
 import sys
 from pathlib import Path
 
-__all__ = ["main", "CHILD"]
+import numpy as np
+
+from mocapbench.motion import Motion
+from mocapbench.synthetic import sinusoidal_motion
+
+__all__ = ["main", "CHILD", "synthetic_capture"]
 
 NEURAL = ("fourier-mlp-dct", "fourier-mlp-int")
 
-# The measurement, run with ``python -c`` so that it works on any checkout of the package (``--tree``).
-CHILD = r"""
+# The measurement, run with ``python -c`` so that it works on any checkout of the package (``--tree``); the
+# capture is built by the source of :func:`synthetic_capture`, written into it.
+_CHILD_HEAD = r"""
 import ctypes, gc, json, os, sys, time
 import numpy as np
 
@@ -64,6 +71,9 @@ params = json.loads(sys.argv[3]) if len(sys.argv) > 3 else {}
 from mocapbench.codecs import create
 from mocapbench.motion import Motion
 from mocapbench.synthetic import sinusoidal_motion
+"""
+
+_CHILD_MEASURE = r"""
 
 cache = os.environ.get("MOCAPBENCH_LONG_CAPTURES_CACHE")
 cached = os.path.join(cache, f"sinusoidal-seed7-{frames}.npz") if cache else None
@@ -71,17 +81,10 @@ if cached and os.path.exists(cached):  # the same capture, read back instead of 
     source = sinusoidal_motion(num_frames=1, seed=7)  # the skeleton and fps (they do not depend on F)
     with np.load(cached) as data:
         root, rotations = data["root"], data["rotations"]
-    motion = Motion(source.skeleton, source.fps, root, rotations, name="synthetic-seed7")
+    motion = Motion(source.skeleton, source.fps, root, rotations, name=f"synthetic-seed7-{frames}")
     del source, root, rotations
 else:
-    source = sinusoidal_motion(num_frames=frames, seed=7)
-    t = np.arange(frames) / source.fps
-    angle = 2 * np.pi * t / 30.0
-    root = np.array(source.root_positions)
-    root[:, 0] = 300.0 * np.cos(angle)
-    root[:, 2] = 300.0 * np.sin(angle)
-    motion = Motion(source.skeleton, source.fps, root, np.array(source.rotations), name=source.name)
-    del source, root, t, angle
+    motion = synthetic_capture(frames)
     if cached:
         os.makedirs(cache, exist_ok=True)
         np.savez(cached + ".tmp.npz", root=motion.root_positions, rotations=motion.rotations)
@@ -114,6 +117,24 @@ out["max_err_cm"] = worst
 out["mean_err_cm"] = total / (frames * motion.num_joints)
 print("RESULT " + json.dumps(out))
 """
+
+
+def synthetic_capture(num_frames: int) -> Motion:
+    """The benchmark's synthetic capture: :func:`~mocapbench.synthetic.sinusoidal_motion` (seed 7) on the CMU-like
+    skeleton, its root moved on a 3 m circle taken in 30 s (a capture volume holds it), ``num_frames`` frames.
+
+    Self-contained (the subprocess runs its source on any checkout): it needs only ``np``, ``Motion`` and
+    ``sinusoidal_motion`` in scope.
+    """
+    source = sinusoidal_motion(num_frames=num_frames, seed=7)
+    angle = 2 * np.pi * (np.arange(num_frames) / source.fps) / 30.0
+    root = np.array(source.root_positions)
+    root[:, 0] = 300.0 * np.cos(angle)
+    root[:, 2] = 300.0 * np.sin(angle)
+    return Motion(source.skeleton, source.fps, root, np.array(source.rotations), name=f"synthetic-seed7-{num_frames}")
+
+
+CHILD = _CHILD_HEAD + "\n" + inspect.getsource(synthetic_capture) + "\n" + _CHILD_MEASURE
 
 
 def _run_one(name: str, frames: int, tree: Path, timeout: float, cache: str | None = None,

@@ -5,8 +5,8 @@
 
 Two captures, cut to each frame count:
 
-* ``synthetic``: :func:`mocapbench.synthetic.sinusoidal_motion` (seed 7) with its root on a 3 m circle taken in 30 s,
-  built as :mod:`mocapbench.benchmarks.long_captures` builds its capture (the same arrays).
+* ``synthetic``: the long-captures benchmark's capture,
+  :func:`mocapbench.benchmarks.long_captures.synthetic_capture` (seed 7, its root on a 3 m circle taken in 30 s).
 * ``cmu118``: CMU subject 118's 30 takes (``118_01`` .. ``118_30``, ASF/AMC, 19,449 frames at 120 fps) joined end to
   end, each take's root moved horizontally to start where the take before it ended (no jump of the root at a cut;
   the poses and the heading still jump there, as between any two takes). Longer captures play the 30 takes
@@ -30,27 +30,17 @@ import time
 
 import numpy as np
 
+from mocapbench.benchmarks.long_captures import synthetic_capture
 from mocapbench.codecs import create
 from mocapbench.codecs.pga.codec import _long_extents
 from mocapbench.codecs.windows import WINDOW_FRAMES
 from mocapbench.datasets.cmu import load_clip
 from mocapbench.motion import Motion
-from mocapbench.synthetic import sinusoidal_motion
 
 __all__ = ["synthetic_capture", "joined_takes", "window_linf", "measure_capture", "main"]
 
 #: The takes of the joined CMU capture.
 CMU_118_TAKES = tuple(f"118_{i:02d}" for i in range(1, 31))
-
-
-def synthetic_capture(num_frames: int) -> Motion:
-    """The long-captures benchmark's synthetic capture: seed 7, the root on a 3 m circle taken in 30 s (F frames)."""
-    source = sinusoidal_motion(num_frames=num_frames, seed=7)
-    angle = 2 * np.pi * (np.arange(num_frames) / source.fps) / 30.0
-    root = np.array(source.root_positions)
-    root[:, 0] = 300.0 * np.cos(angle)
-    root[:, 2] = 300.0 * np.sin(angle)
-    return Motion(source.skeleton, source.fps, root, np.array(source.rotations), name=f"synthetic-seed7-{num_frames}")
 
 
 def joined_takes(takes: list[Motion], num_frames: int, name: str = "joined") -> tuple[Motion, np.ndarray]:
