@@ -3,7 +3,7 @@
 The engine is :mod:`mocapbench.experiments.compare_run` (rate search per clip, models held out by default, rows
 kept as they finish); this module reads the clips, says what it read (unit and up axis of every file, and why),
 tells the cost of the codecs on request before they start, shows progress, prints the ranked table with the model
-column and the wall and CPU time, and builds the report from rows pooled as the table pools them
+column, the wall and CPU time (in all and per codec), and builds the report from rows pooled as the table pools them
 (:mod:`mocapbench.experiments.compare_report`). Ctrl-C prints the table of the codecs that finished and keeps every
 finished clip's row under ``--runs``: the same command resumes.
 """
@@ -65,7 +65,7 @@ def _interrupted(stop, bound: float, store: Path) -> None:
 def run(args) -> None:
     from mocapbench.experiments.compare_progress import Progress, duration_text
     from mocapbench.experiments.compare_run import (CompareInterrupted, RowStore, compare, default_codecs,
-                                                    format_table, model_note)
+                                                    format_codec_times, format_table, model_note)
 
     motions, verdicts = read_clips(args, args.clips, verdicts=True)
     _print_verdicts(verdicts)
@@ -94,6 +94,9 @@ def run(args) -> None:
     resumed = sum(o.resumed for o in outcomes)
     print(f"{duration_text(time.perf_counter() - wall)} wall, {duration_text(time.process_time() - cpu)} CPU"
           + (f" ({resumed} clip row(s) kept from an earlier run)" if resumed else ""))
+    times = format_codec_times(outcomes)
+    if times:
+        print(times)
     if args.no_report or not any(o.rows for o in outcomes):
         return
     print(f"rows: {store}; report: {_report(outcomes, args, dataset, store)}")

@@ -13,6 +13,7 @@ from __future__ import annotations
 import copy
 import dataclasses
 import math
+import time
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any, Callable
@@ -21,6 +22,7 @@ from mocapbench import metrics
 from mocapbench.codecs.base import Codec
 from mocapbench.codecs.registry import create
 from mocapbench.motion import Motion
+from mocapbench.ratesearch.source import known_kinematics
 
 __all__ = ["KNOBS", "Knob", "SearchResult", "ratio", "search", "with_config"]
 
@@ -105,6 +107,10 @@ class SearchResult:
         The setting came from the codec's guarantee (no search).
     tries : int
         Encodes run.
+    encode_stats : dict
+        The codec's ``last_encode_stats`` right after it wrote ``data``.
+    encode_wall_s, encode_cpu_s : float, s
+        Wall time and CPU time of the process of the encode that wrote ``data`` (one call, as it ran).
     """
 
     codec: Codec
@@ -115,6 +121,9 @@ class SearchResult:
     met: bool
     exact: bool
     tries: int
+    encode_stats: dict[str, Any] = field(default_factory=dict)
+    encode_wall_s: float = 0.0
+    encode_cpu_s: float = 0.0
 
 
 def with_config(fitted: Codec, codec: Codec) -> Codec:
@@ -126,13 +135,20 @@ def with_config(fitted: Codec, codec: Codec) -> Codec:
     return clone
 
 
-def _try(name: str, base: Mapping[str, Any], knob_settings: dict[str, Any], motion: Motion, prepare, reference):
+def _try(name: str, base: Mapping[str, Any], knob_settings: dict[str, Any], motion: Motion, prepare, reference,
+         met_at: float, exact: bool) -> SearchResult:
+    """One encode and decode at ``knob_settings``, measured against ``reference``; ``tries`` is left 0."""
     codec = create(name, **{**base, **knob_settings})
     if prepare is not None:
         codec = prepare(codec)
+    wall, cpu = time.perf_counter(), time.process_time()
     data = codec.encode(motion)
+    wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
+    stats = dict(codec.last_encode_stats)
     decoded = codec.decode(data).positions
-    return codec, data, metrics.max_joint_error(reference, decoded), metrics.mean_joint_error(reference, decoded)
+    worst = metrics.max_joint_error(reference, decoded)
+    return SearchResult(codec, data, knob_settings, worst, metrics.mean_joint_error(reference, decoded),
+                        worst <= met_at, exact, 0, stats, wall, cpu)
 
 
 def search(
@@ -171,17 +187,16 @@ def search(
         raise ValueError(f"--max-error-cm must be a positive number of cm, got {bound_cm!r}.")
     base = dict(settings or {})
     knob = KNOBS.get(name, "unknown") if knob is None else knob
-    reference = motion.positions()
     if knob == "unknown":
         raise ValueError(f"codec {name!r} has no rate knob known to the rate search; set its config with --set.")
+    motion = known_kinematics(motion)  # every try reads the same source positions: forward kinematics once
+    reference = motion.positions()
     if knob is None:
-        codec, data, worst, mean = _try(name, base, {}, motion, prepare, reference)
-        return SearchResult(codec, data, {}, worst, mean, worst <= bound_cm, True, 1)
+        return dataclasses.replace(_try(name, base, {}, motion, prepare, reference, bound_cm, True), tries=1)
     fixed = {key: value(bound_cm) if callable(value) else value for key, value in knob.fixed.items()}
     if knob.exact is not None:
         chosen = {knob.field: knob.exact(bound_cm), **fixed}
-        codec, data, worst, mean = _try(name, base, chosen, motion, prepare, reference)
-        return SearchResult(codec, data, chosen, worst, mean, worst <= bound_cm, True, 1)
+        return dataclasses.replace(_try(name, base, chosen, motion, prepare, reference, bound_cm, True), tries=1)
     if callable(knob.high):
         knob = dataclasses.replace(knob, high=max(knob.low, knob.high(motion)))
     return _bisect(name, base, knob, fixed, motion, bound_cm, prepare, reference, max_tries)
@@ -200,12 +215,11 @@ def _bisect(name, base, knob: Knob, fixed, motion, bound_cm, prepare, reference,
         nonlocal tries, best, closest
         value = int(round(value)) if knob.integer else float(value)
         chosen = {knob.field: value, **fixed}
-        codec, data, worst, mean = _try(name, base, chosen, motion, prepare, reference)
+        result = _try(name, base, chosen, motion, prepare, reference, bound_cm, False)
         tries += 1
-        result = SearchResult(codec, data, chosen, worst, mean, worst <= bound_cm, False, 0)
-        if result.met and (best is None or len(data) < len(best.data)):
+        if result.met and (best is None or len(result.data) < len(best.data)):
             best = result
-        if closest is None or worst < closest.max_error_cm:
+        if closest is None or result.max_error_cm < closest.max_error_cm:
             closest = result
         return result.met
 
@@ -241,9 +255,7 @@ def _bisect(name, base, knob: Knob, fixed, motion, bound_cm, prepare, reference,
                 low_value = middle
             else:
                 high_value = middle
-    chosen = best if best is not None else closest
-    return SearchResult(chosen.codec, chosen.data, chosen.settings, chosen.max_error_cm, chosen.mean_error_cm,
-                        chosen.met, False, tries)
+    return dataclasses.replace(best if best is not None else closest, tries=tries)
 
 
 def ratio(motion: Motion, data: bytes) -> float:

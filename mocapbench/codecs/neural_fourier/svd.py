@@ -24,6 +24,8 @@ Departures from the paper, and why
 
 from __future__ import annotations
 
+import hashlib
+import threading
 from dataclasses import dataclass
 from typing import Any
 
@@ -77,7 +79,7 @@ def low_rank_factors(y: np.ndarray, rank: int, weights: np.ndarray | None = None
     scale = np.ones(y.shape[1]) if weights is None else np.where(weights > 0, weights, 1.0)
     num_frames, m = y.shape
     if num_frames <= _DIRECT_SVD_FRAMES:
-        u, s, vt = np.linalg.svd((y - mean) * scale, full_matrices=False)
+        u, s, vt = _centred_svd((y - mean) * scale)
         r = min(rank, len(s))
         return mean, u[:, :r] * s[:r], vt[:r].T / scale[:, None]
     # A long capture: the right singular vectors are the eigenvectors of the m x m Gram matrix, accumulated block
@@ -94,6 +96,36 @@ def low_rank_factors(y: np.ndarray, rank: int, weights: np.ndarray | None = None
         a[start : start + _BLOCK_FRAMES] = ((y[start : start + _BLOCK_FRAMES] - mean) * scale) @ v
     return mean, a, v / scale[:, None]
 
+
+def _centred_svd(centred: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The thin SVD of ``centred`` (F, m), remembered for the last few matrices (read-only arrays).
+
+    A rate search encodes one clip at rank after rank: the decomposition is the same every time and only its
+    truncation differs, so it is computed once per matrix (found again by a hash of its bytes, shape and dtype)
+    and each rank slices it: the same factors, bit for bit, as a fresh SVD. At most :data:`_SVD_CACHE_SIZE`
+    decompositions are kept, each of a matrix of at most :data:`_DIRECT_SVD_FRAMES` rows.
+    """
+    digest = hashlib.blake2b(np.ascontiguousarray(centred).data, digest_size=20)
+    digest.update(repr((centred.shape, centred.dtype.str)).encode())
+    key = digest.digest()
+    with _SVD_CACHE_LOCK:
+        found = _SVD_CACHE.pop(key, None)
+    if found is None:
+        found = np.linalg.svd(centred, full_matrices=False)
+        for array in found:
+            array.setflags(write=False)
+    with _SVD_CACHE_LOCK:
+        _SVD_CACHE[key] = found  # most recently used last
+        while len(_SVD_CACHE) > _SVD_CACHE_SIZE:
+            _SVD_CACHE.pop(next(iter(_SVD_CACHE)))
+    return found
+
+
+# Decompositions kept by _centred_svd, least recently used first: a rate search needs one (a sweep that
+# alternates plain and weighted needs two).
+_SVD_CACHE: dict[bytes, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+_SVD_CACHE_SIZE = 2
+_SVD_CACHE_LOCK = threading.Lock()
 
 # Up to this many frames the factors come from one SVD of the centred matrix; beyond, from the Gram matrix in
 # blocks of _BLOCK_FRAMES (same subspace, bounded memory). Every CMU clip of the benchmark is under it.
