@@ -4,12 +4,13 @@ from __future__ import annotations
 
 import io
 
+import numpy as np
 import pytest
 
 from mocapbench.experiments import compare_run
 from mocapbench.experiments.compare_progress import Progress, duration_text
 from mocapbench.experiments.compare_run import (CodecOutcome, CompareInterrupted, RowStore, compare, default_codecs,
-                                                estimate_cpu_s, format_table, setting_text)
+                                                estimate_cpu_s, format_codec_times, format_table, setting_text)
 from mocapbench.experiments.held_out import FoldModels, models_bytes, plan_folds, skeleton_key
 from mocapbench.synthetic import rig_motion
 
@@ -204,3 +205,39 @@ def test_the_papers_cmu_claims_are_left_out_on_a_users_clips():
     rows["cmu_data"] = True
     _reproduction_section(doc, rows)
     assert "Reproduction of the papers' claims" in doc.markdown()
+
+
+@pytest.mark.parametrize("name", ["quant-delta-zstd", "svd"])
+def test_each_clip_is_encoded_only_by_its_search_and_the_row_is_the_chosen_stream(name, monkeypatch):
+    from mocapbench.codecs import create
+    from mocapbench.codecs.base import Codec
+
+    clips = _clips()
+    encodes = []
+    real = Codec.encode
+
+    def counted(self, motion, *args, **kwargs):
+        encodes.append(motion.name)
+        return real(self, motion, *args, **kwargs)
+
+    monkeypatch.setattr(Codec, "encode", counted)
+    outcome = compare(clips, 1.0, [name])[0]
+    assert not outcome.reason and len(outcome.rows) == len(clips)
+    assert len(encodes) == sum(row["rate_search_tries"] for row in outcome.rows)  # no encode beside the tries
+    monkeypatch.setattr(Codec, "encode", real)
+    for clip, row, settings in zip(clips, outcome.rows, outcome.settings):
+        fresh = create(name, **settings)
+        data = fresh.encode(clip)
+        assert row["bitstream_bytes"] == len(data) and row["clip"] == clip.name
+        assert row["encode_repeats"] == 1 and row["encode_threads"] == 1 and row["encode_cpu_s"] >= 0
+        assert row["max_err_cm"] == pytest.approx(float(np.max(np.linalg.norm(
+            fresh.decode(data).positions - clip.positions(), axis=-1))), rel=1e-9)
+
+
+def test_the_time_of_every_codec_that_ran_is_told():
+    ran = [CodecOutcome("svd", [], seconds=3.0, cpu_seconds=2.5), CodecOutcome("acl", [], seconds=9.0, cpu_seconds=8.0),
+           CodecOutcome("unknown-codec", [], reason="unknown codec")]
+    assert format_codec_times(ran) == "time per codec (wall / CPU): acl 9.0 / 8.0 s, svd 3.0 / 2.5 s"
+    assert format_codec_times(ran[2:]) == ""
+    outcome = compare(_clips()[:1], 1.0, ["raw-zstd"])[0]
+    assert outcome.seconds > 0 and outcome.cpu_seconds > 0
