@@ -39,7 +39,8 @@ def check_motion_size(num_frames: int, num_joints: int, error: Callable[[str], E
     Exception
         ``error(message)`` naming the limit, the value asked for, the value allowed and the ``--limit`` to raise.
     """
-    # Imported here: importing the codecs package fills the registry, which reading a motion file does not need.
+    # Imported here, so that importing io does not import the codecs package (its __init__ fills the registry);
+    # reading a file does.
     from mocapbench.codecs.limits import current_limits, output_bytes
 
     limits = current_limits()
