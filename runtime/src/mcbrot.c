@@ -15,6 +15,11 @@
 
 #include "mcbrot_tables.h"
 
+#if defined(__SSE2__) || defined(_M_X64) || (defined(_M_IX86_FP) && _M_IX86_FP >= 2)
+#include <emmintrin.h> /* SSE2: part of every x86-64 */
+#define MCBROT_SSE2 1
+#endif
+
 /* ---------------------------------------------------------------------------------------------------------- */
 /* limits (as the Python decoder's)                                                                            */
 
@@ -27,7 +32,6 @@
 #define MAX_TOKEN (16 + 31 - 5) /* magnitudes below 2^31 */
 #define RANS_LOW (1u << 23)
 #define PRECISION 15
-#define COARSE_SHIFT (PRECISION - 6)
 #define MESSAGE_BYTES 200
 #define OPEN_MAGIC 0x4d43424fu /* "MCBO" */
 #define AXIS_STEP (3.14159265358979323846 / 32768.0)
@@ -73,16 +77,21 @@ typedef struct ctx_t {
     uint16_t *counts;       /* S x C */
     /* the cache of one chunk */
     int64_t cached_chunk;
-    int32_t *values;        /* unit_values: coefficients (segment, channel, k), gaps, correction values */
-    uint32_t *coef_start;   /* max_chunk_segments x C + 1: where each (segment, channel) starts in values */
+    int32_t *values;        /* the chunk's coefficients, segment by segment in blocks (LANES), then correction values */
+    uint16_t *order;        /* max_chunk_segments x C: each segment's channels by decreasing coefficient count */
+    uint32_t *blocks;       /* max_chunk_segments x (C / LANES + 1): where each block of a segment starts in values */
     uint32_t *longest;      /* max_chunk_segments: the most coefficients of a channel in each segment of the chunk */
+    uint16_t *rank;         /* C: a channel's place in `order` (while a chunk is decoded) */
     uint32_t *corr_flat;    /* unit_values / 4: corrections as frame * (J + 1) + slot, from the chunk's first frame */
     uint32_t num_corrections, corr_values_at;
-    /* per segment length tables */
-    uint32_t table_length;
-    double *cosines;        /* 4 n: cos(pi m / 2n) */
-    double *ramp;           /* n: 1 + slope k / n */
+    /* per segment length tables, in two slots: the longest segments' (most of a clip's) and the last other length
+     * used (a clip's shorter segments: before a cut, at its end), so that access alternating between the two never
+     * recomputes them */
+    uint32_t table_length[2];
+    double *cosines;        /* 2 n + 1: cos(pi m / 2n), m = 0..2n (the slot in use; cos is even about 2n) */
     uint8_t *bands;         /* n: band of frequency k */
+    double *cosines_slot[2];
+    uint8_t *bands_slot[2];
     int32_t *track_of;      /* J: the joint's track, or -1 */
     uint32_t *track_joint;  /* T */
     double *track_step;     /* T, cm */
@@ -737,12 +746,18 @@ static int unit_begin(reader_t *r, unit_t *u, uint32_t count, size_t limit, cons
 
 /* The next value of class `k`; returns 0, or a nonzero code: 1 rANS truncated, 2 token too large, 4 bits
  * truncated. */
-static inline int unit_next(unit_t *u, uint32_t k, int32_t *out) {
+#if defined(__GNUC__) || defined(__clang__)
+#define ALWAYS_INLINE inline __attribute__((always_inline))
+#else
+#define ALWAYS_INLINE inline
+#endif
+
+static ALWAYS_INLINE int unit_next(unit_t *u, uint32_t k, int32_t *out) {
     uint32_t *x = &u->x[u->index & 1];
     ++u->index;
     uint32_t slot = *x & ((1u << PRECISION) - 1);
     const uint16_t *cum = mcbrot_cum[k];
-    uint32_t token = mcbrot_coarse[k][slot >> COARSE_SHIFT];
+    uint32_t token = mcbrot_lookup[k][slot >> MCBROT_LOOKUP_SHIFT];
     while (cum[token + 1] <= slot) ++token;
     uint32_t value = mcbrot_freq[k][token] * (*x >> PRECISION) + slot - cum[token];
     while (value < RANS_LOW) {
@@ -789,7 +804,7 @@ static int unit_end(reader_t *r, unit_t *u, uint32_t count, const char *what) {
 
 typedef struct layout_t {
     size_t parents, offsets, end_parents, base_step, correction_step, turned, axes, overrides, seg_start, chunk_first,
-        chunk_offset, class_table, dc, counts, values, coef_start, longest, corr_flat, cosines, ramp, bands, track_of,
+        chunk_offset, class_table, dc, counts, values, order, blocks, longest, rank, corr_flat, cosines, bands, track_of,
         track_joint, track_step, track_base, track_reach, track_class, track_values, scratch, total;
 } layout_t;
 
@@ -798,6 +813,11 @@ static size_t place(size_t *at, size_t bytes) {
     *at = here + bytes;
     return here;
 }
+
+/* A segment's channels, by decreasing coefficient count, in blocks of LANES: a block holds its channels'
+ * coefficients frequency by frequency (LANES values per frequency, zero where a channel has fewer), up to its first
+ * channel's count, so that the synthesis sums LANES channels at once over memory read in order. */
+#define LANES 4
 
 /* Doubles of one pose in the scratch area: rotations (4 J), root (3), steps (3 J). */
 #define POSE_DOUBLES(J) (7 * (size_t)(J) + 3)
@@ -820,13 +840,19 @@ static void layout_of(const header_t *h, uint32_t chunks, uint32_t max_chunk_seg
     l->class_table = place(&at, C * NUM_BANDS);
     l->dc = place(&at, 8 * S * C);
     l->counts = place(&at, 2 * S * C);
-    l->values = place(&at, 4 * (size_t)h->unit_values);
-    l->coef_start = place(&at, 4 * ((size_t)max_chunk_segments * C + 1));
+    /* a block pads its channels to its first's count: (LANES - 1) (first - last count) at most, whose sum over a
+     * segment's blocks telescopes to (LANES - 1) (n - 1) (each block's first count is at most the previous block's
+     * last); the last block's lanes past C add (n - 1) each */
+    size_t B = (C + LANES - 1) / LANES;
+    l->values = place(&at, 4 * ((size_t)h->unit_values + (size_t)max_chunk_segments * (LANES - 1 + B * LANES - C) * n));
+    l->order = place(&at, 2 * (size_t)max_chunk_segments * B * LANES);
+    l->blocks = place(&at, 4 * (size_t)max_chunk_segments * (B + 1));
     l->longest = place(&at, 4 * (size_t)max_chunk_segments);
+    l->rank = place(&at, 2 * C);
     l->corr_flat = place(&at, 4 * ((size_t)h->unit_values / 4 + 1));
-    l->cosines = place(&at, 8 * 4 * n);
-    l->ramp = place(&at, 8 * n);
-    l->bands = place(&at, n);
+    size_t slots = h->segments > 1 ? 2 : 1; /* one segment: one length */
+    l->cosines = place(&at, slots * 8 * (2 * n + 1));
+    l->bands = place(&at, slots * n);
     size_t T = h->tracks ? h->num_tracks : 0;
     l->track_of = place(&at, 4 * J);
     l->track_joint = place(&at, 4 * T);
@@ -835,7 +861,7 @@ static void layout_of(const header_t *h, uint32_t chunks, uint32_t max_chunk_seg
     l->track_reach = place(&at, 8 * T);
     l->track_class = place(&at, 3 * T);
     l->track_values = place(&at, 24 * T * (T ? max_chunk_frames : 0));
-    l->scratch = place(&at, 8 * (2 * POSE_DOUBLES(J) + C + n + 1));
+    l->scratch = place(&at, 8 * (2 * POSE_DOUBLES(J) + 2 * C + LANES + n + 1));
     l->total = (at + 15) & ~(size_t)15;
 }
 
@@ -1146,12 +1172,15 @@ static int open_with(void *context, size_t context_bytes, container_t *given, co
     x->dc = (int64_t *)(base + l.dc);
     x->counts = (uint16_t *)(base + l.counts);
     x->values = (int32_t *)(base + l.values);
-    x->coef_start = (uint32_t *)(base + l.coef_start);
+    x->order = (uint16_t *)(base + l.order);
+    x->blocks = (uint32_t *)(base + l.blocks);
     x->longest = (uint32_t *)(base + l.longest);
+    x->rank = (uint16_t *)(base + l.rank);
     x->corr_flat = (uint32_t *)(base + l.corr_flat);
-    x->cosines = (double *)(base + l.cosines);
-    x->ramp = (double *)(base + l.ramp);
-    x->bands = base + l.bands;
+    for (int slot = 0; slot < (h.segments > 1 ? 2 : 1); ++slot) {
+        x->cosines_slot[slot] = (double *)(base + l.cosines) + (size_t)slot * (2 * h.max_length + 1);
+        x->bands_slot[slot] = base + l.bands + (size_t)slot * h.max_length;
+    }
     x->track_of = (int32_t *)(base + l.track_of);
     x->track_joint = (uint32_t *)(base + l.track_joint);
     x->track_step = (double *)(base + l.track_step);
@@ -1190,7 +1219,7 @@ static int open_with(void *context, size_t context_bytes, container_t *given, co
     x->max_chunk_frames = most_frames;
     x->num_tracks = h.tracks ? h.num_tracks : 0;
     x->cached_chunk = -1;
-    x->table_length = 0;
+    x->table_length[0] = x->table_length[1] = 0;
     uint32_t J = x->joints, C = x->channels, S = x->segments;
     reader_t r = {c.payload, 0, c.payload_bytes, message, MESSAGE_BYTES};
     /* skeleton */
@@ -1388,13 +1417,15 @@ static int check_open(const void *context) {
 }
 
 static void set_length(ctx_t *x, uint32_t n) {
-    if (x->table_length == n) return;
-    for (uint32_t m = 0; m < 4 * n; ++m) x->cosines[m] = cos(PI * (double)m / (2.0 * n));
+    int slot = n == x->max_length ? 0 : 1;
+    x->cosines = x->cosines_slot[slot];
+    x->bands = x->bands_slot[slot];
+    if (x->table_length[slot] == n) return;
+    for (uint32_t m = 0; m <= 2 * n; ++m) x->cosines[m] = cos(PI * (double)m / (2.0 * n));
     for (uint32_t k = 0; k < n; ++k) {
-        x->ramp[k] = 1.0 + x->slope * (double)k / (double)n;
         x->bands[k] = (uint8_t)(k ? band_of(k, n, x->segment_frames) : 0);
     }
-    x->table_length = n;
+    x->table_length[slot] = n;
 }
 
 /* The chunk's translation tracks (tracks.py, Tracks.q_of_values): one unit of second-order differences of q, track
@@ -1449,24 +1480,53 @@ static int load_chunk(ctx_t *x, uint32_t k) {
                     "most %u", k, (unsigned long long)total, x->unit_values);
     unit_t u;
     if ((s = unit_begin(&r, &u, (uint32_t)total, r.end, what))) return s;
-    uint32_t at = 0, cell = 0;
+    uint32_t at = 0;
     for (uint32_t seg = first; seg < last; ++seg) {
-        uint32_t n = x->seg_start[seg + 1] - x->seg_start[seg];
+        uint32_t n = x->seg_start[seg + 1] - x->seg_start[seg], local = seg - first;
         set_length(x, n);
+        const uint16_t *cnt = x->counts + (size_t)seg * C;
+        uint32_t B = (C + LANES - 1) / LANES;
+        uint16_t *order = x->order + (size_t)local * B * LANES;
+        uint32_t *blocks = x->blocks + (size_t)local * (B + 1);
+        /* channels by decreasing count: a stable counting sort */
         uint32_t most = 0;
+        for (uint32_t ch = 0; ch < C; ++ch) most = cnt[ch] > most ? cnt[ch] : most;
+        {
+            /* most + 1 <= n counters, in the scratch's channel area (the poses there may hold an output) */
+            uint32_t *above = (uint32_t *)(x->scratch + 2 * POSE_DOUBLES(x->joints));
+            for (uint32_t c = 0; c <= most; ++c) above[c] = 0;
+            for (uint32_t ch = 0; ch < C; ++ch) ++above[cnt[ch]];
+            for (uint32_t c = most + 1, total = 0; c-- > 0;) { /* first rank of count c */
+                uint32_t here = above[c];
+                above[c] = total;
+                total += here;
+            }
+            for (uint32_t ch = 0; ch < C; ++ch) {
+                uint32_t rank = above[cnt[ch]]++;
+                order[rank] = (uint16_t)ch;
+                x->rank[ch] = (uint16_t)rank;
+            }
+            for (uint32_t rank = C; rank < B * LANES; ++rank) order[rank] = 0; /* padding lanes: never written */
+        }
+        uint32_t start = at;
+        for (uint32_t b = 0; b < B; ++b) {
+            blocks[b] = start;
+            start += LANES * cnt[order[b * LANES]];
+        }
+        blocks[B] = start;
+        memset(x->values + at, 0, 4 * (size_t)(start - at));
         for (uint32_t ch = 0; ch < C; ++ch) {
-            x->coef_start[cell++] = at;
-            uint32_t kmax = x->counts[(size_t)seg * C + ch];
-            if (kmax > most) most = kmax;
+            uint32_t kmax = cnt[ch], rank = x->rank[ch];
+            int32_t *slot = x->values + blocks[rank / LANES] + rank % LANES - LANES; /* frequency q at q LANES */
             const uint8_t *row = x->class_table + (size_t)ch * NUM_BANDS;
             for (uint32_t q = 1; q <= kmax; ++q) {
-                int e = unit_next(&u, row[x->bands[q]], &x->values[at++]);
+                int e = unit_next(&u, row[x->bands[q]], slot + q * LANES);
                 if (e) return unit_error(&r, e, what);
             }
         }
-        x->longest[seg - first] = most;
+        x->longest[local] = most;
+        at = start;
     }
-    x->coef_start[cell] = at;
     int64_t flat = -1;
     for (uint32_t i = 0; i < count; ++i) {
         int32_t gap;
@@ -1505,6 +1565,47 @@ static uint32_t upper_bound(const uint32_t *array, uint32_t n, uint32_t value) {
     return low;
 }
 
+/* sums[0..LANES) = sum over q = 1..kmax of basis[q] x block[(q - 1) LANES + 0..LANES) (one channel per lane; the
+ * odd and even frequencies in separate sums, added at the end, so that four additions are in flight). */
+static inline void synthesize_block(const int32_t *block, const double *basis, uint32_t kmax, double *sums) {
+    const double *b = basis + 1;
+#if defined(MCBROT_SSE2)
+#define PAIR(p) _mm_cvtepi32_pd(_mm_loadl_epi64((const __m128i *)(p))) /* two int32 -> two doubles */
+    __m128d a0 = _mm_setzero_pd(), a1 = _mm_setzero_pd(), b0 = _mm_setzero_pd(), b1 = _mm_setzero_pd();
+    uint32_t q = 0;
+    for (; q + 2 <= kmax; q += 2) {
+        const int32_t *v = block + LANES * q;
+        __m128d c = _mm_set1_pd(b[q]), d = _mm_set1_pd(b[q + 1]);
+        a0 = _mm_add_pd(a0, _mm_mul_pd(c, PAIR(v)));
+        a1 = _mm_add_pd(a1, _mm_mul_pd(c, PAIR(v + 2)));
+        b0 = _mm_add_pd(b0, _mm_mul_pd(d, PAIR(v + 4)));
+        b1 = _mm_add_pd(b1, _mm_mul_pd(d, PAIR(v + 6)));
+    }
+    if (q < kmax) {
+        const int32_t *v = block + LANES * q;
+        __m128d c = _mm_set1_pd(b[q]);
+        a0 = _mm_add_pd(a0, _mm_mul_pd(c, PAIR(v)));
+        a1 = _mm_add_pd(a1, _mm_mul_pd(c, PAIR(v + 2)));
+    }
+#undef PAIR
+    _mm_storeu_pd(sums, _mm_add_pd(a0, b0));
+    _mm_storeu_pd(sums + 2, _mm_add_pd(a1, b1));
+#else
+    double s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
+    for (uint32_t q = 0; q < kmax; ++q) {
+        const int32_t *v = block + LANES * q;
+        s0 += b[q] * (double)v[0];
+        s1 += b[q] * (double)v[1];
+        s2 += b[q] * (double)v[2];
+        s3 += b[q] * (double)v[3];
+    }
+    sums[0] = s0;
+    sums[1] = s1;
+    sums[2] = s2;
+    sums[3] = s3;
+#endif
+}
+
 /* The pose of frame f: rotations (J x 4), root (3); with `steps` (J x 3, row 0 untouched) every other joint's
  * translation from its parent: its track's value, else its skeleton offset. */
 static int decode_frame(ctx_t *x, uint32_t f, double *rotations, double *root, double *steps) {
@@ -1516,32 +1617,28 @@ static int decode_frame(ctx_t *x, uint32_t f, double *rotations, double *root, d
     uint32_t i = f - x->seg_start[seg];
     set_length(x, n);
     double *signal = x->scratch + 2 * POSE_DOUBLES(J);
-    double *row = signal + C; /* (ramp k) cos(pi (2 i + 1) k / 2 n), k = 0 .. n - 1: shared by every channel */
-    const uint32_t *starts = x->coef_start + (size_t)(seg - x->chunk_first[chunk]) * C;
-    uint32_t longest = x->longest[seg - x->chunk_first[chunk]];
+    double *sums = signal + C;            /* C + LANES: the AC sums, channels in `order` */
+    double *row = sums + C + LANES;       /* (1 + slope k / n) cos(pi (2 i + 1) k / 2 n), k = 0 .. n - 1: every channel's */
+    uint32_t local = seg - x->chunk_first[chunk], B = (C + LANES - 1) / LANES;
+    const uint16_t *order = x->order + (size_t)local * B * LANES;
+    const uint32_t *blocks = x->blocks + (size_t)local * (B + 1);
+    uint32_t longest = x->longest[local];
     uint32_t period = 4 * n, stride = 2 * i + 1, m = 0;
+    double slope = x->slope / (double)n;
     for (uint32_t q = 1; q <= longest; ++q) {
         m += stride;
         if (m >= period) m -= period;
-        row[q] = x->ramp[q] * x->cosines[m];
+        row[q] = (1.0 + slope * (double)q) * x->cosines[m <= 2 * n ? m : period - m];
     }
+    /* the inverse DCT of every channel at frame i: LANES channels at a time (their counts decrease, the first
+     * has the most), odd and even frequencies summed apart */
+    for (uint32_t b = 0; b < B; ++b)
+        synthesize_block(x->values + blocks[b], row, (blocks[b + 1] - blocks[b]) / LANES, sums + LANES * b);
     double ac_scale = sqrt(2.0 / (double)n), dc_scale = 1.0 / sqrt((double)x->segment_frames);
     const int64_t *dc = x->dc + (size_t)seg * C;
-    const int32_t *values = x->values;
-    for (uint32_t ch = 0; ch < C; ++ch) {
-        uint32_t begin = starts[ch], count = starts[ch + 1] - begin;
-        const int32_t *v = values + begin;
-        const double *r = row + 1;
-        double s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
-        uint32_t q = 0;
-        for (; q + 4 <= count; q += 4) {
-            s0 += (double)v[q] * r[q];
-            s1 += (double)v[q + 1] * r[q + 1];
-            s2 += (double)v[q + 2] * r[q + 2];
-            s3 += (double)v[q + 3] * r[q + 3];
-        }
-        for (; q < count; ++q) s0 += (double)v[q] * r[q];
-        signal[ch] = x->base_step[ch] * ((double)dc[ch] * dc_scale + ac_scale * ((s0 + s1) + (s2 + s3)));
+    for (uint32_t c = 0; c < C; ++c) {
+        uint32_t ch = order[c];
+        signal[ch] = x->base_step[ch] * ((double)dc[ch] * dc_scale + ac_scale * sums[c]);
     }
     root[0] = signal[0];
     root[1] = signal[1];

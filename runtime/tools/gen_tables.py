@@ -12,10 +12,21 @@ from pathlib import Path
 HEADER = Path(__file__).resolve().parents[1] / "src" / "mcbrot_tables.h"
 
 
+#: Buckets per class of the C decoder's slot lookup (the first token of each bucket of 2^15 / LOOKUP slots): finer
+#: than Python's, so that a token's search in C rarely goes past its bucket's first token (a mispredicted branch
+#: per step costs more than the table's 32 KB, of which a stream touches the few classes it uses).
+LOOKUP = 256
+
+
 def render() -> str:
+    import numpy as np
+
     from mocapbench.codecs.mcb_rot.stream import runtime_tables
 
     tables = runtime_tables()
+    precision = int(tables.cum[0, -1])
+    buckets = np.arange(LOOKUP) * (precision // LOOKUP)
+    lookup = np.stack([np.searchsorted(row, buckets, side="right") - 1 for row in tables.cum])
 
     def rows(name: str, ctype: str, array) -> str:
         body = ",\n".join("    {" + ", ".join(str(int(v)) for v in row) + "}" for row in array)
@@ -28,7 +39,8 @@ def render() -> str:
         f"#define MCBROT_CLASSES {tables.num_classes}\n#define MCBROT_TOKENS {tables.freq.shape[1]}\n"
         + rows("mcbrot_freq", "uint16_t", tables.freq)
         + rows("mcbrot_cum", "uint16_t", tables.cum)
-        + rows("mcbrot_coarse", "uint8_t", tables.coarse)
+        + f"#define MCBROT_LOOKUP_SHIFT {int(np.log2(precision // LOOKUP))}\n"
+        + rows("mcbrot_lookup", "uint8_t", lookup)
         + "#endif\n"
     )
 
