@@ -40,7 +40,8 @@ _MODES = ("fwd_warm", "fwd_cold", "bwd_warm", "bwd_cold", "rnd_warm", "rnd_cold"
 
 def build_harness() -> Path:
     """The harness, compiled once into the build cache (keyed by its sources, ACL's folder and the flags)."""
-    from mocapbench.codecs.acl.build import cache_root, find_acl_headers, find_compiler
+    from mocapbench.codecs.acl.build import find_acl_headers, find_compiler
+    from mocapbench.codecs.native_build import cache_root
     from mocapbench.codecs.mcb_rot.native import _compiler
 
     headers = find_acl_headers()

@@ -14,23 +14,20 @@ plain clone of nfrechette/acl v2.1.0 with rtm in ``external/rtm`` (``includes`` 
 The shim (``shim.cpp`` beside this module) is compiled with the system C++ compiler (``$CXX``, else ``g++``,
 else ``c++``) into ``~/.cache/mocapbench/acl-<hash>/`` (``$MOCAPBENCH_CACHE_DIR`` or ``$XDG_CACHE_HOME``
 override the root), where the hash covers the shim's source, the resolved ACL folder and the compiler's
-path and version: editing the shim or pointing at another ACL builds anew. The build runs under an exclusive
-file lock, so parallel sweep jobs wait for one compile instead of racing; the library is written to a
-temporary name and renamed into place. Nothing here runs at import time: :func:`quick_check` only looks for
-the folder and the compiler (used by the registry), :func:`build_shim` compiles on first use.
+path and version: editing the shim or pointing at another ACL builds anew. The cache, its lock and the atomic
+rename are :mod:`mocapbench.codecs.native_build`'s (shared with ``mcb-rot``'s runtime). Nothing here runs at
+import time: :func:`quick_check` only looks for the folder and the compiler (used by the registry),
+:func:`build_shim` compiles on first use.
 """
 
 from __future__ import annotations
 
-import fcntl
-import hashlib
 import os
 import platform
-import shutil
-import subprocess
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
+
+from mocapbench.codecs.native_build import build_library, cache_root, compiler_version, find_program
 
 __all__ = [
     "ACL_DIR_ENV",
@@ -110,9 +107,9 @@ def find_acl_headers(acl_dir: str | os.PathLike | None = None) -> AclHeaders:
 
 def find_compiler() -> str:
     """Path of the C++ compiler: ``$CXX``, else ``g++``, else ``c++``; :class:`AclSetupError` if none."""
-    for name in (os.environ.get("CXX"), "g++", "c++"):
-        if name and (path := shutil.which(name)):
-            return path
+    path = find_program((os.environ.get("CXX"), "g++", "c++"))
+    if path is not None:
+        return path
     raise AclSetupError("no C++ compiler found (set $CXX or install g++, e.g. `apt-get install g++`)")
 
 
@@ -126,15 +123,6 @@ def quick_check(acl_dir: str | os.PathLike | None = None) -> str | None:
     return None
 
 
-def cache_root() -> Path:
-    """Root of mocapbench's build cache: ``$MOCAPBENCH_CACHE_DIR``, else ``$XDG_CACHE_HOME/mocapbench``, else
-    ``~/.cache/mocapbench``."""
-    if os.environ.get("MOCAPBENCH_CACHE_DIR"):
-        return Path(os.environ["MOCAPBENCH_CACHE_DIR"]).expanduser()
-    base = os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
-    return Path(base) / "mocapbench"
-
-
 def _compile_flags() -> list[str]:
     flags = ["-std=c++17", "-O2", "-DNDEBUG", "-fPIC", "-shared", "-fvisibility=hidden"]
     if platform.machine().lower() in ("x86_64", "amd64"):
@@ -144,10 +132,9 @@ def _compile_flags() -> list[str]:
 
 def _compiler_version(compiler: str) -> str:
     try:
-        result = subprocess.run([compiler, "--version"], capture_output=True, text=True, timeout=30, check=False)
+        return compiler_version(compiler)
     except OSError as error:
         raise AclSetupError(f"cannot run the C++ compiler {compiler}: {error}") from error
-    return result.stdout.splitlines()[0] if result.stdout else ""
 
 
 def build_shim(acl_dir: str | os.PathLike | None = None) -> Path:
@@ -166,32 +153,14 @@ def build_shim(acl_dir: str | os.PathLike | None = None) -> Path:
     """
     headers = find_acl_headers(acl_dir)
     compiler = find_compiler()
-    source = _SHIM_SOURCE.read_bytes()
-    key = hashlib.sha256()
-    for part in (source, str(headers.acl_include).encode(), str(headers.rtm_include).encode(),
-                 compiler.encode(), _compiler_version(compiler).encode(), " ".join(_compile_flags()).encode()):
-        key.update(part)
-        key.update(b"\0")
-    folder = cache_root() / f"acl-{key.hexdigest()[:16]}"
-    library = folder / "libmcb_acl.so"
-    if library.is_file():
-        return library
-    folder.mkdir(parents=True, exist_ok=True)
-    with open(folder / "build.lock", "w") as lock:
-        fcntl.flock(lock, fcntl.LOCK_EX)  # another job may be compiling the same key: wait for it
-        if library.is_file():
-            return library
-        fd, partial = tempfile.mkstemp(prefix="libmcb_acl.", suffix=".so.partial", dir=folder)
-        os.close(fd)
-        command = [compiler, *_compile_flags(), "-I", str(headers.acl_include), "-I", str(headers.rtm_include),
-                   str(_SHIM_SOURCE), "-o", partial]
-        result = subprocess.run(command, capture_output=True, text=True, check=False)
-        log = folder / "build.log"
-        log.write_text(" ".join(command) + "\n" + result.stdout + result.stderr)
-        if result.returncode != 0:
-            os.unlink(partial)
-            first = next((line for line in result.stderr.splitlines() if "error" in line), "unknown error")
-            raise AclSetupError(f"compiling the ACL shim against {headers.root} failed: {first.strip()} (log: {log})")
-        os.replace(partial, library)
-        (folder / "source.txt").write_text(f"ACL folder: {headers.root}\ncompiler: {compiler}\n")
+    parts = (_SHIM_SOURCE.read_bytes(), str(headers.acl_include).encode(), str(headers.rtm_include).encode(),
+             compiler.encode(), _compiler_version(compiler).encode(), " ".join(_compile_flags()).encode())
+    library = build_library(
+        "acl", "libmcb_acl.so", parts,
+        lambda output: [compiler, *_compile_flags(), "-I", str(headers.acl_include), "-I", str(headers.rtm_include),
+                        str(_SHIM_SOURCE), "-o", output],
+        AclSetupError, f"the ACL shim against {headers.root}")
+    source = library.parent / "source.txt"
+    if not source.is_file():
+        source.write_text(f"ACL folder: {headers.root}\ncompiler: {compiler}\n")
     return library

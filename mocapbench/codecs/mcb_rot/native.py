@@ -6,8 +6,8 @@ every machine without a C compiler), in float64, so that both give the same rota
 compares them on every stream the suite makes). Forward kinematics stays in Python (:mod:`.kinematics`).
 
 The library is compiled from ``runtime/src/mcbrot.c`` with the system C compiler (``$CC``, else ``cc``, ``gcc``,
-``clang``) into ``<cache>/mcbrot-<hash>/`` (the cache root of :func:`mocapbench.codecs.acl.build.cache_root`; the
-hash covers the sources, the compiler and its flags), under a file lock, once; ``make -C runtime`` builds the same
+``clang``) into ``<cache>/mcbrot-<hash>/`` (:mod:`mocapbench.codecs.native_build`, as the ACL shim; the hash covers
+the sources, the compiler and its flags), under a file lock, once; ``make -C runtime`` builds the same
 library for an engine. Without a compiler, or when the build fails, :func:`library` returns None once, logs one line
 saying why, and the numpy decoder runs. ``MOCAPBENCH_NATIVE=0`` turns the runtime off (the numpy path, e.g. to
 time it).
@@ -16,18 +16,14 @@ time it).
 from __future__ import annotations
 
 import ctypes
-import fcntl
-import hashlib
 import logging
 import os
-import shutil
-import subprocess
-import tempfile
 from functools import cache
 from pathlib import Path
 
 import numpy as np
 
+from mocapbench.codecs.native_build import build_library, find_program
 from mocapbench.entropy.errors import BitstreamError
 
 __all__ = ["ABI_VERSION", "RUNTIME_DIR", "library", "NativeClip", "NativeError"]
@@ -46,46 +42,21 @@ class NativeError(RuntimeError):
 
 
 def _compiler() -> str | None:
-    for name in (os.environ.get("CC"), "cc", "gcc", "clang"):
-        if name and (path := shutil.which(name)):
-            return path
-    return None
+    return find_program((os.environ.get("CC"), "cc", "gcc", "clang"))
 
 
 def _build() -> Path:
-    from mocapbench.codecs.acl.build import cache_root
-
     compiler = _compiler()
     if compiler is None:
         raise RuntimeError("no C compiler found (set $CC or install gcc)")
     if not all((RUNTIME_DIR / source).is_file() for source in _SOURCES):
         raise RuntimeError(f"the runtime's sources are not in {RUNTIME_DIR}")
-    key = hashlib.sha256()
-    for part in [(RUNTIME_DIR / source).read_bytes() for source in _SOURCES] + [compiler.encode(),
-                                                                              " ".join(_FLAGS).encode()]:
-        key.update(part)
-        key.update(b"\0")
-    folder = cache_root() / f"mcbrot-{key.hexdigest()[:16]}"
-    target = folder / "libmcbrot.so"
-    if target.is_file():
-        return target
-    folder.mkdir(parents=True, exist_ok=True)
-    with open(folder / "build.lock", "w") as lock:
-        fcntl.flock(lock, fcntl.LOCK_EX)
-        if target.is_file():
-            return target
-        fd, partial = tempfile.mkstemp(prefix="libmcbrot.", suffix=".so.partial", dir=folder)
-        os.close(fd)
-        command = [compiler, *_FLAGS, "-I", str(RUNTIME_DIR / "include"), str(RUNTIME_DIR / "src" / "mcbrot.c"),
-                   "-o", partial, "-lm"]
-        result = subprocess.run(command, capture_output=True, text=True, check=False)
-        (folder / "build.log").write_text(" ".join(command) + "\n" + result.stdout + result.stderr)
-        if result.returncode != 0:
-            os.unlink(partial)
-            first = next((line for line in result.stderr.splitlines() if "error" in line), "unknown error")
-            raise RuntimeError(f"compiling the runtime failed: {first.strip()} (log: {folder / 'build.log'})")
-        os.replace(partial, target)
-    return target
+    parts = [(RUNTIME_DIR / source).read_bytes() for source in _SOURCES] + [compiler.encode(), " ".join(_FLAGS).encode()]
+    return build_library(
+        "mcbrot", "libmcbrot.so", parts,
+        lambda output: [compiler, *_FLAGS, "-I", str(RUNTIME_DIR / "include"), str(RUNTIME_DIR / "src" / "mcbrot.c"),
+                        "-o", output, "-lm"],
+        RuntimeError, "the runtime")
 
 
 @cache
