@@ -232,6 +232,8 @@ def _compare_codec(name: str, motions: Sequence[Motion], plan: _Plan, store: Row
     models = FoldModels(name, motions, folds)
     clip = None
     try:
+        searched = _searched_together(name, motions, plan, models, [store.find(name, key) is None for key in keys],
+                                      progress)
         for clip, motion in enumerate(motions):
             stored = store.find(name, keys[clip])
             if stored is not None:
@@ -241,16 +243,21 @@ def _compare_codec(name: str, motions: Sequence[Motion], plan: _Plan, store: Row
                 outcome.resumed += 1
                 progress.clip_done(name, motion.name, resumed=True)
                 continue
-            progress.clip_start(name, motion.name)
-            fitted = models.fitted(clip)
-
-            def prepare(codec, fitted=fitted):
-                progress.try_started()
-                return with_config(fitted, codec) if fitted is not None else codec
-
             source = known_kinematics(motion)  # forward kinematics once for every try and the evaluation
-            with single_thread(1):  # one core, as evaluate times: the tries' streams are the evaluated ones
-                result = search(name, source, plan.bound_cm, prepare=prepare)
+            if clip in searched:
+                result, source = searched[clip]
+                if clip != min(searched):  # the first clip's time holds the searches run together
+                    progress.clip_start(name, motion.name)
+            else:
+                progress.clip_start(name, motion.name)
+                fitted = models.fitted(clip)
+
+                def prepare(codec, fitted=fitted):
+                    progress.try_started()
+                    return with_config(fitted, codec) if fitted is not None else codec
+
+                with single_thread(1):  # one core, as evaluate times: the tries' streams are the evaluated ones
+                    result = search(name, source, plan.bound_cm, prepare=prepare)
             if not result.met:
                 chosen = setting_text([result.settings])
                 outcome.reason = (f"cannot reach L-inf <= {plan.bound_cm:g} cm on {motion.name}: the closest "
@@ -275,6 +282,34 @@ def _compare_codec(name: str, motions: Sequence[Motion], plan: _Plan, store: Row
     outcome.seconds = time.perf_counter() - start
     outcome.cpu_seconds = time.process_time() - start_cpu
     return outcome
+
+
+def _searched_together(name: str, motions: Sequence[Motion], plan: _Plan, models: FoldModels, pending: list[bool],
+                       progress) -> dict[int, Any]:
+    """The rate searches of the pending clips run in lockstep (:func:`mocapbench.ratesearch.search_many`), for a
+    codec whose ``encode_many`` shares work between clips and that fits no model; else nothing ({}).
+
+    The neural Fourier codecs train one network per try: in lockstep, the clips trying the same setting train side
+    by side. Their rows are then written when every search has finished (an interrupt in between keeps none of
+    them). Returns ``{clip index: (SearchResult, the clip as searched, its kinematics known)}``.
+    """
+    from mocapbench.codecs import CODECS
+    from mocapbench.metrics.timing import single_thread
+    from mocapbench.ratesearch import known_kinematics, search_many
+
+    clips = [clip for clip, waiting in enumerate(pending) if waiting]
+    if not clips or not CODECS[name].encodes_many or models.learns:
+        return {}
+    progress.clip_start(name, f"{len(clips)} clip(s) searched side by side")
+
+    def prepare(codec):
+        progress.try_started()
+        return codec
+
+    sources = [known_kinematics(motions[clip]) for clip in clips]
+    with single_thread(1):
+        results = search_many(name, sources, plan.bound_cm, prepare=prepare)
+    return {clip: pair for clip, pair in zip(clips, zip(results, sources))}
 
 
 def _chosen_stream(result):

@@ -6,6 +6,9 @@ encode; ``fourier-mlp-dct``: its own stopping threshold, one encode), otherwise 
 decodes and measures the L-inf error in cm; the smallest stream that meets the bound wins. A codec with no knob
 (``raw-zstd``, lossless) is coded once. If no setting in the knob's range meets the bound, the result says so
 (``met`` is False) and holds the setting with the smallest error.
+
+:func:`search_many` runs the searches of several clips in lockstep, so that the clips trying the same setting are
+encoded together (``encode_many``: the neural Fourier codecs train their networks side by side).
 """
 
 from __future__ import annotations
@@ -14,7 +17,7 @@ import copy
 import dataclasses
 import math
 import time
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Callable
 
@@ -24,7 +27,7 @@ from mocapbench.codecs.registry import create
 from mocapbench.motion import Motion
 from mocapbench.ratesearch.source import known_kinematics
 
-__all__ = ["KNOBS", "Knob", "SearchResult", "ratio", "search", "with_config"]
+__all__ = ["KNOBS", "Knob", "SearchResult", "ratio", "search", "search_many", "with_config"]
 
 
 @dataclass(frozen=True)
@@ -183,27 +186,125 @@ def search(
     ValueError
         A bound that is not a positive finite number.
     """
+    knob = _checked_knob(name, bound_cm, knob)
+    motion = known_kinematics(motion)  # every try reads the same source positions: forward kinematics once
+    reference = motion.positions()
+    base = dict(settings or {})
+    steps = _steps(knob, motion, bound_cm, max_tries)
+    request = next(steps)
+    while True:
+        chosen, exact = request
+        try:
+            request = steps.send(_try(name, base, chosen, motion, prepare, reference, bound_cm, exact))
+        except StopIteration as done:
+            return done.value
+
+
+def search_many(
+    name: str,
+    motions: Sequence[Motion],
+    bound_cm: float,
+    settings: Mapping[str, Any] | None = None,
+    *,
+    prepare: Callable[[Codec], Codec] | None = None,
+    max_tries: int = 12,
+    knob: Knob | None = None,
+) -> list[SearchResult]:
+    """:func:`search` on every motion, the searches in lockstep: the clips that try the same setting in a round are
+    encoded by one :meth:`~mocapbench.codecs.base.Codec.encode_many` call.
+
+    For a codec whose ``encode_many`` shares work between clips (the neural Fourier codecs train their networks
+    side by side) this is the same search for a fraction of the cost; each clip takes the steps :func:`search`
+    takes, and its streams are the ones ``encode_many`` writes (for those codecs: the streams of ``encode``, up to
+    the order of floating-point sums). Parameters as :func:`search`; ``prepare`` is applied to each codec built
+    for a round's group of clips (the same for every motion). Each result's encode time is its share, by frames, of
+    its group's ``encode_many`` call.
+
+    Returns
+    -------
+    list of SearchResult
+        One per motion, in order.
+
+    Raises
+    ------
+    ValueError
+        A bad bound; or the first error a clip's encode raised (as :func:`search` would on that clip).
+    """
+    knob = _checked_knob(name, bound_cm, knob)
+    sources = [known_kinematics(motion) for motion in motions]
+    references = [source.positions() for source in sources]
+    base = dict(settings or {})
+    steps = [_steps(knob, source, bound_cm, max_tries) for source in sources]
+    requests = {clip: next(step) for clip, step in enumerate(steps)}
+    results: list[SearchResult | None] = [None] * len(sources)
+    while requests:
+        groups: dict[str, tuple[dict[str, Any], bool, list[int]]] = {}
+        for clip, (chosen, exact) in requests.items():
+            groups.setdefault(repr(sorted(chosen.items())), (chosen, exact, []))[2].append(clip)
+        requests = {}
+        for chosen, exact, clips in groups.values():
+            tried = _try_many(name, base, chosen, [sources[c] for c in clips], prepare, [references[c] for c in clips],
+                              bound_cm, exact)
+            for clip, result in zip(clips, tried):
+                try:
+                    requests[clip] = steps[clip].send(result)
+                except StopIteration as done:
+                    results[clip] = done.value
+    return results  # type: ignore[return-value]
+
+
+def _checked_knob(name: str, bound_cm: float, knob: Knob | None) -> Knob | None:
     if not (isinstance(bound_cm, (int, float)) and math.isfinite(bound_cm) and bound_cm > 0):
         raise ValueError(f"--max-error-cm must be a positive number of cm, got {bound_cm!r}.")
-    base = dict(settings or {})
     knob = KNOBS.get(name, "unknown") if knob is None else knob
     if knob == "unknown":
         raise ValueError(f"codec {name!r} has no rate knob known to the rate search; set its config with --set.")
-    motion = known_kinematics(motion)  # every try reads the same source positions: forward kinematics once
-    reference = motion.positions()
+    return knob
+
+
+def _try_many(name: str, base: Mapping[str, Any], knob_settings: dict[str, Any], motions: Sequence[Motion], prepare,
+              references: Sequence, met_at: float, exact: bool) -> list[SearchResult]:
+    """:func:`_try` on several motions with one codec and one ``encode_many`` call (time shared by frames)."""
+    codec = create(name, **{**base, **knob_settings})
+    if prepare is not None:
+        codec = prepare(codec)
+    wall, cpu = time.perf_counter(), time.process_time()
+    encoded = codec.encode_many(motions)
+    wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
+    total = sum(motion.num_frames for motion in motions)
+    out = []
+    for motion, reference, (data, stats) in zip(motions, references, encoded):
+        if isinstance(data, Exception):
+            raise data
+        decoded = codec.decode(data).positions
+        worst = metrics.max_joint_error(reference, decoded)
+        share = motion.num_frames / total
+        out.append(SearchResult(codec, data, knob_settings, worst, metrics.mean_joint_error(reference, decoded),
+                                worst <= met_at, exact, 0, dict(stats), wall * share, cpu * share))
+    return out
+
+
+def _steps(knob: Knob | None, motion: Motion, bound_cm: float, max_tries: int):
+    """The search of one clip as a generator: yields ``(settings, exact)`` to try, is sent each try's
+    :class:`SearchResult`, and returns the chosen one (with ``tries`` set).
+
+    No knob: one try. An exact knob: one try at the guaranteed setting. Else :func:`_bisect`.
+    """
     if knob is None:
-        return dataclasses.replace(_try(name, base, {}, motion, prepare, reference, bound_cm, True), tries=1)
+        result = yield {}, True
+        return dataclasses.replace(result, tries=1)
     fixed = {key: value(bound_cm) if callable(value) else value for key, value in knob.fixed.items()}
     if knob.exact is not None:
-        chosen = {knob.field: knob.exact(bound_cm), **fixed}
-        return dataclasses.replace(_try(name, base, chosen, motion, prepare, reference, bound_cm, True), tries=1)
+        result = yield {knob.field: knob.exact(bound_cm), **fixed}, True
+        return dataclasses.replace(result, tries=1)
     if callable(knob.high):
         knob = dataclasses.replace(knob, high=max(knob.low, knob.high(motion)))
-    return _bisect(name, base, knob, fixed, motion, bound_cm, prepare, reference, max_tries)
+    return (yield from _bisect(knob, fixed, bound_cm, max_tries))
 
 
-def _bisect(name, base, knob: Knob, fixed, motion, bound_cm, prepare, reference, max_tries) -> SearchResult:
-    """Bisection over the knob (log scale for floats, whose error grows with the value: steps, thresholds).
+def _bisect(knob: Knob, fixed, bound_cm, max_tries):
+    """Bisection over the knob (log scale for floats, whose error grows with the value: steps, thresholds), as a
+    generator of tries (see :func:`_steps`).
 
     Returns the smallest stream among the tries within the bound, else the try with the smallest error.
     """
@@ -214,8 +315,7 @@ def _bisect(name, base, knob: Knob, fixed, motion, bound_cm, prepare, reference,
     def attempt(value):
         nonlocal tries, best, closest
         value = int(round(value)) if knob.integer else float(value)
-        chosen = {knob.field: value, **fixed}
-        result = _try(name, base, chosen, motion, prepare, reference, bound_cm, False)
+        result = yield {knob.field: value, **fixed}, False
         tries += 1
         if result.met and (best is None or len(result.data) < len(best.data)):
             best = result
@@ -226,12 +326,12 @@ def _bisect(name, base, knob: Knob, fixed, motion, bound_cm, prepare, reference,
     # "safe" end: the smallest error; "coarse" end: the largest.
     safe, coarse = (knob.low, knob.high) if knob.error_grows else (knob.high, knob.low)
     if knob.integer:
-        coarse_met = attempt(coarse)
-        if not coarse_met and safe != coarse and attempt(safe):
+        coarse_met = yield from attempt(coarse)
+        if not coarse_met and safe != coarse and (yield from attempt(safe)):
             lo, hi = sorted((int(safe), int(coarse)))
             while hi - lo > 1 and tries < max_tries + 2:
                 middle = (lo + hi) // 2
-                meets = attempt(middle)
+                meets = yield from attempt(middle)
                 # keep the met end on the safe side
                 if meets == knob.error_grows:
                     lo = middle
@@ -241,17 +341,17 @@ def _bisect(name, base, knob: Knob, fixed, motion, bound_cm, prepare, reference,
         # Start near the bound (a step about the bound is a good first guess), then bisect in log scale.
         guess = min(max(bound_cm, knob.low), knob.high)
         low_value, high_value = math.log(knob.low), math.log(knob.high)
-        met = attempt(guess)
+        met = yield from attempt(guess)
         if met:
             low_value = math.log(guess)
         else:
             high_value = math.log(guess)
-            met_low = attempt(knob.low)
+            met_low = yield from attempt(knob.low)
             if not met_low:
                 high_value = low_value
         while high_value - low_value > math.log(1.05) and tries < max_tries + 2:
             middle = 0.5 * (low_value + high_value)
-            if attempt(math.exp(middle)):
+            if (yield from attempt(math.exp(middle))):
                 low_value = middle
             else:
                 high_value = middle

@@ -241,3 +241,27 @@ def test_the_time_of_every_codec_that_ran_is_told():
     assert format_codec_times(ran[2:]) == ""
     outcome = compare(_clips()[:1], 1.0, ["raw-zstd"])[0]
     assert outcome.seconds > 0 and outcome.cpu_seconds > 0
+
+
+def test_a_codec_that_encodes_many_at_once_is_searched_on_every_clip_in_lockstep(monkeypatch):
+    from mocapbench.codecs import CODECS
+    from mocapbench.codecs.base import Codec
+
+    clips = _clips()
+    alone = compare(clips, 1.0, ["svd"])[0]
+    batches = []
+    real = Codec.encode_many
+
+    def counted(self, motions):
+        batches.append(len(motions))
+        return real(self, motions)
+
+    monkeypatch.setattr(Codec, "encode_many", counted)
+    monkeypatch.setattr(CODECS["svd"], "encodes_many", True)  # as the neural codecs, which train side by side
+    progress = Progress(len(clips), stream=io.StringIO(), bar=False)
+    together = compare(clips, 1.0, ["svd"], progress=progress)[0]
+    assert max(batches) == len(clips)  # the first try (rank 1) of every clip in one call
+    assert sum(batches) == sum(row["rate_search_tries"] for row in together.rows)
+    keys = ("clip", "bitstream_bytes", "max_err_cm", "mean_err_cm", "rate_search_settings", "rate_search_tries")
+    assert [{k: r[k] for k in keys} for r in together.rows] == [{k: r[k] for k in keys} for r in alone.rows]
+    assert progress.finished == len(clips) and progress.measured == len(clips)

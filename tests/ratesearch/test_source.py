@@ -66,3 +66,27 @@ def test_the_search_codes_the_same_stream_with_one_forward_kinematics_of_its_cli
     fresh = create(name, **result.settings)
     assert fresh.encode(clip) == result.data  # the stream the search keeps is the one a fresh encode writes
     assert result.encode_stats == fresh.last_encode_stats and result.encode_cpu_s >= 0 and result.tries >= 1
+
+
+@pytest.mark.parametrize("name", ["svd", "dct-spatial-clip", "quant-delta-zstd", "raw-zstd"])
+def test_searches_in_lockstep_take_each_clips_own_steps(name, monkeypatch):
+    from mocapbench.codecs.base import Codec
+    from mocapbench.ratesearch import search_many
+
+    clips = [rig_motion(num_joints=joints, num_frames=frames, seed=seed)
+             for joints, frames, seed in ((18, 40, 1), (18, 40, 2), (24, 55, 3))]
+    alone = [search(name, clip, 1.0) for clip in clips]
+    calls = []
+    real = Codec.encode_many
+
+    def counted(self, motions):
+        calls.append(len(motions))
+        return real(self, motions)
+
+    monkeypatch.setattr(Codec, "encode_many", counted)
+    together = search_many(name, clips, 1.0)
+    for one, other in zip(alone, together):
+        assert (other.data, other.settings, other.tries, other.met) == (one.data, one.settings, one.tries, one.met)
+        assert other.max_error_cm == one.max_error_cm and other.encode_stats == one.encode_stats
+    assert sum(calls) == sum(result.tries for result in alone)  # every try once, clips of one setting together
+    assert max(calls) > 1  # the first round's setting is the same for every clip
