@@ -31,6 +31,8 @@ refine
     The encoder's closed loop: corrections until every joint is within the bound.
 tracks
     A game rig's translation tracks (payload format 6).
+static_root
+    A game rig's still ground root kept apart, its moving pelvis coded as the root (payload format 6).
 skeleton6
     The skeleton of a format 6 stream, in bits a native sampler can read.
 decoder

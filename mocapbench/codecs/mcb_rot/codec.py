@@ -81,7 +81,10 @@ Game rigs (:mod:`.tracks`): a joint that moves relative to its parent (a pelvis 
 translation track on a uniform grid whose error along the worst chain (``track_share`` of eps) comes off the bound,
 each translated joint's longest translation is its bone in the budgets, and forward kinematics, in the closed loop
 and in the decoder, steps from the parent by the decoded translation of the frame; a motion whose joints do not move
-writes no track. The bound covers the end sites too (the head, finger and toe tips a viewer draws): each is a virtual
+writes no track. A rig whose root never moves (a ground root at the origin above a pelvis that carries the whole
+trajectory) keeps that root apart instead (:mod:`.static_root`, ``static_root``): the pelvis is coded as the root,
+its trajectory in the root channels with a DCT, the rate search and the closed loop behind them, rather than on the
+lossless grid of a track. The bound covers the end sites too (the head, finger and toe tips a viewer draws): each is a virtual
 child of its joint in the budgets and a checked point of the closed loop, so a leaf with an end site is budgeted by
 its lever instead of ``free_angle_deg`` (``end_sites=false``: the joints only, as before; the bytes the end sites cost are
 measured by the benchmark). Scale tracks are refused in one line naming the joint (the budgets assume
@@ -109,6 +112,7 @@ from mocapbench.codecs.mcb_rot.budgets import offset_discrepancy_cm
 from mocapbench.codecs.mcb_rot.checks import PointTargets
 from mocapbench.codecs.mcb_rot.compensate import Compensator, quantize
 from mocapbench.codecs.mcb_rot.refine import refine
+from mocapbench.codecs.mcb_rot.static_root import split_static_root
 from mocapbench.codecs.mcb_rot.tracks import plan_tracks
 from mocapbench.codecs.mcb_rot.rate import base_bytes, base_bytes_many, corrections_bytes
 from mocapbench.codecs.mcb_rot.classes import NUM_BANDS, fit_single
@@ -212,6 +216,9 @@ class McbRotCodec(Codec):
         track_share: float = param(
             0.1, low=0.01, high=0.5, doc="share of eps given to a game rig's translation tracks (their grid's error)"
         )
+        static_root: bool = param(
+            True, doc="a still root joint 0 is kept apart and its moving child coded as the root (game rigs)"
+        )
 
     @property
     def latency_frames(self) -> int:
@@ -233,13 +240,18 @@ class McbRotCodec(Codec):
         self.last_encode_stats = windowed.merged_stats(stats)
         return payload
 
-    def _encode_window(self, motion: Motion) -> bytes:
-        """The one-window payload of ``motion`` (a whole clip, or one window of a long capture), checked."""
-        if motion.num_joints > container.MAX_JOINTS:
+    def _encode_window(self, full: Motion) -> bytes:
+        """The one-window payload of ``full`` (a whole clip, or one window of a long capture), checked.
+
+        A still root (:mod:`.static_root`) is kept apart: ``motion`` below is then the motion of the other joints,
+        and the check at the end decodes the whole rig against ``full``."""
+        if full.num_joints > container.MAX_JOINTS:
             raise ValueError(
-                f"mcb-rot: the stream holds at most {container.MAX_JOINTS} joints, the motion has {motion.num_joints}."
+                f"mcb-rot: the stream holds at most {container.MAX_JOINTS} joints, the motion has {full.num_joints}."
             )
         config = self.config
+        split = split_static_root(full) if config.static_root else None
+        still, motion = (None, full) if split is None else split
         skeleton_blob = pack_skeleton_runtime(motion.skeleton, skeleton_step_exponent(config.eps_cm, motion.skeleton))
         stored = unpack_skeleton_runtime(ByteReader(skeleton_blob))
         discrepancy = offset_discrepancy_cm(motion.skeleton, stored, config.end_sites)
@@ -266,11 +278,12 @@ class McbRotCodec(Codec):
         settings = Settings.create(config.eps_cm, bound, 1.0, config.frequency_slope, config.rounding,
                                    config.root_share, np.deg2rad(config.free_angle_deg), config.allocation_power,
                                    config.segment_frames, config.chunk_frames, config.shell_cm,
-                                   tracks=tracks is not None, ends=config.end_sites)
+                                   tracks=tracks is not None, ends=config.end_sites, static_root=still is not None)
         budgets = stream_budgets(settings, stored, tracks)
         channels = 3 + 3 * motion.num_joints
         info = StreamInfo(settings, stored, budgets, layout, cuts, overrides, axis_codes,
-                          np.zeros(channels, np.int64), np.zeros(NUM_BANDS, np.int64), tracks=tracks)
+                          np.zeros(channels, np.int64), np.zeros(NUM_BANDS, np.int64), tracks=tracks,
+                          static_root=still)
         steps = None if tracks is None else tracks.steps_of(stored, tracks.q)
         points = PointTargets(target, motion.rotations, stored, settings.shell_cm, ends=ends, translations=steps)
         encoder = _Encoder(config, motion, info, skeleton_blob, spectra, points)
@@ -281,7 +294,11 @@ class McbRotCodec(Codec):
             chosen = _search(encoder.attempt, config.slope_search and config.frequency_slope > 0, encoder.attempts_of,
                              prefetch)
         payload = encoder.write(chosen)
-        # The guarantee: decode what we are about to return and check it.
+        # The guarantee: decode what we are about to return and check it (the whole rig, a still root included).
+        if still is not None:
+            target = full.positions()
+            ends = full.end_site_positions() if ends is not None else None
+            motion = full
         header = Header(self.name, motion.num_frames, motion.num_joints, motion.fps)
         decoded, decoded_motion = self.decode_payload(header, memoryview(payload))
         worst = float(np.sqrt(np.sum((decoded - target) ** 2, axis=-1)).max())
@@ -315,11 +332,7 @@ class McbRotCodec(Codec):
 
     def _decode_window(self, header: Header, payload: memoryview):
         """Positions (F, J, 3) cm and the motion of a one-window payload."""
-        info = read_info(header, payload)
-        count = header.num_frames
-        out = _outputs(count, header.num_joints, info)
-        positions, roots, quats = decode_range(info, payload, 0, count, out)
-        return positions, Motion.from_decoder(info.skeleton, header.fps, roots, quats, *out[3:])
+        return _decode_frames(read_info(header, payload), payload, 0, header.num_frames, header.fps)
 
     def _stream_info(self, header: Header, payload: memoryview) -> StreamInfo:
         """The parsed payload header, kept for the last stream seen: an engine sampling one clip at many times
@@ -352,10 +365,8 @@ class McbRotCodec(Codec):
                 if windowed.is_windowed(payload):
                     positions, motion = self._frames_of_windows(header, payload, start, stop)
                 else:
-                    info = self._stream_info(header, payload)
-                    out = _outputs(stop - start, header.num_joints, info)
-                    positions, roots, quats = decode_range(info, payload, start, stop, out)
-                    motion = Motion.from_decoder(info.skeleton, header.fps, roots, quats, *out[3:])
+                    positions, motion = _decode_frames(self._stream_info(header, payload), payload, start, stop,
+                                                       header.fps)
         except BitstreamError:
             raise
         except (ValueError, IndexError, KeyError, OverflowError, EOFError, TypeError) as error:
@@ -381,12 +392,18 @@ class McbRotCodec(Codec):
         skeleton = None
         for first, end, part in windowed.windows_of_range(parts, start, stop):
             info = self._stream_info(windowed.window_header(header, first, end), part)
-            skeleton = info.skeleton if skeleton is None else skeleton
+            skeleton = _skeleton_of(info) if skeleton is None else skeleton
             low, high = max(start, first), min(stop, end)
             out = slice(low - start, high - start)
-            if info.tracks is not None and translations is None:
+            if (info.tracks is not None or info.static_root is not None) and translations is None:
                 translations = np.empty((count, header.num_joints, 3))
                 translations[:] = skeleton.offsets
+            if info.static_root is not None:  # decoded apart, then the whole rig put in place
+                window_positions, window_motion = _decode_frames(info, part, low - first, high - first, header.fps)
+                positions[out], roots[out], quats[out] = window_positions, window_motion.root_positions, \
+                    window_motion.rotations
+                translations[out] = window_motion.translations
+                continue
             window_out = (positions[out], roots[out], quats[out])
             if translations is not None:
                 window_out += (translations[out],)
@@ -413,6 +430,27 @@ class McbRotCodec(Codec):
                 "segments": info.layout.num_segments, "cuts": len(info.cuts),
                 "re-referenced joint segments": len(info.overrides),
                 "joints on principal axes": int((info.axis_codes != 0).any(axis=1).sum())}
+
+
+def _skeleton_of(info: StreamInfo):
+    """The decoded motion's skeleton: the stream's, under its still root when it has one (cached)."""
+    if info.static_root is None:
+        return info.skeleton
+    if "full skeleton" not in info._cache:
+        info._cache["full skeleton"] = info.static_root.skeleton(info.skeleton)
+    return info._cache["full skeleton"]
+
+
+def _decode_frames(info: StreamInfo, payload: memoryview, start: int, stop: int, fps: float) -> tuple:
+    """Positions (n, J, 3) cm and the motion of frames ``start:stop`` of a one-window payload (n of them); a still
+    root (:mod:`.static_root`) is put back above the decoded joints."""
+    out = _outputs(stop - start, info.skeleton.num_joints, info)
+    positions, roots, quats = decode_range(info, payload, start, stop, out)
+    translations = out[3] if len(out) > 3 else None
+    if info.static_root is not None:
+        positions, roots, quats, translations = info.static_root.expand(positions, roots, quats, translations,
+                                                                        info.skeleton.offsets)
+    return positions, Motion.from_decoder(_skeleton_of(info), fps, roots, quats, translations)
 
 
 def _outputs(count: int, num_joints: int, info: StreamInfo) -> tuple:

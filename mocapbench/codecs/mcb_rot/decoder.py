@@ -122,7 +122,7 @@ def decode_range(
 def native_clip(info: StreamInfo, payload: memoryview):
     """The runtime's opened clip of a format 6 payload (kept in ``info``'s cache), or None: an older format, the
     runtime not built, or ``MOCAPBENCH_NATIVE=0``."""
-    if info.version < 6:
+    if info.version < 6 or info.static_root is not None:  # (the runtime does not read a still root, flag bit 12)
         return None
     if "native" not in info._cache:
         lib = native.library()

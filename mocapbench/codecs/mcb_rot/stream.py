@@ -33,7 +33,10 @@ a chunk holds (the runtime sizes its cache by it before decoding anything); the 
 chunk are *rANS units* (:mod:`mocapbench.entropy.rans6`): two interleaved states, values in natural order (no sort
 by class to undo), static tables fixed by the format (the AC tables of rounding 0.45 whatever the stream's rounding);
 chunks default to 128 frames (one segment), and the bands are computed in integers (:func:`.classes.band_of`).
-The cost in bytes against format 5 is in the README.
+The cost in bytes against format 5 is in the README. Format 6's optional sections sit behind flag bits that older
+streams never set: a game rig's translation tracks (bit 10, :mod:`.tracks`), a bound over the end sites too (bit 11,
+:mod:`.budgets`), and a still root joint 0 kept apart from the coded skeleton (bit 12, :mod:`.static_root`: its
+section follows the skeleton part).
 
 Coding only the coefficients up to each channel's last nonzero one (as JPEG's end-of-block) skips the runs of
 zeros at high frequencies: at ε = 1 cm 85 % of the AC coefficients of cmu_test are never coded, so decoding reads a
@@ -58,6 +61,7 @@ from mocapbench.codecs.segments import read_cuts, write_cuts
 from mocapbench.codecs.skeleton_blob import STEP_EXPONENTS, unpack_skeleton_compact
 from mocapbench.codecs.mcb_rot.skeleton6 import unpack_skeleton_runtime
 from mocapbench.codecs.mcb_rot.tracks import Tracks, read_tracks
+from mocapbench.codecs.mcb_rot.static_root import StaticRoot, read_static_root
 from mocapbench.entropy.ans import ClassTables, decode_classed, encode_classed
 from mocapbench.entropy.rans6 import RansTables, decode_unit, encode_unit, quantize_counts
 from mocapbench.entropy.bitio import ByteReader, ByteWriter
@@ -107,8 +111,9 @@ _DEFAULTS_4 = _DEFAULTS
 _DEFAULTS_5 = tuple((name, 256 if name == "chunk_frames" else value, kind) for name, value, kind in _DEFAULTS)
 _MULTIPLIER_F32, _FLAT, _DEFAULT_BIT = 1, 2, 2  # flags: 1 multiplier as f32 (else a grid code), 2 slope 0; bit 2.. a default
 # Format 6 flags after the defaults' bits: the stream carries translation tracks (:mod:`.tracks`; their header after
-# the classes, a unit per chunk after its rotations), and its budgets cover the end sites (:mod:`.budgets`).
-_TRACKS, _ENDS = 1 << 10, 1 << 11
+# the classes, a unit per chunk after its rotations), its budgets cover the end sites (:mod:`.budgets`), and it
+# codes a still root's one child as its root (:mod:`.static_root`; the still root right after the skeleton part).
+_TRACKS, _ENDS, _STATIC_ROOT = 1 << 10, 1 << 11, 1 << 12
 _GRID_ZERO = 64  # multiplier code k stands for 2^((k - 64) / 2)
 
 
@@ -137,14 +142,15 @@ class Settings:
     shell_cm: float = 0.0  # the bound also holds on the virtual vertices at this distance (0: joints only)
     tracks: bool = False  # format 6: the stream carries translation tracks (flags bit 10)
     ends: bool = False  # format 6: the budgets and the bound cover the end sites (flags bit 11)
+    static_root: bool = False  # format 6: the stream's skeleton lacks a still root joint 0 (flags bit 12)
 
     @classmethod
     def create(cls, eps_cm, bound_cm, multiplier, slope, rounding, root_share, free_angle_rad, power, segment, chunk,
-               shell_cm=0.0, tracks=False, ends=False):
+               shell_cm=0.0, tracks=False, ends=False, static_root=False):
         """Settings with every field rounded as it will be read back (the bound down, so it never grows)."""
         return cls(_f32(eps_cm), _f32_below(bound_cm), _f32(multiplier), _f32(slope), _f32(rounding), _f32(root_share),
                    _f32(free_angle_rad), _f32(power), int(segment), int(chunk), _f32(shell_cm), bool(tracks),
-                   bool(ends))
+                   bool(ends), bool(static_root))
 
     def write(self, writer: ByteWriter) -> None:
         """Format 6 (as 5): u8 format | f32 eps | f32 bound | varint flags | multiplier (u8 grid code or f32) | the
@@ -154,7 +160,7 @@ class Settings:
         writer.write_f32(self.bound_cm)
         code = _multiplier_code(self.multiplier)
         flags = (code is None) * _MULTIPLIER_F32 | (self.slope == 0.0) * _FLAT
-        flags |= self.tracks * _TRACKS | self.ends * _ENDS
+        flags |= self.tracks * _TRACKS | self.ends * _ENDS | self.static_root * _STATIC_ROOT
         differing = []
         for bit, (name, default, kind) in enumerate(_DEFAULTS, start=_DEFAULT_BIT):
             value = getattr(self, name)
@@ -182,15 +188,16 @@ def _read_flagged_settings(reader: ByteReader, version: int) -> tuple:
     """Formats 4 to 6: f32 bound | varint flags | multiplier | the settings that differ from the defaults.
 
     Returns ``(bound, multiplier, slope, rounding, root_share, free_angle_rad, allocation_power, segment_frames,
-    chunk_frames, shell_cm, tracks, ends)``, the fields of :class:`Settings` after ``eps_cm``.
+    chunk_frames, shell_cm, tracks, ends, static_root)``, the fields of :class:`Settings` after ``eps_cm``.
     """
     defaults = _DEFAULTS_5 if version == 5 else _DEFAULTS
     bound = reader.read_f32("bound")
     flags = reader.read_varint("settings flags", max_bytes=2)
-    known = _DEFAULT_BIT + len(defaults) + (2 if version >= 6 else 0)  # format 6: bits 10, 11
+    known = _DEFAULT_BIT + len(defaults) + (3 if version >= 6 else 0)  # format 6: bits 10, 11, 12
     if flags >> known:
         raise BitstreamError(f"mcb-rot: unknown settings flags {flags:#x}.")
     tracks, ends = bool(flags & _TRACKS) and version >= 6, bool(flags & _ENDS) and version >= 6
+    static_root = bool(flags & _STATIC_ROOT) and version >= 6
     if flags & _MULTIPLIER_F32:
         multiplier = reader.read_f32("multiplier")
     else:
@@ -203,7 +210,7 @@ def _read_flagged_settings(reader: ByteReader, version: int) -> tuple:
             values[name] = 0.0 if name == "slope" and flags & _FLAT else default
     listed = (values[n] for n in ("slope", "rounding", "root_share", "free_angle_rad", "allocation_power",
                                   "segment_frames", "chunk_frames", "shell_cm"))
-    return (bound, multiplier, *listed, tracks, ends)
+    return (bound, multiplier, *listed, tracks, ends, static_root)
 
 
 def _read_listed_settings(reader: ByteReader, version: int) -> tuple:
@@ -215,7 +222,7 @@ def _read_listed_settings(reader: ByteReader, version: int) -> tuple:
     chunk_frames = reader.read_varint("chunk frames")
     shell = reader.read_f32("shell distance") if version >= 3 else 0.0
     return (bound, multiplier, slope, rounding, root_share, free, power, segment_frames, chunk_frames, shell,
-            False, False)
+            False, False, False)
 
 
 def _check_settings_range(eps, bound, multiplier, slope, rounding, root_share, free, power, segment_frames,
@@ -256,6 +263,7 @@ class StreamInfo:
     version: int = FORMAT  # payload format the stream was read from (the encoder writes FORMAT)
     unit_values: int = 0  # format 6: most values in one chunk's rANS unit (a native decoder sizes its cache by it)
     tracks: Tracks | None = None  # format 6, flags bit 10: the translation tracks' header (and q at the encoder)
+    static_root: StaticRoot | None = None  # format 6, flags bit 12: the still root joint 0 the skeleton lacks
     _cache: dict = field(default_factory=dict, repr=False)
 
     def replace(self, **changes) -> "StreamInfo":
@@ -579,6 +587,8 @@ def write_payload(info: StreamInfo, skeleton_blob: bytes, coefficients: dict, co
     writer = ByteWriter()
     settings.write(writer)
     writer.write_bytes(skeleton_blob)
+    if info.static_root is not None:
+        info.static_root.write(writer)
     write_cuts(writer, info.cuts)
     writer.write_varint(len(info.overrides))
     for (segment, joint), reference in sorted(info.overrides.items()):
@@ -655,9 +665,12 @@ def read_info(header: Header, payload: memoryview) -> StreamInfo:
         raise BitstreamError(f"mcb-rot: expected payload format {' or '.join(map(str, _READABLE))}, found {version}.")
     settings = Settings.read(reader, version)
     skeleton = unpack_skeleton_runtime(reader) if version >= 6 else unpack_skeleton_compact(reader, stepped=version >= 4)
-    num_frames, num_joints = header.num_frames, header.num_joints
-    if skeleton.num_joints != num_joints:
-        raise BitstreamError(f"mcb-rot: the skeleton has {skeleton.num_joints} joints, the header says {num_joints}.")
+    static_root = read_static_root(reader) if settings.static_root else None
+    num_frames, num_joints = header.num_frames, skeleton.num_joints
+    if num_joints + (static_root is not None) != header.num_joints:
+        raise BitstreamError(f"mcb-rot: the skeleton has {num_joints} joints"
+                             f"{' and a static root' if static_root is not None else ''}, the header says "
+                             f"{header.num_joints}.")
     cuts = read_cuts(reader, num_frames, "mcb-rot")
     layout = SegmentLayout(num_frames, segment_starts(num_frames, cuts, settings.segment_frames), settings.chunk_frames)
     num_segments = layout.num_segments
@@ -720,7 +733,8 @@ def read_info(header: Header, payload: memoryview) -> StreamInfo:
         raise BitstreamError(f"mcb-rot: the chunks end at byte {offsets[-1]}, the payload has {len(payload)}.")
     budgets = stream_budgets(settings, skeleton, track_header)
     return StreamInfo(settings, skeleton, budgets, layout, cuts, overrides, axis_codes, scale, tilt, dc_tilt,
-                      count_tilt, gap_class, value_class, dc, offsets, counts, version, unit_values, track_header)
+                      count_tilt, gap_class, value_class, dc, offsets, counts, version, unit_values, track_header,
+                      static_root)
 
 
 def end_site_reach(skeleton: Skeleton) -> np.ndarray:
