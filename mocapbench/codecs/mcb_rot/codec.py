@@ -159,6 +159,11 @@ _PREFETCH_FRAMES = 200
 # StreamInfo cache entries that depend on the axis codes only (shared by every attempt of a stream).
 _AXES_CACHE = ("axes", "turned", "turned axes")
 _PREFETCH = ((6, 7, 8), (7, 8, 9))
+# Below this frame rate the encoder also tries segments of half ``segment_frames`` and keeps the smaller stream (a
+# second encode): a segment of 128 frames spans 4.3 s at 30 fps, and which length codes a clip of a game capture
+# smaller depends on the clip and on eps (the README has the figures). At 120 fps (1.1 s segments) it is not tried.
+_HALF_SEGMENTS_BELOW_FPS = 60.0
+_MIN_SEARCHED_SEGMENT = 16
 
 
 @register_codec
@@ -219,6 +224,9 @@ class McbRotCodec(Codec):
         static_root: bool = param(
             True, doc="a still root joint 0 is kept apart and its moving child coded as the root (game rigs)"
         )
+        segment_search: bool = param(
+            True, doc="below 60 fps, also try segments of half segment_frames and keep the smaller stream"
+        )
 
     @property
     def latency_frames(self) -> int:
@@ -240,8 +248,24 @@ class McbRotCodec(Codec):
         self.last_encode_stats = windowed.merged_stats(stats)
         return payload
 
-    def _encode_window(self, full: Motion) -> bytes:
-        """The one-window payload of ``full`` (a whole clip, or one window of a long capture), checked.
+    def _encode_window(self, motion: Motion) -> bytes:
+        """The one-window payload of ``motion`` (a whole clip, or one window of a long capture), checked; below
+        :data:`_HALF_SEGMENTS_BELOW_FPS` with ``segment_search``, the smaller of the streams with segments of
+        ``segment_frames`` and of half that many frames (each coded and checked in full)."""
+        payload = self._encode_segments(motion)
+        half = self.config.segment_frames // 2
+        if self.config.segment_search and motion.fps < _HALF_SEGMENTS_BELOW_FPS and half >= _MIN_SEARCHED_SEGMENT:
+            stats = self.last_encode_stats
+            other = McbRotCodec(dataclasses.replace(self.config, segment_frames=half, segment_search=False))
+            shorter = other._encode_segments(motion)
+            if len(shorter) < len(payload):
+                self.last_encode_stats = {**other.last_encode_stats, "segment_frames": half}
+                return shorter
+            self.last_encode_stats = {**stats, "segment_frames": self.config.segment_frames}
+        return payload
+
+    def _encode_segments(self, full: Motion) -> bytes:
+        """The one-window payload of ``full`` with the config's segments, checked.
 
         A still root (:mod:`.static_root`) is kept apart: ``motion`` below is then the motion of the other joints,
         and the check at the end decodes the whole rig against ``full``."""

@@ -162,3 +162,26 @@ def test_most_helpful_picks_the_candidate_a_direct_count_picks(seed):
         assert out[row].sum() == 1
         picked = int(np.flatnonzero(out[row])[0])
         assert gains[list(candidates).index(picked)] == pytest.approx(max(gains), abs=1e-12)
+
+
+def test_below_60_fps_the_smaller_of_two_segment_lengths_is_kept():
+    """At 30 fps the encoder codes the clip with segments of 128 and of 64 frames and keeps the smaller stream (each
+    checked against eps); at 120 fps it writes the stream it writes without the search."""
+    from mocapbench.codecs import container
+    from mocapbench.codecs.mcb_rot.stream import read_info
+
+    slow = sinusoidal_motion(num_frames=300, seed=9).every(4)  # 30 fps
+    sizes = {}
+    for frames in (128, 64):
+        codec = create("mcb-rot", eps_cm=0.2, segment_frames=frames, segment_search=False)
+        sizes[frames] = len(codec.encode(slow))
+    searched = create("mcb-rot", eps_cm=0.2)
+    data = searched.encode(slow)
+    assert len(data) == min(sizes.values())
+    header, payload = container.unpack(data, "mcb-rot")
+    assert read_info(header, payload).settings.segment_frames == min(sizes, key=sizes.get)
+    assert searched.last_encode_stats["segment_frames"] == min(sizes, key=sizes.get)
+    assert metrics.max_joint_error(slow.positions(), searched.decode(data).positions) <= 0.2
+    fast = sinusoidal_motion(num_frames=300, seed=9)
+    assert fast.fps >= 60
+    assert create("mcb-rot", eps_cm=0.2).encode(fast) == create("mcb-rot", eps_cm=0.2, segment_search=False).encode(fast)
