@@ -138,20 +138,28 @@ def with_config(fitted: Codec, codec: Codec) -> Codec:
     return clone
 
 
-def _try(name: str, base: Mapping[str, Any], knob_settings: dict[str, Any], motion: Motion, prepare, reference,
-         met_at: float, exact: bool) -> SearchResult:
-    """One encode and decode at ``knob_settings``, measured against ``reference``; ``tries`` is left 0."""
+def _codec(name: str, base: Mapping[str, Any], knob_settings: dict[str, Any], prepare) -> Codec:
     codec = create(name, **{**base, **knob_settings})
-    if prepare is not None:
-        codec = prepare(codec)
-    wall, cpu = time.perf_counter(), time.process_time()
-    data = codec.encode(motion)
-    wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
-    stats = dict(codec.last_encode_stats)
+    return prepare(codec) if prepare is not None else codec
+
+
+def _measured(codec: Codec, data: bytes, stats: dict[str, Any], reference, knob_settings: dict[str, Any],
+              met_at: float, exact: bool, wall: float, cpu: float) -> SearchResult:
+    """Decode ``data`` and measure it against ``reference`` (F, J, 3) cm; ``tries`` is left 0."""
     decoded = codec.decode(data).positions
     worst = metrics.max_joint_error(reference, decoded)
     return SearchResult(codec, data, knob_settings, worst, metrics.mean_joint_error(reference, decoded),
                         worst <= met_at, exact, 0, stats, wall, cpu)
+
+
+def _try(name: str, base: Mapping[str, Any], knob_settings: dict[str, Any], motion: Motion, prepare, reference,
+         met_at: float, exact: bool) -> SearchResult:
+    """One encode and decode at ``knob_settings``, measured against ``reference``; ``tries`` is left 0."""
+    codec = _codec(name, base, knob_settings, prepare)
+    wall, cpu = time.perf_counter(), time.process_time()
+    data = codec.encode(motion)
+    wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
+    return _measured(codec, data, dict(codec.last_encode_stats), reference, knob_settings, met_at, exact, wall, cpu)
 
 
 def search(
@@ -265,9 +273,7 @@ def _checked_knob(name: str, bound_cm: float, knob: Knob | None) -> Knob | None:
 def _try_many(name: str, base: Mapping[str, Any], knob_settings: dict[str, Any], motions: Sequence[Motion], prepare,
               references: Sequence, met_at: float, exact: bool) -> list[SearchResult]:
     """:func:`_try` on several motions with one codec and one ``encode_many`` call (time shared by frames)."""
-    codec = create(name, **{**base, **knob_settings})
-    if prepare is not None:
-        codec = prepare(codec)
+    codec = _codec(name, base, knob_settings, prepare)
     wall, cpu = time.perf_counter(), time.process_time()
     encoded = codec.encode_many(motions)
     wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
@@ -276,11 +282,9 @@ def _try_many(name: str, base: Mapping[str, Any], knob_settings: dict[str, Any],
     for motion, reference, (data, stats) in zip(motions, references, encoded):
         if isinstance(data, Exception):
             raise data
-        decoded = codec.decode(data).positions
-        worst = metrics.max_joint_error(reference, decoded)
         share = motion.num_frames / total
-        out.append(SearchResult(codec, data, knob_settings, worst, metrics.mean_joint_error(reference, decoded),
-                                worst <= met_at, exact, 0, dict(stats), wall * share, cpu * share))
+        out.append(_measured(codec, data, dict(stats), reference, knob_settings, met_at, exact, wall * share,
+                             cpu * share))
     return out
 
 
