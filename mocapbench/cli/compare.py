@@ -39,8 +39,9 @@ def _announce_costs(names: list[str] | None, motions) -> None:
         return
     for name in names:
         if name in ON_REQUEST:
-            print(f"{name}: about {duration_text(estimate_cpu_s(name, motions))} of CPU on these {frames} frames "
-                  f"(estimate; it trains a network per rate-search try)", file=sys.stderr)
+            print(f"{name}: at most about {duration_text(estimate_cpu_s(name, motions))} of CPU on these {frames} "
+                  f"frames (estimate of one clip at a time; it trains a network per rate-search try, the clips of a "
+                  f"try side by side)", file=sys.stderr)
 
 
 def _print_verdicts(verdicts) -> None:

@@ -111,7 +111,9 @@ def estimate_cpu_s(name: str, motions: Sequence[Motion]) -> float:
 
     The measured CPU seconds per frame of one encode and decode (:func:`mocapbench.experiments.cost.cpu_cost`,
     the codec's most expensive config) times the frames, times the rate search's tries (1 for a codec with a
-    guarantee, about 12 for a bisection) plus the measured encode and decode of the chosen setting.
+    guarantee, about 12 for a bisection), plus one more decode per clip (the row's, of the chosen stream: it is
+    not encoded again). For a codec whose searches run in lockstep (``encode_many``: the neural codecs train the
+    clips of a try side by side) this is an upper bound: the cost file measures one clip at a time.
     """
     from mocapbench.experiments.cost import cpu_cost, load_costs
     from mocapbench.ratesearch import KNOBS
@@ -120,7 +122,7 @@ def estimate_cpu_s(name: str, motions: Sequence[Motion]) -> float:
     knob = KNOBS.get(name)
     tries = _EXACT_TRIES if knob is None or knob.exact is not None else _SEARCH_TRIES
     frames = sum(motion.num_frames for motion in motions)
-    return (tries + 1) * (per_frame * frames + per_clip * len(motions))
+    return (tries + 1) * (per_frame * frames + per_clip * len(motions))  # the decode counted as an encode: a bound
 
 
 def _fingerprint(motion: Motion) -> str:
