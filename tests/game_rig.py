@@ -15,7 +15,7 @@ from scipy.spatial.transform import Rotation
 
 from mocapbench.motion import Motion, Skeleton
 
-__all__ = ["game_rig_motion", "GAME_RIG_NAMES"]
+__all__ = ["game_rig_motion", "still_root_rig", "GAME_RIG_NAMES"]
 
 _JOINTS = [  # name, parent, offset (cm)
     ("joint_Root", -1, (0.0, 0.0, 0.0)),
@@ -77,3 +77,13 @@ def game_rig_motion(num_frames: int = 90, seed: int = 0, *, scaled: bool = False
         scales[:, 8] = 1 + 0.2 * np.sin(2 * np.pi * 0.7 * t)
     return Motion(skeleton, fps, roots, rotations, name=f"game-rig-seed{seed}", translations=translations,
                   scales=scales)
+
+
+def still_root_rig(num_frames: int = 120, seed: int = 3, position=(0.0, 0.0, 0.0)) -> Motion:
+    """The rig with its ground root held still at ``position`` with the identity rotation (as the Bandai Namco files'
+    ``joint_Root``): only the pelvis' translation track moves the body."""
+    motion = game_rig_motion(num_frames, seed)
+    rotations = motion.rotations.copy()
+    rotations[:, 0] = (0.0, 0.0, 0.0, 1.0)
+    roots = np.broadcast_to(np.asarray(position, dtype=np.float64), (num_frames, 3)).copy()
+    return Motion(motion.skeleton, motion.fps, roots, rotations, name="still-root", translations=motion.translations)

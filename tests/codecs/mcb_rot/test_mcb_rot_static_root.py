@@ -21,16 +21,7 @@ from mocapbench.entropy.errors import BitstreamError
 from mocapbench.motion import Motion
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
-from game_rig import game_rig_motion  # noqa: E402
-
-
-def still_root_rig(num_frames: int = 120, seed: int = 3, position=(0.0, 0.0, 0.0)) -> Motion:
-    """The synthetic game rig with its ground root held still (as the Bandai Namco files' ``joint_Root``)."""
-    motion = game_rig_motion(num_frames, seed)
-    rotations = motion.rotations.copy()
-    rotations[:, 0] = (0.0, 0.0, 0.0, 1.0)
-    roots = np.broadcast_to(np.asarray(position, dtype=np.float64), (num_frames, 3)).copy()
-    return Motion(motion.skeleton, motion.fps, roots, rotations, name="still-root", translations=motion.translations)
+from game_rig import game_rig_motion, still_root_rig  # noqa: E402
 
 
 def _errors(decoded, motion):
@@ -100,22 +91,6 @@ def test_without_the_flag_the_rig_is_coded_with_tracks_and_the_same_bound():
     assert not info.settings.static_root and list(info.tracks.joints) == [1]
     joints, ends = _errors(codec.decode(data), motion)
     assert joints.max() <= 0.5 and ends.max() <= 0.5
-
-
-def test_a_long_still_root_capture_is_coded_window_by_window(monkeypatch):
-    from mocapbench.codecs.mcb_rot import windowed
-
-    monkeypatch.setattr(windowed, "WINDOW_FRAMES", 128)
-    motion = still_root_rig(300, seed=8)
-    codec = create("mcb-rot", eps_cm=0.5)
-    data = codec.encode(motion)
-    decoded = codec.decode(data)
-    joints, ends = _errors(decoded, motion)
-    assert joints.max() <= 0.5 and ends.max() <= 0.5
-    assert decoded.motion.skeleton.names == motion.skeleton.names
-    part = codec.decode_frames(data, 120, 140)  # across a window boundary
-    np.testing.assert_allclose(part.positions, decoded.positions[120:140], atol=1e-9)
-    np.testing.assert_allclose(part.motion.translations, decoded.motion.translations[120:140], atol=1e-12)
 
 
 def _section() -> bytes:

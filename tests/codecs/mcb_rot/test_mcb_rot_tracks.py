@@ -14,7 +14,7 @@ from mocapbench.entropy.bitio import ByteReader, ByteWriter
 from mocapbench.entropy.errors import BitstreamError
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
-from game_rig import game_rig_motion  # noqa: E402
+from game_rig import game_rig_motion, still_root_rig  # noqa: E402
 
 
 def _plan(motion, share=0.05):
@@ -88,16 +88,22 @@ def test_a_game_rig_is_within_eps_on_every_joint_and_end_site(eps):
     np.testing.assert_allclose(part.motion.translations, decoded.motion.translations[61:64], atol=1e-12)
 
 
-def test_a_long_game_rig_capture_is_coded_window_by_window(monkeypatch):
+@pytest.mark.parametrize("rig", [game_rig_motion, still_root_rig], ids=["moving root", "still root"])
+def test_a_long_game_rig_capture_is_coded_window_by_window(monkeypatch, rig):
+    """Windows of a rig with tracks and of one whose still root is kept apart (flag bit 12): the bound on joints and
+    end sites, the whole rig back, parts across a window boundary."""
     from mocapbench.codecs import create
     from mocapbench.codecs.mcb_rot import windowed
 
     monkeypatch.setattr(windowed, "WINDOW_FRAMES", 128)
-    motion = game_rig_motion(300, seed=7)
+    motion = rig(300, seed=7)
     codec = create("mcb-rot", eps_cm=0.5)
     data = codec.encode(motion)
     decoded = codec.decode(data)
     assert np.sqrt(np.sum((decoded.positions - motion.positions()) ** 2, axis=-1)).max() <= 0.5
+    ends = decoded.motion.end_site_positions() - motion.end_site_positions()
+    assert np.sqrt(np.sum(ends**2, axis=-1)).max() <= 0.5
+    assert decoded.motion.skeleton.names == motion.skeleton.names
     part = codec.decode_frames(data, 120, 140)  # across a window boundary
     np.testing.assert_allclose(part.positions, decoded.positions[120:140], atol=1e-9)
     np.testing.assert_allclose(part.motion.translations, decoded.motion.translations[120:140], atol=1e-12)
