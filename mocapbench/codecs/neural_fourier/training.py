@@ -5,12 +5,18 @@ weights. One such network costs little arithmetic per Adam step and a fixed over
 operations, and it takes tens of thousands of steps; trained one at a time through autograd and ``torch.optim``,
 the overhead is most of the time. Here every network of a call is trained side by side:
 
-* **Stacked weights.** The B networks of a group live in one flat parameter tensor ``P`` (B × |α|), viewed as
-  ``W0 (B, h, 2K+1)``, ``b0 (B, h)``, ``W1 (B, h, h)``, ``b1``, ``W2 (B, m, h)``, ``b2 (B, m)``; the forward pass of
-  eq. (2) is three batched matrix products (``baddbmm``) over the group's frames.
+* **Stacked weights.** The B networks of a group live in one flat parameter tensor ``P`` (B × |α|), viewed as one
+  matrix per layer with the bias as its last column, ``[W0 | b0] (B, h, 2K+2)``, ``[W1 | b1] (B, h, h+1)``,
+  ``[W2 | b2] (B, m, h+1)``; each layer's input carries a row of ones, so the forward pass of eq. (2) is three
+  batched matrix products (``bmm``) over the group's frames. The Fourier features are computed once per round.
+* **Frame-minor activations.** Activations are ``(B, width, frames)``: every product has the frames as its long
+  dimension, the layer widths as its short ones, in the order in which the CPU's kernels for thin matrices are
+  fastest (the frame-major layout, ``(B, frames, width)``, runs the same products markedly slower at small K,
+  where the widths are a few units).
 * **Gradients by hand.** The loss of eq. (3) and its gradient through the two ELU layers are written out (five
-  more batched products), so no autograd graph is built. ELU is computed as ``max(z, e − 1)`` with
-  ``e = exp(min(z, 0))``, and ``e`` is also ELU's derivative (1 where ``z > 0``), so one exponential serves both.
+  more batched products, the bias gradients inside the weight gradients), so no autograd graph is built. ELU is
+  computed as ``max(z, e − 1)`` with ``e = exp(min(z, 0))``, and ``e`` is also ELU's derivative (1 where
+  ``z > 0``), so one exponential serves both.
 * **Adam by hand**, on the flat tensor: the update of ``torch.optim.Adam`` (β = 0.9, 0.999, ε = 1e-8, bias
   corrections), each network with its own moments. All networks of a group take the same step number and rate, so
   each one follows exactly the schedule it would follow alone.
@@ -249,20 +255,56 @@ def train_round(networks: Sequence[Network], omegas: Sequence[Sequence[float]], 
 
 
 def _features(torch, t, omegas: Sequence[float]):
-    """Eq. (1) for one network: ``[t, sin 2πω₁t, cos 2πω₁t, …]``, shape (N, 2K + 1)."""
+    """Eq. (1) for one network with a column of ones appended (the first layer's bias as one more weight column):
+    ``[t, sin 2πω₁t, cos 2πω₁t, …, 1]``, shape (N, 2K + 2). Computed once per round: Ω is fixed within it."""
     t = t[:, None]
     columns = [t]
     for omega in omegas:
         phase = (2.0 * math.pi * float(omega)) * t
         columns += [torch.sin(phase), torch.cos(phase)]
+    columns.append(torch.ones_like(t))
     return torch.cat(columns, dim=1)
+
+
+def _augmented_shapes(shapes: Sequence[tuple[int, ...]]) -> list[tuple[int, int]]:
+    """Each layer as one matrix with its bias as the last column: ``[W0 | b0]``, ``[W1 | b1]``, ``[W2 | b2]``."""
+    return [(shapes[0][0], shapes[0][1] + 1), (shapes[2][0], shapes[2][1] + 1), (shapes[4][0], shapes[4][1] + 1)]
+
+
+def _pack(weights: Sequence[np.ndarray], layers: Sequence[tuple[int, int]]) -> np.ndarray:
+    """``[W0, b0, W1, b1, W2, b2]`` into the flat ``[W0 | b0], [W1 | b1], [W2 | b2]`` layout, zero-padded to
+    ``layers`` (more output rows for a network with fewer outputs than its group's widest)."""
+    blocks = []
+    for layer, (rows, columns) in enumerate(layers):
+        w, b = weights[2 * layer], weights[2 * layer + 1]
+        block = np.zeros((rows, columns), dtype=np.float32)
+        block[: w.shape[0], : w.shape[1]] = w
+        block[: b.shape[0], -1] = b
+        blocks.append(block.ravel())
+    return np.concatenate(blocks)
+
+
+def _unpack(flat: np.ndarray, layers: Sequence[tuple[int, int]], like: Sequence[np.ndarray]) -> list[np.ndarray]:
+    """The inverse of :func:`_pack`, cut back to the shapes of ``like``."""
+    out, offset = [], 0
+    for layer, (rows, columns) in enumerate(layers):
+        block = flat[offset: offset + rows * columns].reshape(rows, columns)
+        offset += rows * columns
+        w, b = like[2 * layer], like[2 * layer + 1]
+        out += [np.ascontiguousarray(block[: w.shape[0], : w.shape[1]]), np.ascontiguousarray(block[: b.shape[0], -1])]
+    return out
 
 
 def _train_group(networks: Sequence[Network], omegas: Sequence[Sequence[float]], iterations: int,
                  settings: TrainingSettings) -> None:
-    """One round for networks of the same width: lockstep full-batch Adam on stacked weights."""
-    import torch
+    """One round for networks of the same width: lockstep full-batch Adam on stacked weights.
 
+    Every layer is one matrix with its bias as the last column, and every layer's input has a row of ones (0 on
+    padded frames), so a layer is one batched product and a weight gradient (bias included) is another. Activations
+    are kept frame-minor, ``(B, h, N)`` (a network's frames along a row): every product then has the clip's frames
+    as its long dimension and the layer widths as the short ones in the order the CPU's matrix kernels run fastest.
+    """
+    import torch
 
     device = resolve_device(settings.device)
     dtype = torch.float32
@@ -270,42 +312,41 @@ def _train_group(networks: Sequence[Network], omegas: Sequence[Sequence[float]],
     frames = max(n.num_frames for n in networks)
     outputs = max(n.num_outputs for n in networks)
     shapes = [w.shape for w in networks[0].weights]
-    # Networks with fewer outputs than the widest one: pad W2 and b2 with zero rows (zero loss weight keeps them 0).
+    # Networks with fewer outputs than the widest one: W2 and b2 get zero rows (zero loss weight keeps them 0).
     shapes[4], shapes[5] = (outputs, shapes[4][1]), (outputs,)
-    sizes = [math.prod(s) for s in shapes]
-    offsets = np.concatenate([[0], np.cumsum(sizes)]).astype(int)
+    layers = _augmented_shapes(shapes)
+    offsets = np.concatenate([[0], np.cumsum([r * c for r, c in layers])]).astype(int)
+    hidden, inputs = layers[0][0], layers[0][1]
     params = torch.zeros(count, int(offsets[-1]), dtype=dtype)
-    features = torch.zeros(count, frames, shapes[0][1], dtype=dtype)
-    targets = torch.zeros(count, frames, outputs, dtype=dtype)
+    features = torch.zeros(count, inputs, frames, dtype=dtype)  # x(t_i) of eq. (1) and a 1, column i
+    targets = torch.zeros(count, outputs, frames, dtype=dtype)
     # eq. (3) as the mean over the clip's entries (the single-network codec's loss), per network: with
     # s = w · std · sqrt(2 / (N m)) per output (0 on padded outputs), loss = |(F(x) − y) ∘ s|² / 2 and
     # d loss / d output = (F(x) − y) ∘ s². The scaled residual (F(x) − y) ∘ s is one batched product:
-    # [a2, 1] [s ∘ W2, s ∘ b2]ᵀ − y ∘ s, and padded frames give 0 in it (their [a2, 1] row is set to 0).
-    scale = torch.zeros(count, 1, outputs, dtype=dtype)
-    row_mask = torch.zeros(count, frames, 1, dtype=dtype)
+    # [s ∘ W2 | s ∘ b2] [a2; 1] − y ∘ s, and padded frames give 0 in it (their [a2; 1] column is 0).
+    scale = torch.zeros(count, outputs, 1, dtype=dtype)
+    frame_mask = torch.zeros(count, 1, frames, dtype=dtype)
     for b, (network, frequencies) in enumerate(zip(networks, omegas)):
         n, m = network.targets.shape
-        packed = []
-        for i, w in enumerate(network.weights):
-            padded = np.zeros(shapes[i], dtype=np.float32)
-            padded[tuple(slice(0, s) for s in w.shape)] = w
-            packed.append(padded.ravel())
-        params[b] = torch.from_numpy(np.concatenate(packed))
+        params[b] = torch.from_numpy(_pack(network.weights, layers))
         t = torch.tensor(time_grid(n), dtype=dtype)
-        features[b, :n] = _features(torch, t, frequencies)
-        scale[b, 0, :m] = torch.from_numpy(np.asarray(network.loss_weights, dtype=np.float32)) * math.sqrt(2.0 / (n * m))
-        targets[b, :n, :m] = torch.from_numpy(np.asarray(network.targets, dtype=np.float32)) * scale[b, 0, :m]
-        row_mask[b, :n] = 1.0
-    padded_rows = bool((row_mask == 0).any())
-    params, features, targets, scale, row_mask = (x.to(device) for x in (params, features, targets, scale, row_mask))
-    hidden = shapes[2][0]
-    # [a2, 1] of every frame (0 on padded frames), the left factor of the output layer's product.
-    a2_ones = row_mask.expand(count, frames, 1).repeat(1, 1, hidden + 1)
-    a2 = a2_ones[:, :, :hidden]
-    column_scale = scale.transpose(1, 2)  # (B, m, 1)
-    w0, b0, w1, b1, w2, b2 = (params[:, offsets[i]:offsets[i + 1]].unflatten(1, tuple(shapes[i])) for i in range(6))
+        features[b, :, :n] = _features(torch, t, frequencies).T
+        scale[b, :m, 0] = torch.from_numpy(np.asarray(network.loss_weights, dtype=np.float32)) * math.sqrt(2.0 / (n * m))
+        targets[b, :m, :n] = torch.from_numpy(np.asarray(network.targets, dtype=np.float32)).T * scale[b, :m]
+        frame_mask[b, :, :n] = 1.0
+    padded_frames = bool((frame_mask == 0).any())
+    params, features, targets, scale, frame_mask = (
+        x.to(device) for x in (params, features, targets, scale, frame_mask))
+    # [a1; 1] and [a2; 1] of every frame (the ones row is 0 on padded frames): the second and third layers' inputs.
+    a1_ones = frame_mask.expand(count, 1, frames).repeat(1, hidden + 1, 1)
+    a2_ones = a1_ones.clone()
+    a1, a2 = a1_ones[:, :hidden], a2_ones[:, :hidden]
+    w0, w1, w2 = (params[:, offsets[i]:offsets[i + 1]].unflatten(1, layers[i]) for i in range(3))
     first_moment = torch.zeros_like(params)
     second_moment = torch.zeros_like(params)
+    gradient = torch.empty_like(params)
+    gradient_w0, gradient_w1, gradient_w2 = (gradient[:, offsets[i]:offsets[i + 1]].unflatten(1, layers[i])
+                                             for i in range(3))
     beta1, beta2 = _ADAM_BETAS
     rounds = networks[0].rounds
     peak = settings.learning_rate * max(settings.round_lr_decay**rounds, _LR_FLOOR)
@@ -316,16 +357,16 @@ def _train_group(networks: Sequence[Network], omegas: Sequence[Sequence[float]],
     stopped = np.full(count, iterations)
     for step in range(iterations + 1):
         # eq. (2): W2 ELU(W1 ELU(W0 x + b0) + b1) + b2, ELU(z) = max(z, e − 1), e = exp(min(z, 0)) = ELU'(z)
-        z1 = torch.baddbmm(b0.unsqueeze(1), features, w0.transpose(1, 2))
+        z1 = torch.bmm(w0, features)
         e1 = torch.clamp_max(z1, 0.0).exp_()
-        a1 = torch.maximum(z1, e1 - 1.0)
-        z2 = torch.baddbmm(b1.unsqueeze(1), a1, w1.transpose(1, 2))
+        torch.maximum(z1, torch.sub(e1, 1.0, out=a1), out=a1)  # in place: no temporary
+        z2 = torch.bmm(w1, a1_ones)
         e2 = torch.clamp_max(z2, 0.0).exp_()
-        torch.maximum(z2, e2 - 1.0, out=a2)
-        if padded_rows:
-            a2.mul_(row_mask)
-        scaled_out = torch.cat([w2, b2.unsqueeze(2)], dim=2).mul_(column_scale)  # (B, m, h + 1)
-        residual = torch.baddbmm(targets, a2_ones, scaled_out.transpose(1, 2), beta=-1.0)  # (F(x) − y) ∘ s
+        torch.maximum(z2, torch.sub(e2, 1.0, out=a2), out=a2)  # in place: no temporary
+        if padded_frames:
+            a2.mul_(frame_mask)
+        scaled_out = w2 * scale  # (B, m, h + 1): [s ∘ W2 | s ∘ b2]
+        residual = torch.baddbmm(targets, scaled_out, a2_ones, beta=-1.0)  # (F(x) − y) ∘ s, (B, m, N)
         losses[step] = torch.linalg.vector_norm(residual, dim=(1, 2)).square_().mul_(0.5)
         if step == iterations:
             break
@@ -338,14 +379,13 @@ def _train_group(networks: Sequence[Network], omegas: Sequence[Sequence[float]],
                 active = active.masked_fill(converged, 0.0)
                 if not bool(active.any()):
                     break
-        # d loss / d [W2, b2] = ((F(x) − y) ∘ s²)ᵀ [a2, 1] = s ∘ (residualᵀ [a2, 1]); d loss / d a2 = residual (s ∘ W2).
-        gradient_out = torch.bmm(residual.transpose(1, 2), a2_ones).mul_(column_scale)  # (B, m, h + 1)
-        d2 = torch.bmm(residual, scaled_out[:, :, :hidden]).mul_(e2)
-        gradient_w1 = torch.bmm(d2.transpose(1, 2), a1)
-        d1 = torch.bmm(d2, w1).mul_(e1)
-        gradient_w0 = torch.bmm(d1.transpose(1, 2), features)
-        gradient = torch.cat([gradient_w0.flatten(1), d1.sum(1), gradient_w1.flatten(1), d2.sum(1),
-                              gradient_out[:, :, :hidden].flatten(1), gradient_out[:, :, hidden]], dim=1)
+        # d loss / d [W2 | b2] = s ∘ (residual [a2; 1]ᵀ); d loss / d a2 = (s ∘ W2)ᵀ residual; then back through
+        # both ELUs (their derivatives are e2, e1) and the first two layers.
+        gradient_w2.copy_(torch.bmm(a2_ones, residual.transpose(1, 2)).transpose(1, 2)).mul_(scale)
+        d2 = torch.bmm(scaled_out[:, :, :hidden].transpose(1, 2), residual).mul_(e2)
+        gradient_w1.copy_(torch.bmm(d2, a1_ones.transpose(1, 2)))
+        d1 = torch.bmm(w1[:, :, :hidden].transpose(1, 2), d2).mul_(e1)
+        gradient_w0.copy_(torch.bmm(d1, features.transpose(1, 2)))
         # Adam (torch.optim.Adam's update, per network): moments, bias corrections, step.
         t = step + 1
         rate = learning_rate(step, iterations, warmup, peak)
@@ -357,12 +397,7 @@ def _train_group(networks: Sequence[Network], omegas: Sequence[Sequence[float]],
     losses = losses[: step + 1].cpu().numpy().astype(np.float64)  # rows after an early stop were never written
     params = params.cpu().numpy()
     for b, network in enumerate(networks):
-        n, m = network.targets.shape
-        unpacked = []
-        for i, w in enumerate(network.weights):
-            block = params[b, offsets[i]:offsets[i + 1]].reshape(shapes[i])
-            unpacked.append(np.ascontiguousarray(block[tuple(slice(0, s) for s in w.shape)]))
-        network.weights = unpacked
+        network.weights = _unpack(params[b], layers, network.weights)
         last = min(int(stopped[b]), step)
         network.loss_history.append(losses[: last + 1, b].copy())
         network.rounds += 1
