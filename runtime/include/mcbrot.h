@@ -60,7 +60,8 @@ typedef enum mcbrot_status {
     MCBROT_E_CONTEXT_SMALL = 6,  /* the context is smaller than mcbrot_context_size says */
     MCBROT_E_TIME = 7,           /* t is NaN or outside [0, duration] */
     MCBROT_E_NOT_OPEN = 8,       /* the context holds no opened clip */
-    MCBROT_E_UNSUPPORTED = 9     /* a feature of the stream this version does not implement (scale tracks) */
+    MCBROT_E_UNSUPPORTED = 9     /* a feature of the stream this version does not implement (scale tracks, a still
+                                  * root kept apart: settings flag bit 12) */
 } mcbrot_status;
 
 /* How a time between frames is rounded. A time within a millionth of a frame of a frame is that frame. */

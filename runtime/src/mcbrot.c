@@ -340,8 +340,11 @@ static int read_settings(reader_t *r, header_t *h) {
     if ((s = read_f32(r, &h->eps, "eps")) || (s = read_f32(r, &h->bound, "bound"))) return s;
     uint64_t flags;
     if ((s = read_varint(r, &flags, "settings flags", 2))) return s;
-    if (flags >> 12)
+    if (flags >> 13)
         return fail(MSG(r), MCBROT_E_CORRUPT, "mcb-rot: unknown settings flags %#llx", (unsigned long long)flags);
+    if (flags & (1u << 12)) /* a game rig's still root kept apart (static_root.py): Python decodes it */
+        return fail(MSG(r), MCBROT_E_UNSUPPORTED, "mcb-rot: the stream keeps a still root apart (settings flag bit "
+                    "12), which this runtime does not read");
     h->cover_ends = (int)((flags >> 11) & 1);
     h->tracks = (int)((flags >> 10) & 1);
     if (flags & 1) {

@@ -23,7 +23,7 @@ ROOT = Path(__file__).resolve().parents[3]
 sys.path.insert(0, str(ROOT / "tests" / "codecs"))
 sys.path.insert(0, str(ROOT / "tests"))
 sys.path.insert(0, str(ROOT / "tests" / "fixtures" / "golden_decode"))
-from game_rig import game_rig_motion  # noqa: E402
+from game_rig import game_rig_motion, still_root_rig  # noqa: E402
 from make_golden import spinning  # noqa: E402
 from test_mcb_rot import random_motion  # noqa: E402
 
@@ -158,6 +158,15 @@ def test_hostile_payloads_are_refused_with_one_line_never_a_crash(lib):
             assert "\n" not in str(error) and str(error).startswith("mcb-rot")
             refused += 1
     assert refused >= len(cases) // 2
+
+
+def test_a_still_root_kept_apart_is_unsupported_by_the_runtime_and_decoded_by_numpy(lib):
+    motion = still_root_rig(40)
+    data = create("mcb-rot", eps_cm=0.5).encode(motion)
+    header, payload = container.unpack(data, "mcb-rot")
+    with pytest.raises(BitstreamError, match="still root apart"):
+        native.NativeClip(lib, bytes(payload), header.num_frames, header.num_joints, header.fps)
+    assert metrics.max_joint_error(motion.positions(), create("mcb-rot").decode(data).positions) <= 0.5
 
 
 def test_another_format_is_refused_by_the_runtime(lib):
