@@ -615,8 +615,8 @@ static int plan(const container_t *c, header_t *h, reader_t *r, uint32_t *cuts_o
         uint64_t step;
         if ((s = read_varint(r, &step, "parents", 10))) return s;
         if (step < 1 || step > j)
-            return fail(MSG(r), MCBROT_E_CORRUPT, "mcb-rot: skeleton: joint %u names parent %lld", j,
-                        (long long)j - (long long)step);
+            return fail(MSG(r), MCBROT_E_CORRUPT, "mcb-rot: skeleton: joint %u names a parent %llu joints before "
+                        "it (1..%u)", j, (unsigned long long)step, j);
     }
     h->end_parents_at = r->pos;
     for (uint32_t e = 0; e < h->ends; ++e) {
