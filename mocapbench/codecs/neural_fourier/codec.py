@@ -87,6 +87,7 @@ from mocapbench.codecs.neural_fourier.pose_params import (
     pose_weights,
     quantize_tensor,
     read_tensor,
+    read_tensor_format,
     write_tensor,
 )
 from mocapbench.codecs.neural_fourier.training import (
@@ -349,13 +350,7 @@ class _FourierMlpCodec(Codec):
         omegas = reader.read_array(num_frequencies, np.float32, "frequencies").astype(np.float64)
         if not np.all(np.isfinite(omegas)):
             raise BitstreamError(f"{self.name}: the frequencies hold non-finite values.")
-        code = reader.read_u8("weight format")
-        if code >= len(TENSOR_FORMATS):
-            raise BitstreamError(f"{self.name}: weight format code must be < {len(TENSOR_FORMATS)}, found {code}.")
-        fmt = TENSOR_FORMATS[code]
-        bits = reader.read_u8("weight bits")
-        if (fmt == "uniform") != (2 <= bits <= 16) or (fmt == "float16" and bits != 0):
-            raise BitstreamError(f"{self.name}: weight bits {bits} do not fit the {fmt} format.")
+        fmt, bits = read_tensor_format(reader, self.name, "weight")
         m = num_pose_parameters(skeleton.num_joints)
         mean = reader.read_array(m, np.float16, "column means").astype(np.float64)
         std = reader.read_array(m, np.float16, "column scales").astype(np.float64)

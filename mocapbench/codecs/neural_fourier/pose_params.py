@@ -38,6 +38,7 @@ __all__ = [
     "motion_from_pose_blocks",
     "POSE_BLOCK_FRAMES",
     "TENSOR_FORMATS",
+    "read_tensor_format",
     "quantize_tensor",
     "write_tensor",
     "read_tensor",
@@ -250,6 +251,38 @@ def write_tensor(writer, values: np.ndarray, fmt: str, bits: int) -> None:
     bit_writer = BitWriter()
     bit_writer.write_array(RangeQuantizer(bits, low, high).quantize(values.ravel()), bits)
     writer.write_blob(bit_writer.getvalue())
+
+
+def read_tensor_format(reader, codec: str, what: str) -> tuple[str, int]:
+    """Read the storage format and bit depth that :func:`write_tensor`'s caller wrote before its tensors.
+
+    Parameters
+    ----------
+    reader : ByteReader
+    codec : str
+        The codec's name, for the message.
+    what : str
+        What the tensors are (``"weight"``, ``"factor"``), for the message.
+
+    Returns
+    -------
+    (fmt, bits) : one of :data:`TENSOR_FORMATS`, and 2..16 for ``"uniform"`` (0 for ``"float16"``).
+
+    Raises
+    ------
+    BitstreamError
+        If the format code is unknown or the bit depth does not fit the format.
+    """
+    from mocapbench.entropy.errors import BitstreamError
+
+    code = reader.read_u8(f"{what} format")
+    if code >= len(TENSOR_FORMATS):
+        raise BitstreamError(f"{codec}: {what} format code must be < {len(TENSOR_FORMATS)}, found {code}.")
+    fmt = TENSOR_FORMATS[code]
+    bits = reader.read_u8(f"{what} bits")
+    if (fmt == "uniform") != (2 <= bits <= 16) or (fmt == "float16" and bits != 0):
+        raise BitstreamError(f"{codec}: {what} bits {bits} do not fit the {fmt} format.")
+    return fmt, bits
 
 
 def read_tensor(reader, shape: tuple[int, ...], fmt: str, bits: int, what: str) -> np.ndarray:

@@ -40,6 +40,7 @@ from mocapbench.codecs.neural_fourier.pose_params import (
     pose_weights,
     quantize_tensor,
     read_tensor,
+    read_tensor_format,
     write_tensor,
 )
 from mocapbench.codecs.limits import check_payload_holds
@@ -200,13 +201,7 @@ class SvdCodec(Codec):
         rank = reader.read_varint("rank")
         if not 1 <= rank <= min(header.num_frames, m):
             raise BitstreamError(f"svd: expected a rank in [1, {min(header.num_frames, m)}], found {rank}.")
-        code = reader.read_u8("factor format")
-        if code >= len(TENSOR_FORMATS):
-            raise BitstreamError(f"svd: factor format code must be < {len(TENSOR_FORMATS)}, found {code}.")
-        fmt = TENSOR_FORMATS[code]
-        bits = reader.read_u8("factor bits")
-        if (fmt == "uniform") != (2 <= bits <= 16) or (fmt == "float16" and bits != 0):
-            raise BitstreamError(f"svd: factor bits {bits} do not fit the {fmt} format.")
+        fmt, bits = read_tensor_format(reader, "svd", "factor")
         mean = reader.read_array(m, np.float32, "column means").astype(np.float64)
         if not np.all(np.isfinite(mean)):
             raise BitstreamError("svd: the column means hold non-finite values.")
