@@ -99,9 +99,12 @@ def test_each_network_stops_on_its_own_loss_whatever_shares_its_batch():
     for network in together:
         alone = _network(network.num_frames, 5)
         train_round([alone], [[1.0]], 1500, stopping)
-        # The same stop up to the order of sums (which moves the loss curve by a few 1e-4 over 1,500 steps).
+        # The same stop up to the order of sums, which moves the loss curve by a few 1e-4 over 1,500 steps and
+        # depends on the BLAS kernel and the batch's shape; the stop may then fall a few steps apart, so the
+        # weights agree to about 1 % of their size, not to a fixed number of digits. A network trained on its
+        # neighbour's loss, or stopped by it, lands much further away.
         assert abs(len(alone.loss_history[0]) - len(network.loss_history[0])) <= 100
-        np.testing.assert_allclose(alone.weights[4], network.weights[4], atol=2e-2)
+        np.testing.assert_allclose(alone.weights[4], network.weights[4], rtol=2e-2, atol=2e-2)
         history = network.loss_history[0]
         if len(history) < 1501:  # it stopped where its loss changed by at most 1 % over 50 steps
             assert abs(history[-51] - history[-1]) <= 1e-2 * history[-51]
