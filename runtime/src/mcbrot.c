@@ -82,7 +82,9 @@ typedef struct ctx_t {
     uint32_t *blocks;       /* max_chunk_segments x (C / LANES + 1): where each block of a segment starts in values */
     uint32_t *longest;      /* max_chunk_segments: the most coefficients of a channel in each segment of the chunk */
     uint16_t *rank;         /* C: a channel's place in `order` (while a chunk is decoded) */
-    uint32_t *corr_flat;    /* unit_values / 4: corrections as frame * (J + 1) + slot, from the chunk's first frame */
+    uint32_t *corr_flat;    /* the chunk's corrections as frame * (J + 1) + slot from its first frame: in `values`,
+                             * after the coefficients (a correction's slot and its 3 values take the 4 values the
+                             * header's largest unit counts for it) */
     uint32_t num_corrections, corr_values_at;
     /* per segment length tables, in two slots: the longest segments' (most of a clip's) and the last other length
      * used (a clip's shorter segments: before a cut, at its end), so that access alternating between the two never
@@ -807,7 +809,7 @@ static int unit_end(reader_t *r, unit_t *u, uint32_t count, const char *what) {
 
 typedef struct layout_t {
     size_t parents, offsets, end_parents, base_step, correction_step, turned, axes, overrides, seg_start, chunk_first,
-        chunk_offset, class_table, dc, counts, values, order, blocks, longest, rank, corr_flat, cosines, bands, track_of,
+        chunk_offset, class_table, dc, counts, values, order, blocks, longest, rank, cosines, bands, track_of,
         track_joint, track_step, track_base, track_reach, track_class, track_values, scratch, total;
 } layout_t;
 
@@ -852,7 +854,6 @@ static void layout_of(const header_t *h, uint32_t chunks, uint32_t max_chunk_seg
     l->blocks = place(&at, 4 * (size_t)max_chunk_segments * (B + 1));
     l->longest = place(&at, 4 * (size_t)max_chunk_segments);
     l->rank = place(&at, 2 * C);
-    l->corr_flat = place(&at, 4 * ((size_t)h->unit_values / 4 + 1));
     size_t slots = h->segments > 1 ? 2 : 1; /* one segment: one length */
     l->cosines = place(&at, slots * 8 * (2 * n + 1));
     l->bands = place(&at, slots * n);
@@ -1179,7 +1180,6 @@ static int open_with(void *context, size_t context_bytes, container_t *given, co
     x->blocks = (uint32_t *)(base + l.blocks);
     x->longest = (uint32_t *)(base + l.longest);
     x->rank = (uint16_t *)(base + l.rank);
-    x->corr_flat = (uint32_t *)(base + l.corr_flat);
     for (int slot = 0; slot < (h.segments > 1 ? 2 : 1); ++slot) {
         x->cosines_slot[slot] = (double *)(base + l.cosines) + (size_t)slot * (2 * h.max_length + 1);
         x->bands_slot[slot] = base + l.bands + (size_t)slot * h.max_length;
@@ -1531,6 +1531,7 @@ static int load_chunk(ctx_t *x, uint32_t k) {
         at = start;
     }
     int64_t flat = -1;
+    x->corr_flat = (uint32_t *)(x->values + at); /* at + 4 count <= unit_values + padding (checked above) */
     for (uint32_t i = 0; i < count; ++i) {
         int32_t gap;
         int e = unit_next(&u, SIDE + x->gap_class, &gap);
@@ -1543,6 +1544,7 @@ static int load_chunk(ctx_t *x, uint32_t k) {
                         "chunk's end", k);
         x->corr_flat[i] = (uint32_t)flat;
     }
+    at += count;
     x->corr_values_at = at;
     for (uint32_t i = 0; i < 3 * count; ++i) {
         int e = unit_next(&u, SIDE + x->value_class, &x->values[at++]);
