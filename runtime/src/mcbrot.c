@@ -59,6 +59,9 @@ typedef struct ctx_t {
     int dc_tilt, count_tilt, gap_class, value_class;
     uint32_t num_overrides, num_turned, unit_values, max_length, max_chunk_segments, max_chunk_frames;
     uint32_t num_tracks;    /* translation tracks (flags bit 10) */
+    uint32_t still;         /* 1: a still root kept apart (flags bit 12): the outputs have joints + 1 joints */
+    double still_offset[3], still_position[3]; /* cm */
+    double *still_pose;     /* POSE_DOUBLES(joints + 1): the float32 calls' whole pose (a still root only) */
     /* arrays inside the context */
     int32_t *parents;       /* J */
     double *offsets;        /* (J + E) x 3: the joints', then the end sites' */
@@ -328,6 +331,8 @@ typedef struct header_t {
     int tracks;          /* flags bit 10: translation tracks */
     uint32_t num_tracks;
     size_t tracks_at;
+    int still;           /* flags bit 12: a still root kept apart; `joints` are the stream's others */
+    double still_offset[3], still_position[3];
 } header_t;
 
 static const double defaults_f32[] = {0.0, 0.0, 0.0, 1.0, 0.45f, 0.05f, 0.017453292519943295f, 0.0};
@@ -344,9 +349,7 @@ static int read_settings(reader_t *r, header_t *h) {
     if ((s = read_varint(r, &flags, "settings flags", 2))) return s;
     if (flags >> 13)
         return fail(MSG(r), MCBROT_E_CORRUPT, "mcb-rot: unknown settings flags %#llx", (unsigned long long)flags);
-    if (flags & (1u << 12)) /* a game rig's still root kept apart (static_root.py): Python decodes it */
-        return fail(MSG(r), MCBROT_E_UNSUPPORTED, "mcb-rot: the stream keeps a still root apart (settings flag bit "
-                    "12), which this runtime does not read");
+    h->still = (int)((flags >> 12) & 1);
     h->cover_ends = (int)((flags >> 11) & 1);
     h->tracks = (int)((flags >> 10) & 1);
     if (flags & 1) {
@@ -591,6 +594,68 @@ static int read_tracks_header(reader_t *r, header_t *h, ctx_t *x) {
     return MCBROT_OK;
 }
 
+/* Whether bytes [0, n) are UTF-8 as Python's strict decoder takes it: no overlong form, no surrogate, nothing
+ * above U+10FFFF, no stray or missing continuation byte. */
+static int is_utf8(const uint8_t *p, size_t n) {
+    for (size_t i = 0; i < n;) {
+        uint8_t b = p[i];
+        size_t more;
+        uint8_t low = 0x80, high = 0xbf; /* the range of the byte after the lead */
+        if (b < 0x80) more = 0;
+        else if (b >= 0xc2 && b <= 0xdf) more = 1;
+        else if (b >= 0xe0 && b <= 0xef) {
+            more = 2;
+            if (b == 0xe0) low = 0xa0;
+            if (b == 0xed) high = 0x9f;
+        } else if (b >= 0xf0 && b <= 0xf4) {
+            more = 3;
+            if (b == 0xf0) low = 0x90;
+            if (b == 0xf4) high = 0x8f;
+        } else return 0;
+        if (n - i - 1 < more) return 0;
+        for (size_t k = 1; k <= more; ++k) {
+            uint8_t c = p[i + k];
+            if (c < (k == 1 ? low : 0x80) || c > (k == 1 ? high : 0xbf)) return 0;
+        }
+        i += 1 + more;
+    }
+    return 1;
+}
+
+/* The still root section (mocapbench/codecs/mcb_rot/static_root.py, read_static_root), after the skeleton part:
+ * varint n (1..255) + n bytes of UTF-8 name without NUL | u8 channel order (< 6) | 3 x f32 offset cm | 3 x f32
+ * position cm, each finite and within 1e6 cm. Checked; the offset and position kept in `h` (the name and the order
+ * are not needed to sample). */
+static int read_still_root(reader_t *r, header_t *h) {
+    int s;
+    uint64_t n;
+    uint32_t order;
+    if ((s = read_varint(r, &n, "length of static root name", 10))) return s;
+    if (n > 255)
+        return fail(MSG(r), MCBROT_E_CORRUPT, "mcb-rot: expected at most 255 bytes for the static root's name, the "
+                    "length field says %llu", (unsigned long long)n);
+    if ((s = need(r, (size_t)n, "static root name"))) return s;
+    const uint8_t *name = r->data + r->pos;
+    if (n < 1 || memchr(name, 0, (size_t)n))
+        return fail(MSG(r), MCBROT_E_CORRUPT, "mcb-rot: the static root's name must be 1..255 bytes without NUL, "
+                    "found %llu bytes", (unsigned long long)n);
+    if (!is_utf8(name, (size_t)n)) return fail(MSG(r), MCBROT_E_CORRUPT, "mcb-rot: the static root's name is not UTF-8");
+    r->pos += (size_t)n;
+    if ((s = read_u8(r, &order, "static root channel order"))) return s;
+    if (order >= 6)
+        return fail(MSG(r), MCBROT_E_CORRUPT, "mcb-rot: the static root's channel order index must be < 6, found %u",
+                    order);
+    for (int k = 0; k < 3; ++k)
+        if ((s = read_f32(r, &h->still_offset[k], "static root offset"))) return s;
+    for (int k = 0; k < 3; ++k)
+        if ((s = read_f32(r, &h->still_position[k], "static root position"))) return s;
+    for (int k = 0; k < 3; ++k)
+        if (!(fabs(h->still_offset[k]) <= 1e6 && fabs(h->still_position[k]) <= 1e6))
+            return fail(MSG(r), MCBROT_E_CORRUPT, "mcb-rot: the static root's offset or position is not finite or "
+                        "beyond 1e6 cm");
+    return MCBROT_OK;
+}
+
 /* Pass 1 over the payload header: every field up to the side unit read and checked, sizes found. The cuts are
  * needed for the segment count: they are read into `cuts` (at most F - 1 values) when not NULL, else only
  * counted. */
@@ -609,9 +674,9 @@ static int plan(const container_t *c, header_t *h, reader_t *r, uint32_t *cuts_o
     if ((s = read_count(r, &h->joints, MAX_JOINTS, "joint count")) || (s = read_count(r, &h->ends, MAX_JOINTS,
                                                                                      "end-site count")))
         return s;
-    if (h->joints != c->joints)
-        return fail(MSG(r), MCBROT_E_CORRUPT, "mcb-rot: the skeleton has %u joints, the header says %u", h->joints,
-                    c->joints);
+    if (h->joints < 1 || h->joints + (uint32_t)h->still != c->joints)
+        return fail(MSG(r), MCBROT_E_CORRUPT, "mcb-rot: the skeleton has %u joints%s, the header says %u", h->joints,
+                    h->still ? " and a still root" : "", c->joints);
     h->parents_at = r->pos;
     for (uint32_t j = 1; j < h->joints; ++j) {
         uint64_t step;
@@ -636,6 +701,7 @@ static int plan(const container_t *c, header_t *h, reader_t *r, uint32_t *cuts_o
     r->pos += blob;
     if ((s = read_size(r, &blob, "skeleton names size"))) return s;
     r->pos += blob; /* zstd: names and channel orders, not needed to sample */
+    if (h->still && (s = read_still_root(r, h))) return s;
     /* cuts */
     h->cuts_at = r->pos;
     if ((s = read_count(r, &h->num_cuts, c->frames - 1, "cut count"))) return s;
@@ -810,7 +876,7 @@ static int unit_end(reader_t *r, unit_t *u, uint32_t count, const char *what) {
 typedef struct layout_t {
     size_t parents, offsets, end_parents, base_step, correction_step, turned, axes, overrides, seg_start, chunk_first,
         chunk_offset, class_table, dc, counts, values, order, blocks, longest, rank, cosines, bands, track_of,
-        track_joint, track_step, track_base, track_reach, track_class, track_values, scratch, total;
+        track_joint, track_step, track_base, track_reach, track_class, track_values, scratch, still_pose, total;
 } layout_t;
 
 static size_t place(size_t *at, size_t bytes) {
@@ -866,6 +932,7 @@ static void layout_of(const header_t *h, uint32_t chunks, uint32_t max_chunk_seg
     l->track_class = place(&at, 3 * T);
     l->track_values = place(&at, 24 * T * (T ? max_chunk_frames : 0));
     l->scratch = place(&at, 8 * (2 * POSE_DOUBLES(J) + 2 * C + LANES + n + 1));
+    l->still_pose = place(&at, h->still ? 8 * POSE_DOUBLES(J + 1) : 0);
     l->total = (at + 15) & ~(size_t)15;
 }
 
@@ -1192,12 +1259,13 @@ static int open_with(void *context, size_t context_bytes, container_t *given, co
     x->track_class = base + l.track_class;
     x->track_values = (double *)(base + l.track_values);
     x->scratch = (double *)(base + l.scratch);
+    x->still_pose = (double *)(base + l.still_pose);
     x->bytes_used = l.total;
     x->payload = c.payload;
     x->payload_bytes = c.payload_bytes;
     x->frames = c.frames;
-    x->joints = c.joints;
-    x->channels = 3 + 3 * c.joints;
+    x->joints = h.joints; /* the stream's (a still root apart: the header's less one) */
+    x->channels = 3 + 3 * h.joints;
     x->fps = c.fps;
     x->segments = h.segments;
     x->chunks = chunks;
@@ -1221,6 +1289,9 @@ static int open_with(void *context, size_t context_bytes, container_t *given, co
     x->max_chunk_segments = most;
     x->max_chunk_frames = most_frames;
     x->num_tracks = h.tracks ? h.num_tracks : 0;
+    x->still = (uint32_t)h.still;
+    memcpy(x->still_offset, h.still_offset, sizeof x->still_offset);
+    memcpy(x->still_position, h.still_position, sizeof x->still_position);
     x->cached_chunk = -1;
     x->table_length[0] = x->table_length[1] = 0;
     uint32_t J = x->joints, C = x->channels, S = x->segments;
@@ -1722,7 +1793,7 @@ MCBROT_API int mcbrot_info(const void *context, mcbrot_clip_info *info) {
     if (!info) return MCBROT_E_ARGUMENT;
     const ctx_t *x = (const ctx_t *)context;
     info->num_frames = x->frames;
-    info->num_joints = x->joints;
+    info->num_joints = x->joints + x->still;
     info->fps = x->fps;
     info->duration_s = (double)(x->frames - 1) / x->fps;
     info->eps_cm = x->eps;
@@ -1730,7 +1801,7 @@ MCBROT_API int mcbrot_info(const void *context, mcbrot_clip_info *info) {
     info->num_segments = x->segments;
     info->num_chunks = x->chunks;
     info->context_bytes = x->bytes_used;
-    info->num_tracks = x->num_tracks;
+    info->num_tracks = x->num_tracks + x->still; /* a still root's child moves: its translation is a track */
     return MCBROT_OK;
 }
 
@@ -1743,9 +1814,32 @@ MCBROT_API int mcbrot_skeleton(const void *context, int32_t *parents, double *of
     int s = check_open(context);
     if (s) return s;
     const ctx_t *x = (const ctx_t *)context;
-    if (parents) memcpy(parents, x->parents, 4 * (size_t)x->joints);
-    if (offsets) memcpy(offsets, x->offsets, 24 * (size_t)x->joints);
+    uint32_t still = x->still;
+    if (parents) {
+        parents[0] = -1;
+        for (uint32_t j = 0; j < x->joints; ++j) parents[j + still] = x->parents[j] + (int32_t)still;
+        if (still) parents[1] = 0;
+    }
+    if (offsets) {
+        if (still) memcpy(offsets, x->still_offset, 24);
+        memcpy(offsets + 3 * still, x->offsets, 24 * (size_t)x->joints);
+    }
     return MCBROT_OK;
+}
+
+/* A still root kept apart (flags bit 12) in front of a pose whose other joints are written one joint further in:
+ * joint 0's rotation (the identity) and translation (its position), joint 1's translation from it (the stream's
+ * root less that position). Either output may be NULL. */
+static void put_still(const ctx_t *x, double *rotations, double *translations) {
+    if (rotations) {
+        rotations[0] = rotations[1] = rotations[2] = 0.0;
+        rotations[3] = 1.0;
+    }
+    if (translations)
+        for (int k = 0; k < 3; ++k) {
+            translations[3 + k] -= x->still_position[k];
+            translations[k] = x->still_position[k];
+        }
 }
 
 /* Frames [start, start + count): rotations (count x J x 4), roots (count x 3) and/or translations (count x J x 3,
@@ -1756,14 +1850,15 @@ static int decode_range(ctx_t *x, uint32_t start, uint32_t count, double *rotati
     if (start > x->frames || count > x->frames - start)
         return fail(x->message, MESSAGE_BYTES, MCBROT_E_ARGUMENT, "mcb-rot: frames %u..%llu outside the clip's %u",
                     start, (unsigned long long)start + count, x->frames);
-    size_t J = x->joints;
+    size_t J = x->joints, W = J + x->still; /* W: the outputs' joints (a still root's in front) */
     double *pose = x->scratch, *moved = pose + 4 * J; /* J x 3: the root, then the steps */
     for (uint32_t f = 0; f < count; ++f) {
         int s = decode_frame(x, start + f, pose, moved, translations ? moved : NULL);
         if (s) return s;
-        if (rotations) memcpy(rotations + 4 * J * f, pose, 32 * J);
-        if (roots) memcpy(roots + 3 * (size_t)f, moved, 24);
-        if (translations) memcpy(translations + 3 * J * f, moved, 24 * J);
+        if (rotations) memcpy(rotations + 4 * (W * f + x->still), pose, 32 * J);
+        if (roots) memcpy(roots + 3 * (size_t)f, x->still ? x->still_position : moved, 24);
+        if (translations) memcpy(translations + 3 * (W * f + x->still), moved, 24 * J);
+        if (x->still) put_still(x, rotations ? rotations + 4 * W * f : NULL, translations ? translations + 3 * W * f : NULL);
     }
     return MCBROT_OK;
 }
@@ -1837,16 +1932,28 @@ static int sample_into(ctx_t *x, double t, int rounding, double *rotations, doub
     return MCBROT_OK;
 }
 
+/* sample_into for the outputs' joints: a still root kept apart (flags bit 12) is put in front of the stream's. */
+static int sample_rig(ctx_t *x, double t, int rounding, double *rotations, double *root, double *steps) {
+    if (!x->still) return sample_into(x, t, rounding, rotations, root, steps);
+    if (!rotations || !root) return sample_into(x, t, rounding, NULL, NULL, NULL); /* the NULL output's message */
+    double inner_root[3]; /* without steps: the stream's root, which the outputs do not hold */
+    int s = sample_into(x, t, rounding, rotations + 4, steps ? steps + 3 : inner_root, steps ? steps + 3 : NULL);
+    if (s) return s;
+    put_still(x, rotations, steps);
+    if (root != steps) memcpy(root, x->still_position, 24);
+    return MCBROT_OK;
+}
+
 MCBROT_API int mcbrot_sample(void *context, double t, int rounding, double *rotations, double *root) {
     int s = check_open(context);
     if (s) return s;
-    return sample_into((ctx_t *)context, t, rounding, rotations, root, NULL);
+    return sample_rig((ctx_t *)context, t, rounding, rotations, root, NULL);
 }
 
 MCBROT_API int mcbrot_sample_pose(void *context, double t, int rounding, double *rotations, double *translations) {
     int s = check_open(context);
     if (s) return s;
-    return sample_into((ctx_t *)context, t, rounding, rotations, translations, translations);
+    return sample_rig((ctx_t *)context, t, rounding, rotations, translations, translations);
 }
 
 /* float32 variants: sampled into the context's first pose, then narrowed. */
@@ -1856,9 +1963,9 @@ static int sample_f32(void *context, double t, int rounding, float *rotations, f
     ctx_t *x = (ctx_t *)context;
     if (!rotations || (!root && !translations))
         return fail(x->message, MESSAGE_BYTES, MCBROT_E_ARGUMENT, "mcb-rot: NULL output");
-    size_t J = x->joints;
-    double *pose = x->scratch, *moved = pose + 4 * J;
-    if ((s = sample_into(x, t, rounding, pose, moved, translations ? moved : NULL))) return s;
+    size_t J = x->joints + x->still;
+    double *pose = x->still ? x->still_pose : x->scratch, *moved = pose + 4 * J;
+    if ((s = sample_rig(x, t, rounding, pose, moved, translations ? moved : NULL))) return s;
     for (size_t i = 0; i < 4 * J; ++i) rotations[i] = (float)pose[i];
     if (root)
         for (int k = 0; k < 3; ++k) root[k] = (float)moved[k];
@@ -1879,6 +1986,8 @@ MCBROT_API int mcbrot_tracks(const void *context, uint32_t *joints) {
     int s = check_open(context);
     if (s) return s;
     const ctx_t *x = (const ctx_t *)context;
-    if (joints && x->num_tracks) memcpy(joints, x->track_joint, 4 * (size_t)x->num_tracks);
+    if (joints && x->still) joints[0] = 1; /* a still root's child: its translation moves */
+    if (joints)
+        for (uint32_t t = 0; t < x->num_tracks; ++t) joints[t + x->still] = x->track_joint[t] + x->still;
     return MCBROT_OK;
 }

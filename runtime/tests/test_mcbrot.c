@@ -118,6 +118,45 @@ static void test_poses(const char *path, void *context, const mcbrot_clip_info *
     free(narrow);
 }
 
+/* A still root kept apart (flags bit 12; streams named *still-root*): the calls give the whole rig, joint 0 the still
+ * root (parent -1, the identity rotation and one place on every frame, sampled or decoded, in float64 and float32),
+ * joint 1 its child, listed first among the tracked joints. */
+static void test_still_root(const char *path, void *context, const mcbrot_clip_info *info, const double *rotations,
+                            const double *roots) {
+    size_t J = info->num_joints, F = info->num_frames;
+    int32_t *parents = malloc(sizeof(int32_t) * J);
+    uint32_t *tracked = malloc(sizeof(uint32_t) * J);
+    double *pose = malloc(sizeof(double) * 7 * J);
+    float *narrow = malloc(sizeof(float) * 7 * J);
+    CHECK(J >= 2 && info->num_tracks >= 1, "%s: a still root's rig has %zu joints, %u tracks", path, J, info->num_tracks);
+    CHECK(mcbrot_skeleton(context, parents, NULL) == MCBROT_OK && mcbrot_tracks(context, tracked) == MCBROT_OK, "rig");
+    CHECK(parents[0] == -1 && parents[1] == 0 && tracked[0] == 1, "%s: joint 1 is not the still root's tracked child",
+          path);
+    for (size_t j = 2; j < J; ++j) CHECK(parents[j] >= 1 && parents[j] < (int32_t)j, "%s: parent of %zu", path, j);
+    for (size_t f = 0; f < F; ++f) {
+        const double *q = rotations + 4 * J * f;
+        CHECK(q[0] == 0.0 && q[1] == 0.0 && q[2] == 0.0 && q[3] == 1.0, "%s: the still root turns at frame %zu", path, f);
+        CHECK(memcmp(roots + 3 * f, roots, 24) == 0, "%s: the still root moves at frame %zu", path, f);
+    }
+    for (int mode = 0; mode < 4; ++mode) {
+        double t = info->duration_s * (0.37 + 0.1 * mode);
+        CHECK(mcbrot_sample_pose(context, t, mode, pose, pose + 4 * J) == MCBROT_OK, "still pose");
+        CHECK(pose[3] == 1.0 && memcmp(pose + 4 * J, roots, 24) == 0, "%s: sampled still root, mode %d", path, mode);
+        CHECK(mcbrot_sample(context, t, mode, pose, pose + 4 * J) == MCBROT_OK, "still sample");
+        CHECK(pose[3] == 1.0 && memcmp(pose + 4 * J, roots, 24) == 0, "%s: sampled still root, mode %d", path, mode);
+        CHECK(mcbrot_sample_pose_f32(context, t, mode, narrow, narrow + 4 * J) == MCBROT_OK, "still f32 pose");
+        CHECK(narrow[3] == 1.0f && narrow[4 * J] == (float)roots[0] && narrow[4 * J + 2] == (float)roots[2],
+              "%s: float32 still root, mode %d", path, mode);
+        CHECK(mcbrot_sample_f32(context, t, mode, narrow, narrow + 4 * J) == MCBROT_OK, "still f32");
+        CHECK(narrow[3] == 1.0f && narrow[4 * J + 1] == (float)roots[1], "%s: float32 root, mode %d", path, mode);
+    }
+    CHECK(mcbrot_sample(context, 0.0, MCBROT_NEAREST, NULL, pose) == MCBROT_E_ARGUMENT, "a NULL output accepted");
+    free(parents);
+    free(tracked);
+    free(pose);
+    free(narrow);
+}
+
 static void test_stream(const char *path, const unsigned char *data, size_t n) {
     size_t size;
     int status;
@@ -169,6 +208,7 @@ static void test_stream(const char *path, const unsigned char *data, size_t n) {
     float f32[4 * 64 + 3];
     if (J <= 64) CHECK(mcbrot_sample_f32(context, 0.0, MCBROT_NEAREST, f32, f32 + 4 * J) == MCBROT_OK, "f32");
     test_poses(path, context, &info, rotations, roots);
+    if (strstr(path, "still-root")) test_still_root(path, context, &info, rotations, roots);
     /* bad calls */
     CHECK(mcbrot_sample(context, NAN, MCBROT_NEAREST, pose, root) == MCBROT_E_TIME, "NaN time accepted");
     CHECK(mcbrot_sample(context, -1e-9, MCBROT_NEAREST, pose, root) == MCBROT_E_TIME, "negative time accepted");

@@ -1,7 +1,7 @@
 """Write the runtime's own streams: test streams (``runtime/tests/streams/``: game rigs with translation tracks,
-flags bit 10, which the repository's golden streams do not carry) and the fuzzer's small seeds
+flags bit 10, and with a still root kept apart, flags bit 12, which the repository's golden streams do not carry) and the fuzzer's small seeds
 (``runtime/fuzz/seeds/``: a few joints and frames each, so that one execution costs little and a campaign reaches
-millions of inputs, with every part of the format present: cuts, re-references, corrections, tracks). The C tests
+millions of inputs, with every part of the format present: cuts, re-references, corrections, tracks, a still root). The C tests
 (``make test``) and the fuzz campaigns read them; the Python tests compare the runtime with numpy on freshly made
 streams, so these files only need to be valid.
 
@@ -21,7 +21,7 @@ def main() -> None:
     sys.path.insert(0, str(ROOT / "tests"))
     sys.path.insert(0, str(ROOT / "tests" / "codecs" / "mcb_rot"))
     sys.path.insert(0, str(ROOT / "tests" / "fixtures" / "golden_decode"))
-    from game_rig import game_rig_motion
+    from game_rig import game_rig_motion, still_root_rig
     from make_golden import spinning
     from test_mcb_rot import random_motion
 
@@ -32,6 +32,10 @@ def main() -> None:
     cases = {
         "game-rig-tracks.mcb": (game_rig_motion(90, seed=3), dict(eps_cm=0.5, segment_frames=32, chunk_frames=32)),
         "game-rig-stretch.mcb": (synthetic_game_rig(num_frames=150, seed=4, stretch_cm=8.0), dict(eps_cm=0.2)),
+        "game-rig-still-root.mcb": (still_root_rig(100, seed=6, position=(2.5, 0.0, -4.0)),
+                                    dict(eps_cm=0.3, segment_frames=32, chunk_frames=64)),
+        "game-rig-still-root-stretch.mcb": (_still(synthetic_game_rig(num_frames=70, seed=7, stretch_cm=8.0)),
+                                            dict(eps_cm=0.5)),
     }
     for name, (motion, settings) in cases.items():
         (OUT / name).write_bytes(create("mcb-rot", **settings).encode(motion))
@@ -46,10 +50,25 @@ def main() -> None:
                                                                              chunk_frames=32)),
         "rigid-1j-9f.mcb": (random_motion(4, 1, 9, 0.0, 0.3), dict(eps_cm=2.0, segment_frames=4, chunk_frames=4)),
         "game-rig-12f.mcb": (game_rig_motion(12, seed=5), dict(eps_cm=1.0, segment_frames=8, chunk_frames=8)),
+        "still-root-10f.mcb": (still_root_rig(10, seed=8, position=(1.0, 0.0, 2.0)),
+                               dict(eps_cm=1.0, segment_frames=4, chunk_frames=8)),
     }
     for name, (motion, settings) in small.items():
         (seeds / name).write_bytes(create("mcb-rot", **settings).encode(motion))
         print(seeds / name, (seeds / name).stat().st_size, "bytes")
+
+
+def _still(motion):
+    """``motion`` with its ground root held still (the identity rotation, at the origin): a still root kept apart,
+    its child (joint 1) carrying the trajectory."""
+    import numpy as np
+
+    from mocapbench.motion import Motion
+
+    rotations = motion.rotations.copy()
+    rotations[:, 0] = (0.0, 0.0, 0.0, 1.0)
+    return Motion(motion.skeleton, motion.fps, np.zeros_like(motion.root_positions), rotations, name="still",
+                  translations=motion.translations)
 
 
 if __name__ == "__main__":

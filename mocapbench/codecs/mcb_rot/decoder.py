@@ -82,6 +82,8 @@ def decode_range(
     translations = out[3] if len(out) > 3 else None  # (n, J, 3): the joints' steps, filled when the stream has tracks
     moving = None if info.tracks is None else info.tracks.moving(num_joints)
     clip = native_clip(info, payload)
+    if clip is not None and info.static_root is not None:
+        return _native_inner(info, clip, start, stop, (positions, roots, quats, translations), moving)
     if clip is not None:  # the runtime samples the rotations (and tracks); forward kinematics here, as below
         into = quats if quats.flags.c_contiguous else np.empty(quats.shape)
         if info.tracks is None:
@@ -119,16 +121,36 @@ def decode_range(
     return positions, roots, quats
 
 
+def _native_inner(info: StreamInfo, clip, start: int, stop: int, out: tuple, moving) -> tuple:
+    """:func:`decode_range`'s outputs (``out``: positions, roots, rotations, translations or None) of a stream with a
+    still root kept apart (:mod:`.static_root`), from the runtime: it gives the whole rig (the still root as joint
+    0, the stream's root as joint 1 with its translation from the still root), of which the stream's joints are
+    kept here (the root's position added back), as the numpy path decodes them."""
+    positions, roots, quats, translations = out
+    count, num_joints = stop - start, info.skeleton.num_joints
+    steps, rotations = np.empty((count, num_joints + 1, 3)), np.empty((count, num_joints + 1, 4))
+    clip.poses(start, stop, steps, rotations)
+    steps = steps[:, 1:]
+    steps[:, 0] += info.static_root.position
+    roots[...] = steps[:, 0]
+    if translations is not None:
+        translations[...] = steps
+    kinematics.positions(rotations[:, 1:], roots, info.skeleton, positions, quats,
+                         translations=None if moving is None else steps, moving=moving)
+    return positions, roots, quats
+
+
 def native_clip(info: StreamInfo, payload: memoryview):
     """The runtime's opened clip of a format 6 payload (kept in ``info``'s cache), or None: an older format, the
-    runtime not built, or ``MOCAPBENCH_NATIVE=0``."""
-    if info.version < 6 or info.static_root is not None:  # (the runtime does not read a still root, flag bit 12)
+    runtime not built, or ``MOCAPBENCH_NATIVE=0``. The clip has the whole rig's joints (a still root kept apart,
+    :mod:`.static_root`, is one more than the stream's skeleton)."""
+    if info.version < 6:
         return None
     if "native" not in info._cache:
         lib = native.library()
         # fps 1: frames are asked for by index, the runtime's time-based sampling is not used here
         info._cache["native"] = None if lib is None else native.NativeClip(
-            lib, payload, info.layout.num_frames, info.skeleton.num_joints, 1.0)
+            lib, payload, info.layout.num_frames, info.skeleton.num_joints + (info.static_root is not None), 1.0)
     return info._cache["native"]
 
 
