@@ -19,6 +19,12 @@
 #include <emmintrin.h> /* SSE2: part of every x86-64 */
 #define MCBROT_SSE2 1
 #endif
+/* AVX2 + FMA sums where the CPU has them (chosen at open; gcc and clang on x86-64 only, the SSE2 sums elsewhere) */
+#if defined(MCBROT_SSE2) && defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__)) && !defined(MCBROT_NO_AVX2)
+#include <immintrin.h>
+#define MCBROT_AVX2 1
+#define TARGET_AVX2 __attribute__((target("avx2,fma")))
+#endif
 
 /* ---------------------------------------------------------------------------------------------------------- */
 /* limits (as the Python decoder's)                                                                            */
@@ -104,6 +110,14 @@ typedef struct ctx_t {
     double *track_reach;    /* T, cm: the track's bone length in the budgets */
     uint8_t *track_class;   /* T x 3: side classes */
     double *track_values;   /* max_chunk_frames x T x 3: the cached chunk's translations, cm */
+    /* frames synthesised together in sequential playback (see channel_values) */
+    uint32_t frame_block;   /* frames per block: FRAME_BLOCK, or 1 where the block's tables would not fit in
+                             * MAX_CONTEXT */
+    uint32_t block_segment, block_first, block_count; /* the cached block: its frames [first, first + count) */
+    uint32_t previous_plus_one; /* the last frame synthesised, plus one (0: none yet) */
+    int avx2;               /* the CPU runs AVX2 and FMA */
+    double *block_rows;     /* (n + 1) x FRAME_BLOCK: the block's basis rows, frequency by frequency */
+    double *block_signal;   /* FRAME_BLOCK x (C rounded up to LANES): the block's channel values */
     double *scratch;        /* two poses (J x 4 rotations, 3 root, J x 3 steps) for linear sampling, C channel
                              * values, a row of n basis values */
     char message[MESSAGE_BYTES];
@@ -875,8 +889,10 @@ static int unit_end(reader_t *r, unit_t *u, uint32_t count, const char *what) {
 
 typedef struct layout_t {
     size_t parents, offsets, end_parents, base_step, correction_step, turned, axes, overrides, seg_start, chunk_first,
-        chunk_offset, class_table, dc, counts, values, order, blocks, longest, rank, cosines, bands, track_of,
-        track_joint, track_step, track_base, track_reach, track_class, track_values, scratch, still_pose, total;
+        chunk_offset, class_table, dc, counts, values, order, blocks, longest, rank, cosines, block_rows, block_signal,
+        bands, track_of, track_joint, track_step, track_base, track_reach, track_class, track_values, scratch,
+        still_pose, total;
+    uint32_t frame_block;
 } layout_t;
 
 static size_t place(size_t *at, size_t bytes) {
@@ -892,6 +908,11 @@ static size_t place(size_t *at, size_t bytes) {
 
 /* Doubles of one pose in the scratch area: rotations (4 J), root (3), steps (3 J). */
 #define POSE_DOUBLES(J) (7 * (size_t)(J) + 3)
+
+/* Sequential playback synthesises FRAME_BLOCK frames of a segment at once (the coefficients read once for all of
+ * them), unless their tables would take a context that fits in MAX_CONTEXT bytes past it. */
+#define FRAME_BLOCK 4
+#define MAX_CONTEXT 65536u
 
 static void layout_of(const header_t *h, uint32_t chunks, uint32_t max_chunk_segments, uint32_t max_chunk_frames,
                       layout_t *l) {
@@ -933,7 +954,16 @@ static void layout_of(const header_t *h, uint32_t chunks, uint32_t max_chunk_seg
     l->track_values = place(&at, 24 * T * (T ? max_chunk_frames : 0));
     l->scratch = place(&at, 8 * (2 * POSE_DOUBLES(J) + 2 * C + LANES + n + 1));
     l->still_pose = place(&at, h->still ? 8 * POSE_DOUBLES(J + 1) : 0);
+    /* the block tables, last: left out (frame_block 1) where they would take the context past MAX_CONTEXT */
+    size_t without = (at + 15) & ~(size_t)15;
+    l->block_rows = place(&at, 8 * FRAME_BLOCK * (n + 1));
+    l->block_signal = place(&at, 8 * FRAME_BLOCK * B * LANES);
     l->total = (at + 15) & ~(size_t)15;
+    l->frame_block = FRAME_BLOCK;
+    if (l->total > MAX_CONTEXT && without <= MAX_CONTEXT) {
+        l->total = without;
+        l->frame_block = 1;
+    }
 }
 
 /* Chunk grouping (SegmentLayout): consecutive segments until a chunk holds at least chunk_frames frames. */
@@ -1260,6 +1290,12 @@ static int open_with(void *context, size_t context_bytes, container_t *given, co
     x->track_values = (double *)(base + l.track_values);
     x->scratch = (double *)(base + l.scratch);
     x->still_pose = (double *)(base + l.still_pose);
+    x->frame_block = l.frame_block;
+    x->block_rows = l.frame_block > 1 ? (double *)(base + l.block_rows) : NULL;
+    x->block_signal = l.frame_block > 1 ? (double *)(base + l.block_signal) : NULL;
+#if defined(MCBROT_AVX2)
+    x->avx2 = __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
+#endif
     x->bytes_used = l.total;
     x->payload = c.payload;
     x->payload_bytes = c.payload_bytes;
@@ -1641,31 +1677,22 @@ static uint32_t upper_bound(const uint32_t *array, uint32_t n, uint32_t value) {
     return low;
 }
 
-/* sums[0..LANES) = sum over q = 1..kmax of basis[q] x block[(q - 1) LANES + 0..LANES) (one channel per lane; the
- * odd and even frequencies in separate sums, added at the end, so that four additions are in flight). */
+/* sums[0..LANES) = sum over q = 1..kmax of basis[q] x block[(q - 1) LANES + 0..LANES) (one channel per lane), in
+ * increasing q: the order of synthesize_frames, so that a frame synthesised alone or in a block is the same bits. */
 static inline void synthesize_block(const int32_t *block, const double *basis, uint32_t kmax, double *sums) {
     const double *b = basis + 1;
 #if defined(MCBROT_SSE2)
 #define PAIR(p) _mm_cvtepi32_pd(_mm_loadl_epi64((const __m128i *)(p))) /* two int32 -> two doubles */
-    __m128d a0 = _mm_setzero_pd(), a1 = _mm_setzero_pd(), b0 = _mm_setzero_pd(), b1 = _mm_setzero_pd();
-    uint32_t q = 0;
-    for (; q + 2 <= kmax; q += 2) {
-        const int32_t *v = block + LANES * q;
-        __m128d c = _mm_set1_pd(b[q]), d = _mm_set1_pd(b[q + 1]);
-        a0 = _mm_add_pd(a0, _mm_mul_pd(c, PAIR(v)));
-        a1 = _mm_add_pd(a1, _mm_mul_pd(c, PAIR(v + 2)));
-        b0 = _mm_add_pd(b0, _mm_mul_pd(d, PAIR(v + 4)));
-        b1 = _mm_add_pd(b1, _mm_mul_pd(d, PAIR(v + 6)));
-    }
-    if (q < kmax) {
+    __m128d a0 = _mm_setzero_pd(), a1 = _mm_setzero_pd();
+    for (uint32_t q = 0; q < kmax; ++q) {
         const int32_t *v = block + LANES * q;
         __m128d c = _mm_set1_pd(b[q]);
         a0 = _mm_add_pd(a0, _mm_mul_pd(c, PAIR(v)));
         a1 = _mm_add_pd(a1, _mm_mul_pd(c, PAIR(v + 2)));
     }
 #undef PAIR
-    _mm_storeu_pd(sums, _mm_add_pd(a0, b0));
-    _mm_storeu_pd(sums + 2, _mm_add_pd(a1, b1));
+    _mm_storeu_pd(sums, a0);
+    _mm_storeu_pd(sums + 2, a1);
 #else
     double s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
     for (uint32_t q = 0; q < kmax; ++q) {
@@ -1682,6 +1709,191 @@ static inline void synthesize_block(const int32_t *block, const double *basis, u
 #endif
 }
 
+#if defined(MCBROT_AVX2)
+/* synthesize_block with AVX2 and FMA: the block's four channels in one register, even and odd frequencies apart
+ * (the order of synthesize_frames_avx2: the same bits). */
+static TARGET_AVX2 void synthesize_block_avx2(const int32_t *block, const double *basis, uint32_t kmax, double *sums) {
+    const double *b = basis + 1;
+#define QUAD(p) _mm256_cvtepi32_pd(_mm_loadu_si128((const __m128i *)(p))) /* four int32 -> four doubles */
+    __m256d a0 = _mm256_setzero_pd(), a1 = _mm256_setzero_pd();
+    uint32_t q = 0;
+    for (; q + 2 <= kmax; q += 2) {
+        const int32_t *v = block + LANES * q;
+        a0 = _mm256_fmadd_pd(_mm256_broadcast_sd(b + q), QUAD(v), a0);
+        a1 = _mm256_fmadd_pd(_mm256_broadcast_sd(b + q + 1), QUAD(v + 4), a1);
+    }
+    if (q < kmax) a0 = _mm256_fmadd_pd(_mm256_broadcast_sd(b + q), QUAD(block + LANES * q), a0);
+    _mm256_storeu_pd(sums, _mm256_add_pd(a0, a1));
+}
+
+/* synthesize_frames with AVX2 and FMA: one register per frame, even and odd frequencies apart. */
+static TARGET_AVX2 void synthesize_frames_avx2(const int32_t *block, const double *rows, uint32_t kmax, double *sums,
+                                               size_t stride) {
+    const double *r = rows + FRAME_BLOCK;
+    __m256d a0 = _mm256_setzero_pd(), a1 = _mm256_setzero_pd(), a2 = _mm256_setzero_pd(), a3 = _mm256_setzero_pd();
+    __m256d b0 = _mm256_setzero_pd(), b1 = _mm256_setzero_pd(), b2 = _mm256_setzero_pd(), b3 = _mm256_setzero_pd();
+    uint32_t q = 0;
+    for (; q + 2 <= kmax; q += 2) {
+        __m256d v = QUAD(block + LANES * q), w = QUAD(block + LANES * q + LANES);
+        const double *c = r + FRAME_BLOCK * q, *d = c + FRAME_BLOCK;
+        a0 = _mm256_fmadd_pd(_mm256_broadcast_sd(c), v, a0);
+        a1 = _mm256_fmadd_pd(_mm256_broadcast_sd(c + 1), v, a1);
+        a2 = _mm256_fmadd_pd(_mm256_broadcast_sd(c + 2), v, a2);
+        a3 = _mm256_fmadd_pd(_mm256_broadcast_sd(c + 3), v, a3);
+        b0 = _mm256_fmadd_pd(_mm256_broadcast_sd(d), w, b0);
+        b1 = _mm256_fmadd_pd(_mm256_broadcast_sd(d + 1), w, b1);
+        b2 = _mm256_fmadd_pd(_mm256_broadcast_sd(d + 2), w, b2);
+        b3 = _mm256_fmadd_pd(_mm256_broadcast_sd(d + 3), w, b3);
+    }
+    if (q < kmax) {
+        __m256d v = QUAD(block + LANES * q);
+        const double *c = r + FRAME_BLOCK * q;
+        a0 = _mm256_fmadd_pd(_mm256_broadcast_sd(c), v, a0);
+        a1 = _mm256_fmadd_pd(_mm256_broadcast_sd(c + 1), v, a1);
+        a2 = _mm256_fmadd_pd(_mm256_broadcast_sd(c + 2), v, a2);
+        a3 = _mm256_fmadd_pd(_mm256_broadcast_sd(c + 3), v, a3);
+    }
+#undef QUAD
+    _mm256_storeu_pd(sums, _mm256_add_pd(a0, b0));
+    _mm256_storeu_pd(sums + stride, _mm256_add_pd(a1, b1));
+    _mm256_storeu_pd(sums + 2 * stride, _mm256_add_pd(a2, b2));
+    _mm256_storeu_pd(sums + 3 * stride, _mm256_add_pd(a3, b3));
+}
+#endif
+
+/* sums[f stride + 0..LANES) = sum over q = 1..kmax of rows[FRAME_BLOCK q + f] x block[(q - 1) LANES + 0..LANES),
+ * f = 0..FRAME_BLOCK - 1: synthesize_block for four frames, each coefficient read once for all of them. */
+static void synthesize_frames(const int32_t *block, const double *rows, uint32_t kmax, double *sums, size_t stride) {
+    const double *r = rows + FRAME_BLOCK;
+#if defined(MCBROT_SSE2)
+#define PAIR(p) _mm_cvtepi32_pd(_mm_loadl_epi64((const __m128i *)(p)))
+#define ONE(c, k, lo, hi) (lo = _mm_add_pd(lo, _mm_mul_pd(_mm_set1_pd((c)[k]), v0)), \
+                           hi = _mm_add_pd(hi, _mm_mul_pd(_mm_set1_pd((c)[k]), v1)))
+    __m128d a0 = _mm_setzero_pd(), a1 = _mm_setzero_pd(), b0 = _mm_setzero_pd(), b1 = _mm_setzero_pd();
+    __m128d c0 = _mm_setzero_pd(), c1 = _mm_setzero_pd(), d0 = _mm_setzero_pd(), d1 = _mm_setzero_pd();
+    for (uint32_t q = 0; q < kmax; ++q) {
+        const int32_t *v = block + LANES * q;
+        const double *c = r + FRAME_BLOCK * q;
+        __m128d v0 = PAIR(v), v1 = PAIR(v + 2);
+        ONE(c, 0, a0, a1);
+        ONE(c, 1, b0, b1);
+        ONE(c, 2, c0, c1);
+        ONE(c, 3, d0, d1);
+    }
+#undef ONE
+#undef PAIR
+    _mm_storeu_pd(sums, a0);
+    _mm_storeu_pd(sums + 2, a1);
+    _mm_storeu_pd(sums + stride, b0);
+    _mm_storeu_pd(sums + stride + 2, b1);
+    _mm_storeu_pd(sums + 2 * stride, c0);
+    _mm_storeu_pd(sums + 2 * stride + 2, c1);
+    _mm_storeu_pd(sums + 3 * stride, d0);
+    _mm_storeu_pd(sums + 3 * stride + 2, d1);
+#else
+    for (uint32_t f = 0; f < FRAME_BLOCK; ++f)
+        for (uint32_t lane = 0; lane < LANES; ++lane) {
+            double sum = 0.0;
+            for (uint32_t q = 0; q < kmax; ++q) sum += r[FRAME_BLOCK * q + f] * (double)block[LANES * q + lane];
+            sums[f * stride + lane] = sum;
+        }
+#endif
+}
+
+/* Row `into[stride q]`, q = 1..longest, of frame i of an n-frame segment: (1 + slope q / n) cos(pi (2 i + 1) q / 2n)
+ * (the cosine table of length n in use). */
+static void basis_row(const ctx_t *x, uint32_t n, uint32_t i, uint32_t longest, double *into, uint32_t stride) {
+    uint32_t period = 4 * n, step = 2 * i + 1, m = 0;
+    double slope = x->slope / (double)n;
+    for (uint32_t q = 1; q <= longest; ++q) {
+        m += step;
+        if (m >= period) m -= period;
+        into[(size_t)stride * q] = (1.0 + slope * (double)q) * x->cosines[m <= 2 * n ? m : period - m];
+    }
+}
+
+/* Channel values (C, in channel order) from the AC sums of a segment's channels (in `order`): base step x (DC +
+ * AC). */
+static void channel_signal(const ctx_t *x, uint32_t seg, const uint16_t *order, uint32_t n, const double *sums,
+                           double *signal) {
+    uint32_t C = x->channels;
+    double ac_scale = sqrt(2.0 / (double)n), dc_scale = 1.0 / sqrt((double)x->segment_frames);
+    const int64_t *dc = x->dc + (size_t)seg * C;
+    for (uint32_t c = 0; c < C; ++c) {
+        uint32_t ch = order[c];
+        signal[ch] = x->base_step[ch] * ((double)dc[ch] * dc_scale + ac_scale * sums[c]);
+    }
+}
+
+/* The channel values (C) of frame f in segment `seg` of the cached chunk `chunk` (eq. of the inverse DCT: every
+ * channel's sum at frame i, LANES channels at a time, their counts decreasing). Playback that moves one frame
+ * forward or backward synthesises FRAME_BLOCK frames of the segment ahead at once, in the direction of play, and
+ * keeps their values (block_signal): the values depend on the stream and the frame alone, so the block stays valid
+ * whichever chunk is cached later. Any other access synthesises the frame alone. */
+static const double *channel_values(ctx_t *x, uint32_t seg, uint32_t chunk, uint32_t f) {
+    uint32_t C = x->channels, J = x->joints, n = x->seg_start[seg + 1] - x->seg_start[seg];
+    uint32_t i = f - x->seg_start[seg], had = x->previous_plus_one, previous = had - 1u;
+    x->previous_plus_one = f + 1;
+    uint32_t B = (C + LANES - 1) / LANES, padded = B * LANES;
+    if (x->block_count && x->block_segment == seg && i - x->block_first < x->block_count)
+        return x->block_signal + (size_t)(i - x->block_first) * padded;
+    set_length(x, n);
+    uint32_t local = seg - x->chunk_first[chunk];
+    const uint16_t *order = x->order + (size_t)local * B * LANES;
+    const uint32_t *blocks = x->blocks + (size_t)local * (B + 1);
+    uint32_t longest = x->longest[local];
+    double *signal = x->scratch + 2 * POSE_DOUBLES(J);
+    double *sums = signal + C;  /* C + LANES: the AC sums, channels in `order` */
+    uint32_t first = i, count = 1;
+    if (x->frame_block > 1 && had && previous + 1 == f) {
+        count = n - i < FRAME_BLOCK ? n - i : FRAME_BLOCK;
+    } else if (x->frame_block > 1 && had && previous == f + 1) {
+        first = i + 1 >= FRAME_BLOCK ? i + 1 - FRAME_BLOCK : 0;
+        count = i + 1 - first;
+    }
+    if (count == 1) {
+        double *row = sums + C + LANES; /* n + 1 */
+        basis_row(x, n, i, longest, row, 1);
+        for (uint32_t b = 0; b < B; ++b) {
+#if defined(MCBROT_AVX2)
+            if (x->avx2) {
+                synthesize_block_avx2(x->values + blocks[b], row, (blocks[b + 1] - blocks[b]) / LANES, sums + LANES * b);
+                continue;
+            }
+#endif
+            synthesize_block(x->values + blocks[b], row, (blocks[b + 1] - blocks[b]) / LANES, sums + LANES * b);
+        }
+        channel_signal(x, seg, order, n, sums, signal);
+        return signal;
+    }
+    /* a block: rows of frames past `count` are zero (their sums are computed and dropped) */
+    double *rows = x->block_rows, *out = x->block_signal;
+    for (uint32_t k = 0; k < FRAME_BLOCK; ++k) {
+        if (k < count) basis_row(x, n, first + k, longest, rows + k, FRAME_BLOCK);
+        else
+            for (uint32_t q = 1; q <= longest; ++q) rows[FRAME_BLOCK * q + k] = 0.0;
+    }
+    for (uint32_t b = 0; b < B; ++b) {
+#if defined(MCBROT_AVX2)
+        if (x->avx2) {
+            synthesize_frames_avx2(x->values + blocks[b], rows, (blocks[b + 1] - blocks[b]) / LANES, out + LANES * b,
+                                   padded);
+            continue;
+        }
+#endif
+        synthesize_frames(x->values + blocks[b], rows, (blocks[b + 1] - blocks[b]) / LANES, out + LANES * b, padded);
+    }
+    for (uint32_t k = 0; k < count; ++k) { /* sums (in `order`) -> values (channel order), through `signal` */
+        double *frame = out + (size_t)k * padded;
+        channel_signal(x, seg, order, n, frame, signal);
+        memcpy(frame, signal, 8 * (size_t)C);
+    }
+    x->block_segment = seg;
+    x->block_first = first;
+    x->block_count = count;
+    return out + (size_t)(i - first) * padded;
+}
+
 /* The pose of frame f: rotations (J x 4), root (3); with `steps` (J x 3, row 0 untouched) every other joint's
  * translation from its parent: its track's value, else its skeleton offset. */
 static int decode_frame(ctx_t *x, uint32_t f, double *rotations, double *root, double *steps) {
@@ -1689,38 +1901,13 @@ static int decode_frame(ctx_t *x, uint32_t f, double *rotations, double *root, d
     uint32_t chunk = upper_bound(x->chunk_first, x->chunks + 1, seg) - 1;
     int s = load_chunk(x, chunk);
     if (s) return s;
-    uint32_t C = x->channels, J = x->joints, n = x->seg_start[seg + 1] - x->seg_start[seg];
-    uint32_t i = f - x->seg_start[seg];
-    set_length(x, n);
-    double *signal = x->scratch + 2 * POSE_DOUBLES(J);
-    double *sums = signal + C;            /* C + LANES: the AC sums, channels in `order` */
-    double *row = sums + C + LANES;       /* (1 + slope k / n) cos(pi (2 i + 1) k / 2 n), k = 0 .. n - 1: every channel's */
-    uint32_t local = seg - x->chunk_first[chunk], B = (C + LANES - 1) / LANES;
-    const uint16_t *order = x->order + (size_t)local * B * LANES;
-    const uint32_t *blocks = x->blocks + (size_t)local * (B + 1);
-    uint32_t longest = x->longest[local];
-    uint32_t period = 4 * n, stride = 2 * i + 1, m = 0;
-    double slope = x->slope / (double)n;
-    for (uint32_t q = 1; q <= longest; ++q) {
-        m += stride;
-        if (m >= period) m -= period;
-        row[q] = (1.0 + slope * (double)q) * x->cosines[m <= 2 * n ? m : period - m];
-    }
-    /* the inverse DCT of every channel at frame i: LANES channels at a time (their counts decrease, the first
-     * has the most), odd and even frequencies summed apart */
-    for (uint32_t b = 0; b < B; ++b)
-        synthesize_block(x->values + blocks[b], row, (blocks[b + 1] - blocks[b]) / LANES, sums + LANES * b);
-    double ac_scale = sqrt(2.0 / (double)n), dc_scale = 1.0 / sqrt((double)x->segment_frames);
-    const int64_t *dc = x->dc + (size_t)seg * C;
-    for (uint32_t c = 0; c < C; ++c) {
-        uint32_t ch = order[c];
-        signal[ch] = x->base_step[ch] * ((double)dc[ch] * dc_scale + ac_scale * sums[c]);
-    }
+    uint32_t J = x->joints;
+    const double *signal = channel_values(x, seg, chunk, f);
     root[0] = signal[0];
     root[1] = signal[1];
     root[2] = signal[2];
     for (uint32_t j = 0; j < J; ++j) {
-        double *v = signal + 3 + 3 * j;
+        const double *v = signal + 3 + 3 * j;
         double rx = v[0], ry = v[1], rz = v[2];
         if (x->turned[j] >= 0) {
             const double *a = x->axes + 9 * (size_t)x->turned[j];
