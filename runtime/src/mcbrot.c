@@ -1217,6 +1217,75 @@ static void exp_map_fast(double x, double y, double z, double *q) {
     q[3] = w;
 }
 
+#if defined(MCBROT_AVX2)
+/* exp_map_fast of four joints at once (AVX2 + FMA: the same series, fused): q[4 j .. 4 j + 3] holds the rotation
+ * vector (x y z) in, the quaternion out. Returns a mask of the joints past a half turn's series (left as they
+ * were: exp_map_fast maps them). */
+static TARGET_AVX2 int exp_map_four(double *q) {
+    __m256d r0 = _mm256_loadu_pd(q), r1 = _mm256_loadu_pd(q + 4), r2 = _mm256_loadu_pd(q + 8),
+            r3 = _mm256_loadu_pd(q + 12);
+    /* transpose: X, Y, Z of the four joints */
+    __m256d t0 = _mm256_unpacklo_pd(r0, r1), t1 = _mm256_unpackhi_pd(r0, r1);
+    __m256d t2 = _mm256_unpacklo_pd(r2, r3), t3 = _mm256_unpackhi_pd(r2, r3);
+    __m256d X = _mm256_permute2f128_pd(t0, t2, 0x20), Y = _mm256_permute2f128_pd(t1, t3, 0x20);
+    __m256d Z = _mm256_permute2f128_pd(t0, t2, 0x31);
+    __m256d squared = _mm256_fmadd_pd(Z, Z, _mm256_fmadd_pd(Y, Y, _mm256_mul_pd(X, X)));
+    __m256d h2 = _mm256_mul_pd(_mm256_set1_pd(0.25), squared);
+    int far = _mm256_movemask_pd(_mm256_cmp_pd(h2, _mm256_set1_pd(2.4674011002723395), _CMP_GT_OQ)) |
+              _mm256_movemask_pd(_mm256_cmp_pd(h2, h2, _CMP_UNORD_Q));
+#define TERM(acc, k) acc = _mm256_fnmadd_pd(h2, acc, _mm256_set1_pd(k))
+    __m256d s = _mm256_set1_pd(1.0 / 51090942171709440000.0), c = _mm256_set1_pd(1.0 / 2432902008176640000.0);
+    TERM(s, 1.0 / 121645100408832000.0); TERM(c, 1.0 / 6402373705728000.0);
+    TERM(s, 1.0 / 355687428096000.0);    TERM(c, 1.0 / 20922789888000.0);
+    TERM(s, 1.0 / 1307674368000.0);      TERM(c, 1.0 / 87178291200.0);
+    TERM(s, 1.0 / 6227020800.0);         TERM(c, 1.0 / 479001600.0);
+    TERM(s, 1.0 / 39916800.0);           TERM(c, 1.0 / 3628800.0);
+    TERM(s, 1.0 / 362880.0);             TERM(c, 1.0 / 40320.0);
+    TERM(s, 1.0 / 5040.0);               TERM(c, 1.0 / 720.0);
+    TERM(s, 1.0 / 120.0);                TERM(c, 1.0 / 24.0);
+    TERM(s, 1.0 / 6.0);                  TERM(c, 0.5);
+    TERM(s, 1.0);                        TERM(c, 1.0);
+#undef TERM
+    __m256d scale = _mm256_mul_pd(_mm256_set1_pd(0.5), s);
+    X = _mm256_mul_pd(X, scale);
+    Y = _mm256_mul_pd(Y, scale);
+    Z = _mm256_mul_pd(Z, scale);
+    /* transpose back: x y z w per joint */
+    t0 = _mm256_unpacklo_pd(X, Y);
+    t1 = _mm256_unpackhi_pd(X, Y);
+    t2 = _mm256_unpacklo_pd(Z, c);
+    t3 = _mm256_unpackhi_pd(Z, c);
+    __m256d o0 = _mm256_permute2f128_pd(t0, t2, 0x20), o1 = _mm256_permute2f128_pd(t1, t3, 0x20);
+    __m256d o2 = _mm256_permute2f128_pd(t0, t2, 0x31), o3 = _mm256_permute2f128_pd(t1, t3, 0x31);
+    if (!(far & 1)) _mm256_storeu_pd(q, o0);
+    if (!(far & 2)) _mm256_storeu_pd(q + 4, o1);
+    if (!(far & 4)) _mm256_storeu_pd(q + 8, o2);
+    if (!(far & 8)) _mm256_storeu_pd(q + 12, o3);
+    return far;
+}
+#endif
+
+/* Every joint's quaternion from its rotation vector: q[4 j .. 4 j + 2] holds the vector in (x y z), q[4 j ..
+ * 4 j + 3] the quaternion out (exp_map_fast; four joints at a time with AVX2). */
+static void exp_maps(const ctx_t *x, double *q) {
+    uint32_t j = 0, J = x->joints;
+#if defined(MCBROT_AVX2)
+    if (x->avx2)
+        for (; j + 4 <= J; j += 4) {
+            int far = exp_map_four(q + 4 * j);
+            for (int k = 0; k < 4; ++k)
+                if (far >> k & 1) {
+                    double *r = q + 4 * (j + k);
+                    exp_map_fast(r[0], r[1], r[2], r);
+                }
+        }
+#endif
+    for (; j < J; ++j) {
+        double *r = q + 4 * j;
+        exp_map_fast(r[0], r[1], r[2], r);
+    }
+}
+
 static void multiply(const double *a, const double *b, double *out) {
     double x = a[3] * b[0] + a[0] * b[3] + a[1] * b[2] - a[2] * b[1];
     double y = a[3] * b[1] - a[0] * b[2] + a[1] * b[3] + a[2] * b[0];
@@ -1808,7 +1877,8 @@ static void basis_row(const ctx_t *x, uint32_t n, uint32_t i, uint32_t longest, 
     for (uint32_t q = 1; q <= longest; ++q) {
         m += step;
         if (m >= period) m -= period;
-        into[(size_t)stride * q] = (1.0 + slope * (double)q) * x->cosines[m <= 2 * n ? m : period - m];
+        uint32_t far = 0u - (uint32_t)(m > 2 * n); /* cos is even about 2 n: folded without a branch */
+        into[(size_t)stride * q] = (1.0 + slope * (double)q) * x->cosines[(m & ~far) | ((period - m) & far)];
     }
 }
 
@@ -1915,8 +1985,12 @@ static int decode_frame(ctx_t *x, uint32_t f, double *rotations, double *root, d
             ry = a[3] * v[0] + a[4] * v[1] + a[5] * v[2];
             rz = a[6] * v[0] + a[7] * v[1] + a[8] * v[2];
         }
-        exp_map_fast(rx, ry, rz, rotations + 4 * j);
+        double *q = rotations + 4 * j;
+        q[0] = rx;
+        q[1] = ry;
+        q[2] = rz;
     }
+    exp_maps(x, rotations);
     /* re-references of this segment (sorted: binary search for its first) */
     if (x->num_overrides) {
         uint32_t low = 0, high = x->num_overrides;
