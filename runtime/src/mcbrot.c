@@ -1279,6 +1279,15 @@ static void exp_maps(const ctx_t *x, double *q) {
                     exp_map_fast(r[0], r[1], r[2], r);
                 }
         }
+    if (x->avx2 && j < J) { /* the last 1 to 3 joints through a copy padded to four */
+        double tail[16] = {0};
+        memcpy(tail, q + 4 * j, 32 * (size_t)(J - j));
+        int far = exp_map_four(tail);
+        for (uint32_t k = 0; k < J - j; ++k)
+            if (far >> k & 1) exp_map_fast(tail[4 * k], tail[4 * k + 1], tail[4 * k + 2], tail + 4 * k);
+        memcpy(q + 4 * j, tail, 32 * (size_t)(J - j));
+        return;
+    }
 #endif
     for (; j < J; ++j) {
         double *r = q + 4 * j;
@@ -1882,6 +1891,68 @@ static void basis_row(const ctx_t *x, uint32_t n, uint32_t i, uint32_t longest, 
     }
 }
 
+/* basis_row of frames i .. i + FRAME_BLOCK - 1 into rows[FRAME_BLOCK q + k] (frames past the segment's end get
+ * the formula's values: their sums are dropped); the same products as basis_row, the ramp shared. */
+static void basis_rows(const ctx_t *x, uint32_t n, uint32_t i, uint32_t longest, double *rows) {
+    uint32_t period = 4 * n, m0 = 0, m1 = 0, m2 = 0, m3 = 0, s0 = (2 * i + 1) % period, s1 = (2 * i + 3) % period,
+             s2 = (2 * i + 5) % period, s3 = (2 * i + 7) % period;
+    double slope = x->slope / (double)n;
+    const double *cosines = x->cosines;
+#define FOLD(m) ((m) & ~(0u - (uint32_t)((m) > 2 * n))) | ((period - (m)) & (0u - (uint32_t)((m) > 2 * n)))
+#define STEP(m, s) (m += s, m -= period & (0u - (uint32_t)(m >= period)))
+    for (uint32_t q = 1; q <= longest; ++q) {
+        double ramp = 1.0 + slope * (double)q, *r = rows + FRAME_BLOCK * (size_t)q;
+        STEP(m0, s0);
+        STEP(m1, s1);
+        STEP(m2, s2);
+        STEP(m3, s3);
+        r[0] = ramp * cosines[FOLD(m0)];
+        r[1] = ramp * cosines[FOLD(m1)];
+        r[2] = ramp * cosines[FOLD(m2)];
+        r[3] = ramp * cosines[FOLD(m3)];
+    }
+#undef STEP
+#undef FOLD
+}
+
+#if defined(MCBROT_AVX2)
+/* The basis rows with AVX2 + FMA, frame by frame in a lane: cos(q theta), theta = pi (2 i + 1) / 2n, by turning
+ * (cos, sin)(q theta) by theta, q = 1, 2, ... (theta's cosine and sine from the table; the turn's rounding grows
+ * about linearly with q: under 1e-13 at q = 1000, far below what a row's product with a coefficient keeps), then
+ * times the ramp. basis_row_avx2 (one frame) does each lane's operations in the same order: a frame's row has the
+ * same bits alone or in a block. Departure from the numpy decoder, which takes each cosine from the library. */
+static TARGET_AVX2 void turn_start(const ctx_t *x, uint32_t n, uint32_t i, double *c, double *s) {
+    uint32_t m = 2 * i + 1;
+    if (m > 2 * n) m = 2 * n; /* a frame past the segment's end (dropped): any finite row */
+    *c = x->cosines[m];
+    *s = x->cosines[m > n ? m - n : n - m]; /* sin(pi m / 2n) = cos(pi (n - m) / 2n) */
+}
+
+static TARGET_AVX2 void basis_row_avx2(const ctx_t *x, uint32_t n, uint32_t i, uint32_t longest, double *into) {
+    double slope = x->slope / (double)n, C, S;
+    turn_start(x, n, i, &C, &S);
+    double c = C, s = S;
+    for (uint32_t q = 1; q <= longest; ++q) {
+        into[q] = fma(slope, (double)q, 1.0) * c;
+        double t = s * S, u = c * S;
+        c = fma(c, C, -t);
+        s = fma(s, C, u);
+    }
+}
+
+static TARGET_AVX2 void basis_rows_avx2(const ctx_t *x, uint32_t n, uint32_t i, uint32_t longest, double *rows) {
+    double slope = x->slope / (double)n, c4[4], s4[4];
+    for (int k = 0; k < 4; ++k) turn_start(x, n, i + k, c4 + k, s4 + k);
+    __m256d C = _mm256_loadu_pd(c4), S = _mm256_loadu_pd(s4), c = C, s = S;
+    for (uint32_t q = 1; q <= longest; ++q) {
+        _mm256_storeu_pd(rows + FRAME_BLOCK * (size_t)q, _mm256_mul_pd(_mm256_set1_pd(fma(slope, (double)q, 1.0)), c));
+        __m256d t = _mm256_mul_pd(s, S), u = _mm256_mul_pd(c, S);
+        c = _mm256_fmsub_pd(c, C, t);
+        s = _mm256_fmadd_pd(s, C, u);
+    }
+}
+#endif
+
 /* Channel values (C, in channel order) from the AC sums of a segment's channels (in `order`): base step x (DC +
  * AC). */
 static void channel_signal(const ctx_t *x, uint32_t seg, const uint16_t *order, uint32_t n, const double *sums,
@@ -1923,7 +1994,11 @@ static const double *channel_values(ctx_t *x, uint32_t seg, uint32_t chunk, uint
     }
     if (count == 1) {
         double *row = sums + C + LANES; /* n + 1 */
-        basis_row(x, n, i, longest, row, 1);
+#if defined(MCBROT_AVX2)
+        if (x->avx2) basis_row_avx2(x, n, i, longest, row);
+        else
+#endif
+            basis_row(x, n, i, longest, row, 1);
         for (uint32_t b = 0; b < B; ++b) {
 #if defined(MCBROT_AVX2)
             if (x->avx2) {
@@ -1936,13 +2011,13 @@ static const double *channel_values(ctx_t *x, uint32_t seg, uint32_t chunk, uint
         channel_signal(x, seg, order, n, sums, signal);
         return signal;
     }
-    /* a block: rows of frames past `count` are zero (their sums are computed and dropped) */
+    /* a block: frames past `count` are synthesised and dropped */
     double *rows = x->block_rows, *out = x->block_signal;
-    for (uint32_t k = 0; k < FRAME_BLOCK; ++k) {
-        if (k < count) basis_row(x, n, first + k, longest, rows + k, FRAME_BLOCK);
-        else
-            for (uint32_t q = 1; q <= longest; ++q) rows[FRAME_BLOCK * q + k] = 0.0;
-    }
+#if defined(MCBROT_AVX2)
+    if (x->avx2) basis_rows_avx2(x, n, first, longest, rows);
+    else
+#endif
+        basis_rows(x, n, first, longest, rows);
     for (uint32_t b = 0; b < B; ++b) {
 #if defined(MCBROT_AVX2)
         if (x->avx2) {
