@@ -25,8 +25,8 @@
  * mcbrot_sample_pose gives every joint's translation with its rotation. A rig whose root never moves (a ground-level
  * root at one place with the identity rotation, the pelvis below it carrying the trajectory) may be coded with that
  * root kept apart: the calls give the whole rig all the same (joint 0 the still root: its rotation the identity,
- * its translation its place; joint 1, the pelvis, a joint with a translation track). Scale tracks are reserved by
- * the format (MCBROT_E_UNSUPPORTED).
+ * its translation its place; joint 1, the pelvis, a joint with a translation track). Scale tracks (settings flag bit
+ * 13) are not read by this version: MCBROT_E_UNSUPPORTED (Python decodes them).
  *
  * ABI: MCBROT_ABI_VERSION changes whenever a function's signature, the meaning of a status or the layout expected
  * of an output changes; mcbrot_abi_version() returns the library's, to compare with the header's.
@@ -63,7 +63,8 @@ typedef enum mcbrot_status {
     MCBROT_E_CONTEXT_SMALL = 6,  /* the context is smaller than mcbrot_context_size says */
     MCBROT_E_TIME = 7,           /* t is NaN or outside [0, duration] */
     MCBROT_E_NOT_OPEN = 8,       /* the context holds no opened clip */
-    MCBROT_E_UNSUPPORTED = 9     /* a feature of the stream this version does not implement (scale tracks) */
+    MCBROT_E_UNSUPPORTED = 9     /* a feature of the stream this version does not implement (scale tracks: settings
+                                  * flag bit 13) */
 } mcbrot_status;
 
 /* How a time between frames is rounded. A time within a millionth of a frame of a frame is that frame. */

@@ -361,8 +361,11 @@ static int read_settings(reader_t *r, header_t *h) {
     if ((s = read_f32(r, &h->eps, "eps")) || (s = read_f32(r, &h->bound, "bound"))) return s;
     uint64_t flags;
     if ((s = read_varint(r, &flags, "settings flags", 2))) return s;
-    if (flags >> 13)
+    if (flags >> 14)
         return fail(MSG(r), MCBROT_E_CORRUPT, "mcb-rot: unknown settings flags %#llx", (unsigned long long)flags);
+    if (flags & (1u << 13)) /* a game rig's scale tracks (scales.py): Python decodes them */
+        return fail(MSG(r), MCBROT_E_UNSUPPORTED, "mcb-rot: the stream carries scale tracks (settings flag bit 13), "
+                    "which this runtime does not read");
     h->still = (int)((flags >> 12) & 1);
     h->cover_ends = (int)((flags >> 11) & 1);
     h->tracks = (int)((flags >> 10) & 1);
@@ -561,7 +564,7 @@ static void segment_grid(uint32_t frames, const uint32_t *cuts, uint32_t num_cut
 }
 
 /* The tracks header (mocapbench/codecs/mcb_rot/tracks.py, read_tracks): varint T (1..J-1), then per track varint
- * joint (increasing, 1..J-1) | u8 kind (0: translation; 1, scale, is reserved) | f32 step | 3 x f32 base |
+ * joint (increasing, 1..J-1) | u8 kind (0: translation) | f32 step | 3 x f32 base |
  * f32 reach | 3 x u8 class. Checked; written into the context when `x` is not NULL. */
 static int read_tracks_header(reader_t *r, header_t *h, ctx_t *x) {
     int s;
@@ -581,9 +584,7 @@ static int read_tracks_header(reader_t *r, header_t *h, ctx_t *x) {
                         "track's, found %llu", h->joints - 1, (unsigned long long)joint);
         previous = (uint32_t)joint;
         if ((s = read_u8(r, &kind, "track kind"))) return s;
-        if (kind == 1)
-            return fail(MSG(r), MCBROT_E_UNSUPPORTED, "mcb-rot: track %u is a scale track (kind 1, reserved)", t);
-        if (kind != 0)
+        if (kind != 0) /* (scale tracks, kind 1, have a section of their own: flag bit 13) */
             return fail(MSG(r), MCBROT_E_CORRUPT, "mcb-rot: track %u has kind %u (0: translation)", t, kind);
         if ((s = read_f32(r, &step, "track step")) || (s = read_f32(r, &base[0], "track base")) ||
             (s = read_f32(r, &base[1], "track base")) || (s = read_f32(r, &base[2], "track base")) ||

@@ -170,19 +170,24 @@ def joint_budgets(
     )
 
 
-def offset_discrepancy_cm(original: Skeleton, stored: Skeleton, ends: bool = False) -> float:
+def offset_discrepancy_cm(original: Skeleton, stored: Skeleton, ends: bool = False,
+                          stretch: tuple[np.ndarray, np.ndarray] | None = None) -> float:
     """Largest position change of any joint, in any pose, from replacing ``original``'s offsets by ``stored``'s, cm.
 
     The stream keeps offsets as float32; this bound (the sum of offset changes along the worst chain, to a joint or,
     with ``ends``, an end site) is taken off the error budget so that the guarantee holds against the caller's float64 skeleton.
+    ``stretch`` (a scaled rig): each joint's frame factor and its own peak scale (J,) each (:mod:`.scales`): a
+    joint's offset change counts times its factor, an end site's times its joint's factor and peak.
     """
-    change = np.sqrt(np.sum((original.offsets - stored.offsets) ** 2, axis=1))
+    factor, peak = (np.ones(original.num_joints), np.ones(original.num_joints)) if stretch is None else stretch
+    change = np.sqrt(np.sum((original.offsets - stored.offsets) ** 2, axis=1)) * factor
     change[0] = 0.0
     total = np.zeros(original.num_joints)
     for k in range(1, original.num_joints):
         total[k] = total[original.parents[k]] + change[k]
     tips = np.zeros(0)
     if ends and len(original.end_site_parents) == len(stored.end_site_parents) > 0:  # one offset further
-        tips = total[original.end_site_parents] + np.sqrt(
-            np.sum((original.end_site_offsets - stored.end_site_offsets) ** 2, axis=1))
+        parents = original.end_site_parents
+        tips = total[parents] + np.sqrt(np.sum((original.end_site_offsets - stored.end_site_offsets) ** 2, axis=1)) * (
+            factor[parents] * peak[parents])
     return float(max(total.max(), tips.max(initial=0.0)))

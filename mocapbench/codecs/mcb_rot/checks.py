@@ -9,7 +9,9 @@ itself on the decoded :class:`~mocapbench.motion.Motion`.
 End sites (the tips a viewer draws: head top, fingers, toes) are carried by their joint's frame: an end site's error
 counts as its joint's, so a joint misses when one of its end sites does, and the closed loop corrects the rotations
 that move it (the joint's own among them, :mod:`.budgets`). A game rig's translated joints step from their parent by
-their decoded translation of the frame instead of their offset, in forward kinematics as in the decoder.
+their decoded translation of the frame instead of their offset, in forward kinematics as in the decoder. A scaled
+rig's joints (:mod:`.scales`) are placed with the decoded scales, by the matrix forward kinematics of
+:class:`~mocapbench.motion.Motion` (the decoder's for such a stream), so the loop sees the scale error too.
 """
 
 from __future__ import annotations
@@ -20,7 +22,7 @@ import numpy as np
 
 from mocapbench.codecs.mcb_rot import quaternions as quat
 from mocapbench.codecs.mcb_rot.kinematics import compose
-from mocapbench.motion import Skeleton
+from mocapbench.motion import Skeleton, _forward_kinematics, _tree_levels
 
 __all__ = ["PointTargets", "forward_kinematics", "global_quaternions", "tree_levels"]
 
@@ -121,10 +123,13 @@ class PointTargets:
     """The original motion's checked points: joint positions (F, J, 3) cm, with ``ends`` its end-site positions
     (F, E, 3) cm, and with a shell of ``shell_cm`` > 0 its vertices' offsets from their joints, ``d R e_i`` as
     (F, J, 3, 3) (column i: vertex i). ``translations`` (F, J, 3) cm: the decoded steps of every joint from its parent
-    (the stream's translation tracks; None: the skeleton's offsets), with which the decoded points are placed."""
+    (the stream's translation tracks; None: the skeleton's offsets), with which the decoded points are placed.
+    ``scales`` (F, J, 3): the decoded scale of every joint (the stream's scale tracks; None: unscaled); no shell
+    then."""
 
     def __init__(self, positions: np.ndarray, rotations: np.ndarray, skeleton: Skeleton, shell_cm: float,
-                 ends: np.ndarray | None = None, translations: np.ndarray | None = None) -> None:
+                 ends: np.ndarray | None = None, translations: np.ndarray | None = None,
+                 scales: np.ndarray | None = None) -> None:
         self.positions = positions
         self.skeleton = skeleton
         self.shell_cm = float(shell_cm)
@@ -133,6 +138,9 @@ class PointTargets:
             self.vertices = self.shell_cm * quat.as_matrix(global_quaternions(rotations, skeleton.parents))
         self.ends = None if ends is None or len(skeleton.end_site_parents) == 0 else ends
         self.translations = translations
+        self.scales = scales
+        if scales is not None and self.shell_cm > 0:
+            raise ValueError("PointTargets: no shell on a scaled rig.")
 
     def tiled(self, count: int) -> "PointTargets":
         """The same targets repeated ``count`` times along the frames (frame ``f`` of copy ``k`` is ``k F + f``): what
@@ -143,6 +151,7 @@ class PointTargets:
         tiled.vertices = None if self.vertices is None else np.tile(self.vertices, (count, 1, 1, 1))
         tiled.ends = None if self.ends is None else np.tile(self.ends, (count, 1, 1))
         tiled.translations = None if self.translations is None else np.tile(self.translations, (count, 1, 1))
+        tiled.scales = None if self.scales is None else np.tile(self.scales, (count, 1, 1))
         return tiled
 
     def errors(self, frames: np.ndarray, quats: np.ndarray, roots: np.ndarray) -> np.ndarray:
@@ -153,10 +162,28 @@ class PointTargets:
     def evaluate(self, frames: np.ndarray, quats: np.ndarray, roots: np.ndarray) -> tuple[np.ndarray, ...]:
         """:meth:`errors`, the decoded joint positions (n, J, 3) cm and global rotations (n, J, 4)."""
         translations = None if self.translations is None else self.translations[frames]
+        if self.scales is not None:
+            return self._evaluate_scaled(frames, quats, roots, translations)
         decoded, glob = forward_kinematics(quats, roots, self.skeleton,
                                            leaves=self.vertices is not None or self.ends is not None,
                                            translations=translations)
         return self.errors_of(frames, decoded, glob), decoded, glob
+
+    def _evaluate_scaled(self, frames: np.ndarray, quats: np.ndarray, roots: np.ndarray,
+                         translations: np.ndarray | None) -> tuple[np.ndarray, ...]:
+        """:meth:`evaluate` with the decoded scales: positions and end sites by the matrix forward kinematics
+        (:class:`~mocapbench.motion.Motion`'s); the global rotations returned are the products of the local rotations
+        (what the closed loop scores corrections with, to first order)."""
+        skeleton = self.skeleton
+        levels, ancestors = _tree_levels(skeleton.parents)
+        matrices, decoded = _forward_kinematics(quats, roots, skeleton, levels, ancestors, translations=translations,
+                                                scales=self.scales[frames])
+        squared = np.sum((self.positions[frames] - decoded) ** 2, axis=-1)
+        if self.ends is not None:
+            parents = skeleton.end_site_parents
+            placed = decoded[:, parents] + np.einsum("fejk,ek->fej", matrices[:, parents], skeleton.end_site_offsets)
+            np.maximum.at(squared.T, parents, np.sum((self.ends[frames] - placed) ** 2, axis=-1).T)
+        return np.sqrt(squared), decoded, global_quaternions(quats, skeleton.parents)
 
     def errors_of(self, frames: np.ndarray, decoded: np.ndarray, glob: np.ndarray) -> np.ndarray:
         """:meth:`errors` from the decoded joint positions (n, J, 3) cm and global rotations (n, J, 4)."""

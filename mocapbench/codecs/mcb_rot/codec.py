@@ -87,8 +87,10 @@ its trajectory in the root channels with a DCT, the rate search and the closed l
 lossless grid of a track. The bound covers the end sites too (the head, finger and toe tips a viewer draws): each is a virtual
 child of its joint in the budgets and a checked point of the closed loop, so a leaf with an end site is budgeted by
 its lever instead of ``free_angle_deg`` (``end_sites=false``: the joints only, as before; the bytes the end sites cost are
-measured by the benchmark). Scale tracks are refused in one line naming the joint (the budgets assume
-bones of fixed length).
+measured by the benchmark). A scaled joint has a scale track on a uniform grid too (:mod:`.scales`): the budgets
+take every length stretched by the most the scales above it stretch it, the scale error comes off the bound, and the
+closed loop places the joints with the decoded scales (numpy: the native runtime does not read scale tracks); a
+scaled rig has no shell bound and keeps a still root in the coded skeleton.
 
 Departures from the issue's sketch: no trained prior (the stream needs no model, ``model_bytes`` is 0). Leaves
 (joints whose rotation moves no joint) get the fixed budget ``free_angle_deg`` unless ``shell_cm`` > 0.
@@ -102,7 +104,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from mocapbench.codecs import container
-from mocapbench.codecs.base import Codec, CodecConfig, Decoded, Header, param
+from mocapbench.codecs.base import Codec, CodecConfig, Decoded, Header, TrackRefusal, param
 from mocapbench.codecs.limits import DecodeLimits, using_limits
 from mocapbench.codecs.mcb_rot import windowed
 from mocapbench.codecs.mcb_rot.decoder import decode_range
@@ -114,6 +116,7 @@ from mocapbench.codecs.mcb_rot.compensate import Compensator, quantize
 from mocapbench.codecs.mcb_rot.refine import refine
 from mocapbench.codecs.mcb_rot.static_root import split_static_root
 from mocapbench.codecs.mcb_rot.tracks import plan_tracks
+from mocapbench.codecs.mcb_rot.scales import plan_scales, scale_error_cm, scales_of
 from mocapbench.codecs.mcb_rot.rate import base_bytes, base_bytes_many, corrections_bytes
 from mocapbench.codecs.mcb_rot.classes import NUM_BANDS, fit_single
 from mocapbench.codecs.mcb_rot.segments import SegmentLayout, forward, segment_starts
@@ -123,6 +126,8 @@ from mocapbench.codecs.mcb_rot.stream import (
     StreamInfo,
     assemble,
     base_signal,
+    end_site_reach,
+    stretch_of,
     _f32,
     read_info,
     skeleton_step_exponent,
@@ -172,7 +177,7 @@ class McbRotCodec(Codec):
 
     name = "mcb-rot"
     codes_rotations = True
-    carries_tracks = ("translations",)  # scale tracks are refused: the budgets assume bones of fixed length
+    carries_tracks = ("translations", "scales")
     family = "mocapbench"
     random_access = True
     smoke_params = {"eps_cm": 0.5}
@@ -274,19 +279,31 @@ class McbRotCodec(Codec):
                 f"mcb-rot: the stream holds at most {container.MAX_JOINTS} joints, the motion has {full.num_joints}."
             )
         config = self.config
+        if full.scales is not None and config.shell_cm > 0:
+            joint = full.skeleton.names[int(full.scaled_joints()[0])]
+            raise TrackRefusal(f"mcb-rot: joint {joint!r} is scaled (a scale track); the shell bound (shell_cm > 0) "
+                               "is defined on unscaled joint frames: set shell_cm=0 for a scaled rig.")
         split = split_static_root(full) if config.static_root else None
         still, motion = (None, full) if split is None else split
         skeleton_blob = pack_skeleton_runtime(motion.skeleton, skeleton_step_exponent(config.eps_cm, motion.skeleton))
         stored = unpack_skeleton_runtime(ByteReader(skeleton_blob))
-        discrepancy = offset_discrepancy_cm(motion.skeleton, stored, config.end_sites)
         # A game rig's translation tracks, on a grid whose error (along the worst chain) comes off the bound.
         tracks = plan_tracks(motion, config.track_share * config.eps_cm, lambda values: fit_single(values, 0.5))
-        track_error = 0.0 if tracks is None else tracks.error_cm(stored)
-        bound = config.eps_cm * (1.0 - 2 * _SAFETY_MARGIN) - 2.0 * discrepancy - track_error
+        # Its scale tracks (:mod:`.scales`): their error, and the lengths they stretch, come off the bound too.
+        bones = np.sqrt(np.sum(stored.offsets**2, axis=1)) if tracks is None else tracks.bones_cm(stored)
+        scales = plan_scales(motion, stored, bones, end_site_reach(stored) if config.end_sites else None,
+                             config.track_share * config.eps_cm, lambda values: fit_single(values, 0.5))
+        stretch = stretch_of(stored, scales)
+        discrepancy = offset_discrepancy_cm(motion.skeleton, stored, config.end_sites, stretch)
+        track_error = 0.0 if tracks is None else tracks.error_cm(stored, None if stretch is None else stretch[0])
+        scale_error = 0.0 if scales is None else scale_error_cm(
+            stored, scales, bones, end_site_reach(stored) if config.end_sites else None)
+        bound = config.eps_cm * (1.0 - 2 * _SAFETY_MARGIN) - 2.0 * discrepancy - track_error - scale_error
         if bound <= 0.25 * config.eps_cm:  # defensive: skeleton_step_exponent keeps 2 x discrepancy below eps / 3
             raise ValueError(
                 f"mcb-rot: eps {config.eps_cm} cm is too small for this skeleton's stored offsets "
-                f"(their grid moves joints by up to {discrepancy:.3g} cm)."
+                f"(their grid moves joints by up to {discrepancy:.3g} cm"
+                f"{'' if scales is None else f', its scale tracks by {scale_error:.3g} cm'})."
             )
         target = motion.positions()
         ends = motion.end_site_positions() if config.end_sites and len(motion.skeleton.end_site_parents) else None
@@ -302,14 +319,16 @@ class McbRotCodec(Codec):
         settings = Settings.create(config.eps_cm, bound, 1.0, config.frequency_slope, config.rounding,
                                    config.root_share, np.deg2rad(config.free_angle_deg), config.allocation_power,
                                    config.segment_frames, config.chunk_frames, config.shell_cm,
-                                   tracks=tracks is not None, ends=config.end_sites, static_root=still is not None)
-        budgets = stream_budgets(settings, stored, tracks)
+                                   tracks=tracks is not None, ends=config.end_sites, static_root=still is not None,
+                                   scales=scales is not None)
+        budgets = stream_budgets(settings, stored, tracks, scales)
         channels = 3 + 3 * motion.num_joints
         info = StreamInfo(settings, stored, budgets, layout, cuts, overrides, axis_codes,
                           np.zeros(channels, np.int64), np.zeros(NUM_BANDS, np.int64), tracks=tracks,
-                          static_root=still)
+                          static_root=still, scales=scales)
         steps = None if tracks is None else tracks.steps_of(stored, tracks.q)
-        points = PointTargets(target, motion.rotations, stored, settings.shell_cm, ends=ends, translations=steps)
+        points = PointTargets(target, motion.rotations, stored, settings.shell_cm, ends=ends, translations=steps,
+                              scales=None if scales is None else scales_of(scales, motion.num_joints, scales.q))
         encoder = _Encoder(config, motion, info, skeleton_blob, spectra, points)
         if config.step_rel > 0:
             chosen = encoder.attempt(config.step_rel)
@@ -413,6 +432,7 @@ class McbRotCodec(Codec):
         roots = np.empty((count, 3))
         quats = np.empty((count, header.num_joints, 4))
         translations = None  # allocated at the first window with tracks (a window without any: the offsets)
+        scales = None  # allocated at the first window with scale tracks (a window without any: 1)
         skeleton = None
         for first, end, part in windowed.windows_of_range(parts, start, stop):
             info = self._stream_info(windowed.window_header(header, first, end), part)
@@ -422,11 +442,19 @@ class McbRotCodec(Codec):
             if (info.tracks is not None or info.static_root is not None) and translations is None:
                 translations = np.empty((count, header.num_joints, 3))
                 translations[:] = skeleton.offsets
-            if info.static_root is not None:  # decoded apart, then the whole rig put in place
+            if info.scales is not None and scales is None:
+                scales = np.ones((count, header.num_joints, 3))
+            if info.static_root is not None or info.scales is not None:  # decoded apart, then put in place
                 window_positions, window_motion = _decode_frames(info, part, low - first, high - first, header.fps)
                 positions[out], roots[out], quats[out] = window_positions, window_motion.root_positions, \
                     window_motion.rotations
-                translations[out] = window_motion.translations
+                if window_motion.translations is not None:
+                    if translations is None:
+                        translations = np.empty((count, header.num_joints, 3))
+                        translations[:] = skeleton.offsets
+                    translations[out] = window_motion.translations
+                if window_motion.scales is not None:
+                    scales[out] = window_motion.scales
                 continue
             window_out = (positions[out], roots[out], quats[out])
             if translations is not None:
@@ -435,7 +463,7 @@ class McbRotCodec(Codec):
             decode_range(info, part, low - first, high - first, window_out)
         if translations is not None:
             translations[:, 0] = roots
-        return positions, Motion.from_decoder(skeleton, header.fps, roots, quats, translations)
+        return positions, Motion.from_decoder(skeleton, header.fps, roots, quats, translations, scales)
 
     def describe_payload(self, header: Header, payload: memoryview):
         if windowed.is_windowed(payload):
@@ -470,18 +498,22 @@ def _decode_frames(info: StreamInfo, payload: memoryview, start: int, stop: int,
     root (:mod:`.static_root`) is put back above the decoded joints."""
     out = _outputs(stop - start, info.skeleton.num_joints, info)
     positions, roots, quats = decode_range(info, payload, start, stop, out)
-    translations = out[3] if len(out) > 3 else None
+    translations = out[3] if info.tracks is not None else None
+    scales = out[4] if len(out) > 4 else None
     if info.static_root is not None:
         positions, roots, quats, translations = info.static_root.expand(positions, roots, quats, translations,
                                                                         info.skeleton.offsets)
-    return positions, Motion.from_decoder(_skeleton_of(info), fps, roots, quats, translations)
+    return positions, Motion.from_decoder(_skeleton_of(info), fps, roots, quats, translations, scales)
 
 
 def _outputs(count: int, num_joints: int, info: StreamInfo) -> tuple:
     """The decode's outputs of ``count`` frames: positions, roots, rotations and, when the stream has translation
-    tracks, every joint's translation (its offset where it has no track)."""
+    tracks, every joint's translation (its offset where it has no track), and when it has scale tracks (then with
+    the translations) every joint's scale (1 where it has no track)."""
     out = (np.empty((count, num_joints, 3)), np.empty((count, 3)), np.empty((count, num_joints, 4)))
-    if info.tracks is not None:
+    if info.tracks is not None or info.scales is not None:
+        out += (np.empty((count, num_joints, 3)),)
+    if info.scales is not None:
         out += (np.empty((count, num_joints, 3)),)
     return out
 

@@ -34,6 +34,7 @@ import numpy as np
 
 from mocapbench.codecs.mcb_rot import kinematics, native
 from mocapbench.codecs.mcb_rot.classes import NUM_CLASSES, band_of
+from mocapbench.codecs.mcb_rot.scales import scales_of
 from mocapbench.codecs.mcb_rot.scratch import Scratch, thread_scratch
 from mocapbench.codecs.mcb_rot.stream import (
     StreamInfo,
@@ -47,6 +48,7 @@ from mocapbench.entropy.rans6 import decode_unit
 from mocapbench.entropy.ans import class_groups, read_tokens, values_of_tokens
 from mocapbench.entropy.bitio import ByteReader
 from mocapbench.entropy.errors import BitstreamError
+from mocapbench.motion import _forward_kinematics, _tree_levels
 
 __all__ = ["BLOCK_FRAMES", "decode_range", "decode_block"]
 
@@ -80,6 +82,9 @@ def decode_range(
         out = np.empty((count, num_joints, 3)), np.empty((count, 3)), np.empty((count, num_joints, 4))
     positions, roots, quats = out[:3]
     translations = out[3] if len(out) > 3 else None  # (n, J, 3): the joints' steps, filled when the stream has tracks
+    scales = out[4] if len(out) > 4 else None  # (n, J, 3): the joints' scales, filled when the stream has scale tracks
+    if info.scales is not None:
+        return _decode_scaled(info, payload, start, stop, (positions, roots, quats, translations, scales))
     moving = None if info.tracks is None else info.tracks.moving(num_joints)
     clip = native_clip(info, payload)
     if clip is not None and info.static_root is not None:
@@ -106,7 +111,7 @@ def decode_range(
         # The block's chunks are entropy decoded whole; only its segments holding frames of start:stop are
         # synthesized (a chunk of several segments, when one frame is asked for).
         first = max(int(layout.starts[max(int(layout.chunk_starts[chunks[0]]), first_segment)]), start)
-        block_roots, block_quats, block_steps = decode_block(info, payload, chunks, scratch, (start, stop))
+        block_roots, block_quats, block_steps, _ = decode_block(info, payload, chunks, scratch, (start, stop))
         low, high = max(first, start), min(first + len(block_roots), stop)
         inside, out = slice(low - first, high - first), slice(low - start, high - start)
         roots[out] = block_roots[inside]
@@ -118,6 +123,35 @@ def decode_range(
         kinematics.positions(block_quats[inside], block_roots[inside], info.skeleton, positions[out], quats[out],
                              translations=steps, moving=moving)
     scratch.trim()
+    return positions, roots, quats
+
+
+def _decode_scaled(info: StreamInfo, payload: memoryview, start: int, stop: int, out: tuple) -> tuple:
+    """:func:`decode_range` of a stream with scale tracks (:mod:`.scales`; numpy: the runtime does not read them):
+    positions by the matrix forward kinematics of :class:`~mocapbench.motion.Motion` with the decoded scales, the
+    closed loop's (:class:`.checks.PointTargets`). ``out``: positions, roots, rotations, translations and scales
+    (the last two (n, J, 3) or None)."""
+    positions, roots, quats, translations, scales = out
+    count, skeleton = stop - start, info.skeleton
+    steps = np.empty((count, skeleton.num_joints, 3)) if translations is None else translations
+    steps[:] = skeleton.offsets
+    every = np.empty((count, skeleton.num_joints, 3)) if scales is None else scales
+    layout = info.layout
+    first_segment = int(np.searchsorted(layout.starts, start, side="right")) - 1
+    for chunks in _blocks(info, layout.chunks_of_frames(start, stop)):
+        first = max(int(layout.starts[max(int(layout.chunk_starts[chunks[0]]), first_segment)]), start)
+        block_roots, block_quats, block_steps, block_scales = decode_block(info, payload, chunks, None, (start, stop))
+        low, high = max(first, start), min(first + len(block_roots), stop)
+        inside, into = slice(low - first, high - first), slice(low - start, high - start)
+        roots[into] = block_roots[inside]
+        quats[into] = block_quats[inside]
+        if block_steps is not None:
+            steps[into] = block_steps[inside]
+        every[into] = block_scales[inside]
+    steps[:, 0] = roots
+    levels, ancestors = _tree_levels(skeleton.parents)
+    positions[...] = _forward_kinematics(quats, roots, skeleton, levels, ancestors,
+                                         translations=None if info.tracks is None else steps, scales=every)[1]
     return positions, roots, quats
 
 
@@ -144,7 +178,7 @@ def native_clip(info: StreamInfo, payload: memoryview):
     """The runtime's opened clip of a format 6 payload (kept in ``info``'s cache), or None: an older format, the
     runtime not built, or ``MOCAPBENCH_NATIVE=0``. The clip has the whole rig's joints (a still root kept apart,
     :mod:`.static_root`, is one more than the stream's skeleton)."""
-    if info.version < 6:
+    if info.version < 6 or info.scales is not None:  # (the runtime does not read scale tracks, flag bit 13)
         return None
     if "native" not in info._cache:
         lib = native.library()
@@ -173,10 +207,10 @@ def _blocks(info: StreamInfo, chunks: np.ndarray) -> list[np.ndarray]:
 def decode_block(
     info: StreamInfo, payload: memoryview, chunks: np.ndarray, scratch: Scratch | None = None,
     frames: tuple[int, int] | None = None,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray | None]:
     """Roots (n, 3) cm, rotations (n, J, 4) (a view of a component-major array) of the consecutive ``chunks``,
-    corrections applied, and every joint's step from its parent (n, J, 3) cm when the stream has translation tracks
-    (else None). With ``scratch`` the rotations are a scratch view (valid until its next use).
+    corrections applied, every joint's step from its parent (n, J, 3) cm when the stream has translation tracks
+    (else None) and every joint's scale (n, J, 3) when it has scale tracks (else None). With ``scratch`` the rotations are a scratch view (valid until its next use).
 
     With ``frames`` (start, stop: frames of the stream), only the chunks' segments holding some of those frames
     are synthesized (the entropy decoding is the chunks' whole, the inverse DCT per segment), and only the frames
@@ -185,7 +219,7 @@ def decode_block(
     """
     layout = info.layout
     segments = np.arange(layout.chunk_starts[chunks[0]], layout.chunk_starts[chunks[-1] + 1])
-    ac, flat, values, track_q = read_chunks(info, payload, chunks, scratch)
+    ac, flat, values, track_q, scale_q = read_chunks(info, payload, chunks, scratch)
     skip, returned = 0, 0  # frames of the block before those returned (counted from its first frame)
     if frames is None:
         signal = segment_signal(info, segments, ac, scratch)
@@ -205,10 +239,12 @@ def decode_block(
         signal = segment_signal(info, segments, ac, scratch)[:, skip : skip + held]
     roots, quats = assemble(info, segments, signal, scratch, skip)
     apply_corrections(info, roots, quats, flat, values)
-    steps = None
+    steps = scales = None
     if track_q is not None:
         steps = info.tracks.steps_of(info.skeleton, track_q[returned : returned + len(roots)])
-    return roots, quats, steps
+    if scale_q is not None:
+        scales = scales_of(info.scales, info.skeleton.num_joints, scale_q[returned : returned + len(roots)])
+    return roots, quats, steps, scales
 
 
 def _count_groups(info: StreamInfo, num_segments: int) -> tuple[np.ndarray, list[tuple[int, int]]]:
@@ -234,6 +270,8 @@ def read_chunks(
         The corrections' quantized values.
     track_q : ndarray, shape (n, T, 3), int, or None
         The quantized translation tracks of the chunks' frames (format 6 with tracks; else None).
+    scale_q : ndarray, shape (n, T', 3), int, or None
+        The quantized scale tracks of the chunks' frames (format 6 with scale tracks; else None).
 
     Raises
     ------
@@ -319,7 +357,7 @@ def read_chunks(
         raise BitstreamError(f"mcb-rot: chunks {chunks[0]}-{chunks[-1]}: corrections run past their chunk's end.")
     chunk_offset = (np.cumsum(chunk_frames) - chunk_frames) * slots
     flat = local + np.repeat(chunk_offset, corrections)
-    return ac, flat, values.reshape(-1, 3), None
+    return ac, flat, values.reshape(-1, 3), None, None
 
 
 def _read_units(
@@ -341,7 +379,7 @@ def _read_units(
     ac = np.empty(shape) if scratch is None else scratch.take("ac", shape)
     ac.fill(0.0)
     side = _SIDE + np.array([info.gap_class, info.value_class])
-    flats, values, frame_at, track_q = [], [], 0, []
+    flats, values, frame_at, track_q, scale_q = [], [], 0, [], []
     unit_tables = runtime_tables()
     for chunk in chunks.tolist():
         reader = ByteReader(payload[: info.chunk_offsets[chunk + 1]], int(info.chunk_offsets[chunk]))
@@ -359,6 +397,9 @@ def _read_units(
         if info.tracks is not None:  # the chunk's translation tracks (:mod:`.tracks`): two running sums
             unit = decode_unit(reader, info.tracks.unit_classes(frames), unit_tables, f"mcb-rot: chunk {chunk} tracks")
             track_q.append(info.tracks.q_of_values(unit, frames))
+        if info.scales is not None:  # the chunk's scale tracks (:mod:`.scales`), each value checked
+            unit = decode_unit(reader, info.scales.unit_classes(frames), unit_tables, f"mcb-rot: chunk {chunk} scales")
+            scale_q.append(_checked_scales(info, info.scales.q_of_values(unit, frames), chunk))
         reader.expect_end(f"chunk {chunk}")
         held = len(classes) - 4 * count
         ac_values = decoded[:held]
@@ -372,7 +413,17 @@ def _read_units(
         values.append(decoded[held + count :].reshape(-1, 3))
         ac[mine[0] : mine[-1] + 1][mask[mine[0] : mine[-1] + 1]] = ac_values
         frame_at += frames
-    return ac, np.concatenate(flats), np.concatenate(values), np.concatenate(track_q) if track_q else None
+    return (ac, np.concatenate(flats), np.concatenate(values), np.concatenate(track_q) if track_q else None,
+            np.concatenate(scale_q) if scale_q else None)
+
+
+def _checked_scales(info: StreamInfo, q: np.ndarray, chunk: int) -> np.ndarray:
+    """``q`` (n, T, 3) of a chunk's scale tracks, refused unless every decoded scale lies in (0, peak]."""
+    with np.errstate(all="ignore"):
+        values = info.scales.values(q)
+    if not np.all((values > 0) & (values <= info.scales.reach[None, :, None])):
+        raise BitstreamError(f"mcb-rot: chunk {chunk}: a decoded scale is not in (0, its track's peak].")
+    return q
 
 
 def _coefficient_keys(info: StreamInfo, lengths: np.ndarray, segment_key: np.ndarray, mask: np.ndarray,

@@ -163,8 +163,9 @@ def _refine_greedy(info: StreamInfo, true_quats: np.ndarray, true_roots: np.ndar
     ``a``'s subtree about ``p_a`` by the change of ``a``'s global rotation (the root's moves every joint), so the
     positions and global rotations are updated in place, a few numpy calls instead of one product per tree depth.
     They drift from forward kinematics by float rounding only (~1e-13 cm after every round a frame can take, far
-    inside the safety margin); the corrected rotations themselves are computed as :func:`.stream.apply_corrections`
-    computes them (the same bits as the decoder's), and the encoder's final check decodes the stream.
+    inside the safety margin; a scaled rig's frames run forward kinematics again instead, :mod:`.scales`); the
+    corrected rotations themselves are computed as :func:`.stream.apply_corrections` computes them (the same bits as
+    the decoder's), and the encoder's final check decodes the stream.
     """
     budgets = info.budgets
     steps = info.correction_steps
@@ -254,7 +255,10 @@ def _refine_greedy(info: StreamInfo, true_quats: np.ndarray, true_roots: np.ndar
             glob[row, below] = quat.multiply(change[pair], glob[row, below])
             glob[joint_rows, joint] = new_global
             placed[row, below] = centre + quat.rotate(change[pair], placed[row, below] - centre)
-        errors = points.errors_of(frames, placed, glob)
+        if points.scales is None:
+            errors = points.errors_of(frames, placed, glob)
+        else:  # a scaled subtree does not turn rigidly with its joint: forward kinematics again (the frames missing)
+            errors, placed, glob = points.evaluate(frames, local, root)
         keep = np.any(errors > check_cm, axis=1)
         if not keep.all():
             keep_only(keep)

@@ -35,8 +35,9 @@ by class to undo), static tables fixed by the format (the AC tables of rounding 
 chunks default to 128 frames (one segment), and the bands are computed in integers (:func:`.classes.band_of`).
 The cost in bytes against format 5 is in the README. Format 6's optional sections sit behind flag bits that older
 streams never set: a game rig's translation tracks (bit 10, :mod:`.tracks`), a bound over the end sites too (bit 11,
-:mod:`.budgets`), and a still root joint 0 kept apart from the coded skeleton (bit 12, :mod:`.static_root`: its
-section follows the skeleton part).
+:mod:`.budgets`), a still root joint 0 kept apart from the coded skeleton (bit 12, :mod:`.static_root`: its
+section follows the skeleton part) and scale tracks (bit 13, :mod:`.scales`: their header after the translation
+tracks', a unit per chunk after theirs).
 
 Coding only the coefficients up to each channel's last nonzero one (as JPEG's end-of-block) skips the runs of
 zeros at high frequencies: at ε = 1 cm 85 % of the AC coefficients of cmu_test are never coded, so decoding reads a
@@ -60,7 +61,8 @@ from mocapbench.codecs.mcb_rot.segments import SegmentLayout, inverse, segment_s
 from mocapbench.codecs.segments import read_cuts, write_cuts
 from mocapbench.codecs.skeleton_blob import STEP_EXPONENTS, unpack_skeleton_compact
 from mocapbench.codecs.mcb_rot.skeleton6 import unpack_skeleton_runtime
-from mocapbench.codecs.mcb_rot.tracks import Tracks, read_tracks
+from mocapbench.codecs.mcb_rot.tracks import KIND_SCALE, Tracks, read_tracks
+from mocapbench.codecs.mcb_rot.scales import SCALES, frame_factors, stretched_lengths
 from mocapbench.codecs.mcb_rot.static_root import StaticRoot, read_static_root
 from mocapbench.entropy.ans import ClassTables, decode_classed, encode_classed
 from mocapbench.entropy.rans6 import RansTables, decode_unit, encode_unit, quantize_counts
@@ -113,7 +115,7 @@ _MULTIPLIER_F32, _FLAT, _DEFAULT_BIT = 1, 2, 2  # flags: 1 multiplier as f32 (el
 # Format 6 flags after the defaults' bits: the stream carries translation tracks (:mod:`.tracks`; their header after
 # the classes, a unit per chunk after its rotations), its budgets cover the end sites (:mod:`.budgets`), and it
 # codes a still root's one child as its root (:mod:`.static_root`; the still root right after the skeleton part).
-_TRACKS, _ENDS, _STATIC_ROOT = 1 << 10, 1 << 11, 1 << 12
+_TRACKS, _ENDS, _STATIC_ROOT = 1 << 10, 1 << 11, 1 << 12  # scale tracks: SCALES, bit 13 (:mod:`.scales`)
 _GRID_ZERO = 64  # multiplier code k stands for 2^((k - 64) / 2)
 
 
@@ -143,14 +145,15 @@ class Settings:
     tracks: bool = False  # format 6: the stream carries translation tracks (flags bit 10)
     ends: bool = False  # format 6: the budgets and the bound cover the end sites (flags bit 11)
     static_root: bool = False  # format 6: the stream's skeleton lacks a still root joint 0 (flags bit 12)
+    scales: bool = False  # format 6: the stream carries scale tracks (flags bit 13)
 
     @classmethod
     def create(cls, eps_cm, bound_cm, multiplier, slope, rounding, root_share, free_angle_rad, power, segment, chunk,
-               shell_cm=0.0, tracks=False, ends=False, static_root=False):
+               shell_cm=0.0, tracks=False, ends=False, static_root=False, scales=False):
         """Settings with every field rounded as it will be read back (the bound down, so it never grows)."""
         return cls(_f32(eps_cm), _f32_below(bound_cm), _f32(multiplier), _f32(slope), _f32(rounding), _f32(root_share),
                    _f32(free_angle_rad), _f32(power), int(segment), int(chunk), _f32(shell_cm), bool(tracks),
-                   bool(ends), bool(static_root))
+                   bool(ends), bool(static_root), bool(scales))
 
     def write(self, writer: ByteWriter) -> None:
         """Format 6 (as 5): u8 format | f32 eps | f32 bound | varint flags | multiplier (u8 grid code or f32) | the
@@ -160,7 +163,7 @@ class Settings:
         writer.write_f32(self.bound_cm)
         code = _multiplier_code(self.multiplier)
         flags = (code is None) * _MULTIPLIER_F32 | (self.slope == 0.0) * _FLAT
-        flags |= self.tracks * _TRACKS | self.ends * _ENDS | self.static_root * _STATIC_ROOT
+        flags |= self.tracks * _TRACKS | self.ends * _ENDS | self.static_root * _STATIC_ROOT | self.scales * SCALES
         differing = []
         for bit, (name, default, kind) in enumerate(_DEFAULTS, start=_DEFAULT_BIT):
             value = getattr(self, name)
@@ -188,16 +191,17 @@ def _read_flagged_settings(reader: ByteReader, version: int) -> tuple:
     """Formats 4 to 6: f32 bound | varint flags | multiplier | the settings that differ from the defaults.
 
     Returns ``(bound, multiplier, slope, rounding, root_share, free_angle_rad, allocation_power, segment_frames,
-    chunk_frames, shell_cm, tracks, ends, static_root)``, the fields of :class:`Settings` after ``eps_cm``.
+    chunk_frames, shell_cm, tracks, ends, static_root, scales)``, the fields of :class:`Settings` after ``eps_cm``.
     """
     defaults = _DEFAULTS_5 if version == 5 else _DEFAULTS
     bound = reader.read_f32("bound")
     flags = reader.read_varint("settings flags", max_bytes=2)
-    known = _DEFAULT_BIT + len(defaults) + (3 if version >= 6 else 0)  # format 6: bits 10, 11, 12
+    known = _DEFAULT_BIT + len(defaults) + (4 if version >= 6 else 0)  # format 6: bits 10, 11, 12, 13
     if flags >> known:
         raise BitstreamError(f"mcb-rot: unknown settings flags {flags:#x}.")
     tracks, ends = bool(flags & _TRACKS) and version >= 6, bool(flags & _ENDS) and version >= 6
     static_root = bool(flags & _STATIC_ROOT) and version >= 6
+    scales = bool(flags & SCALES) and version >= 6
     if flags & _MULTIPLIER_F32:
         multiplier = reader.read_f32("multiplier")
     else:
@@ -210,7 +214,7 @@ def _read_flagged_settings(reader: ByteReader, version: int) -> tuple:
             values[name] = 0.0 if name == "slope" and flags & _FLAT else default
     listed = (values[n] for n in ("slope", "rounding", "root_share", "free_angle_rad", "allocation_power",
                                   "segment_frames", "chunk_frames", "shell_cm"))
-    return (bound, multiplier, *listed, tracks, ends, static_root)
+    return (bound, multiplier, *listed, tracks, ends, static_root, scales)
 
 
 def _read_listed_settings(reader: ByteReader, version: int) -> tuple:
@@ -222,7 +226,7 @@ def _read_listed_settings(reader: ByteReader, version: int) -> tuple:
     chunk_frames = reader.read_varint("chunk frames")
     shell = reader.read_f32("shell distance") if version >= 3 else 0.0
     return (bound, multiplier, slope, rounding, root_share, free, power, segment_frames, chunk_frames, shell,
-            False, False, False)
+            False, False, False, False)
 
 
 def _check_settings_range(eps, bound, multiplier, slope, rounding, root_share, free, power, segment_frames,
@@ -264,6 +268,7 @@ class StreamInfo:
     unit_values: int = 0  # format 6: most values in one chunk's rANS unit (a native decoder sizes its cache by it)
     tracks: Tracks | None = None  # format 6, flags bit 10: the translation tracks' header (and q at the encoder)
     static_root: StaticRoot | None = None  # format 6, flags bit 12: the still root joint 0 the skeleton lacks
+    scales: Tracks | None = None  # format 6, flags bit 13: the scale tracks' header (and q at the encoder)
     _cache: dict = field(default_factory=dict, repr=False)
 
     def replace(self, **changes) -> "StreamInfo":
@@ -582,6 +587,10 @@ def write_payload(info: StreamInfo, skeleton_blob: bytes, coefficients: dict, co
             first, length = int(chunk_first_frame[chunk]), int(layout.lengths[segments].sum())
             encode_unit(writer, info.tracks.chunk_values(first, first + length), info.tracks.unit_classes(length),
                         runtime_tables())
+        if info.scales is not None:  # the chunk's frames of every scale track, one unit (:mod:`.scales`)
+            first, length = int(chunk_first_frame[chunk]), int(layout.lengths[segments].sum())
+            encode_unit(writer, info.scales.chunk_values(first, first + length), info.scales.unit_classes(length),
+                        runtime_tables())
         chunks.append(writer.getvalue())
 
     writer = ByteWriter()
@@ -604,6 +613,8 @@ def write_payload(info: StreamInfo, skeleton_blob: bytes, coefficients: dict, co
                               info.gap_class, info.value_class]))
     if info.tracks is not None:
         info.tracks.write(writer)
+    if info.scales is not None:
+        info.scales.write(writer)
     writer.write_varint(unit_values)
     side = layout.num_segments
     encode_unit(writer, np.concatenate([dc_diff, count_diff]),
@@ -704,6 +715,7 @@ def read_info(header: Header, payload: memoryview) -> StreamInfo:
         raise BitstreamError(f"mcb-rot: classes must be < {model.NUM_CLASSES}.")
     coder_tables = tables(settings.rounding)
     track_header = read_tracks(reader, num_joints) if settings.tracks else None
+    scale_header = read_tracks(reader, num_joints, KIND_SCALE) if settings.scales else None
     counts, unit_values = None, 0
     if version >= 6:
         unit_values = reader.read_varint("largest unit")
@@ -731,10 +743,13 @@ def read_info(header: Header, payload: memoryview) -> StreamInfo:
     offsets = reader.offset + np.concatenate([[0], np.cumsum(sizes)])
     if offsets[-1] != len(payload):
         raise BitstreamError(f"mcb-rot: the chunks end at byte {offsets[-1]}, the payload has {len(payload)}.")
-    budgets = stream_budgets(settings, skeleton, track_header)
+    if settings.scales and (settings.shell_cm > 0 or static_root is not None):
+        raise BitstreamError("mcb-rot: scale tracks with a shell distance or a still root kept apart (the encoder "
+                             "writes neither).")
+    budgets = stream_budgets(settings, skeleton, track_header, scale_header)
     return StreamInfo(settings, skeleton, budgets, layout, cuts, overrides, axis_codes, scale, tilt, dc_tilt,
                       count_tilt, gap_class, value_class, dc, offsets, counts, version, unit_values, track_header,
-                      static_root)
+                      static_root, scale_header)
 
 
 def end_site_reach(skeleton: Skeleton) -> np.ndarray:
@@ -745,10 +760,23 @@ def end_site_reach(skeleton: Skeleton) -> np.ndarray:
     return reach
 
 
-def stream_budgets(settings: Settings, skeleton: Skeleton, tracks: Tracks | None) -> Budgets:
+def stream_budgets(settings: Settings, skeleton: Skeleton, tracks: Tracks | None, scales: Tracks | None = None) -> Budgets:
     """The budgets of a stream (encoder and decoder alike): its settings' bound and shares, with the end sites as
-    virtual children when the stream covers them, and each translated joint's reach as its bone."""
+    virtual children when the stream covers them, each translated joint's reach as its bone, and with scale tracks
+    every length stretched by the most the scales above it stretch it (:func:`.scales.stretched_lengths`)."""
+    ends = end_site_reach(skeleton) if settings.ends else None
+    bones = None if tracks is None else tracks.bones_cm(skeleton)
+    if scales is not None:
+        bones = np.sqrt(np.sum(skeleton.offsets**2, axis=1)) if bones is None else bones
+        bones, ends = stretched_lengths(skeleton, bones, ends, scales)
     return joint_budgets(skeleton, settings.bound_cm, settings.root_share, settings.free_angle_rad,
-                         settings.allocation_power, settings.shell_cm,
-                         ends_cm=end_site_reach(skeleton) if settings.ends else None,
-                         bones_cm=None if tracks is None else tracks.bones_cm(skeleton))
+                         settings.allocation_power, settings.shell_cm, ends_cm=ends, bones_cm=bones)
+
+
+def stretch_of(skeleton: Skeleton, scales: Tracks | None) -> tuple[np.ndarray, np.ndarray] | None:
+    """(frame factors, peaks) (J,) each of a stream's scale tracks (:mod:`.scales`), or None without them."""
+    if scales is None:
+        return None
+    peaks = np.ones(skeleton.num_joints)
+    peaks[scales.joints] = scales.reach
+    return frame_factors(skeleton, scales), peaks

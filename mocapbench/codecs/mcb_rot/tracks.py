@@ -23,8 +23,8 @@ first differences): second differences are the track's accelerations, several bi
 velocities on captured motion. The step follows the bound: the tracks get
 :data:`TRACK_SHARE` of it, split evenly among the tracked joints of the longest chain of them.
 
-Scale tracks (kind 1) are reserved: ``mcb-rot``'s budgets assume bones that keep their length under rotation, so
-it refuses a scaled joint in one line naming it (:meth:`mocapbench.codecs.base.Codec.check_tracks`).
+Scale tracks (kind 1) are coded the same way in a section of their own behind another flag (:mod:`.scales`): a
+:class:`Tracks` of kind 1, whose ``reach`` is the largest scale a track's joint takes (its *peak*).
 """
 
 from __future__ import annotations
@@ -44,6 +44,7 @@ TRACK_SHARE = 0.1
 #: Class of the side tables in format 6's 128 classes: a track value of class c uses table SIDE + c.
 SIDE = 64
 _KIND_TRANSLATION = 0
+KIND_SCALE = 1
 _HALF_DIAGONAL = np.sqrt(3.0) / 2.0  # a cube of side s fits in the ball of radius s sqrt(3) / 2
 _MAX_Q = 1 << 30  # |q| of a frame: its first-order differences stay below rans6's 2^31
 _MAX_CM = 1e6  # |base| and step of a stream: beyond, a corrupt field (10 km)
@@ -68,6 +69,9 @@ class Tracks:
         Side class (0..63) of each track's axis.
     q : ndarray, shape (F, T, 3), int, optional
         The quantized values (encoder only).
+    kind : int
+        0: translation tracks (cm); :data:`KIND_SCALE`: scale tracks (:mod:`.scales`: values and steps are scale
+        factors, ``reach`` the largest scale of each track's joint).
     """
 
     joints: np.ndarray
@@ -76,6 +80,7 @@ class Tracks:
     reach: np.ndarray
     classes: np.ndarray
     q: np.ndarray | None = None
+    kind: int = _KIND_TRANSLATION
 
     @property
     def count(self) -> int:
@@ -99,10 +104,12 @@ class Tracks:
         mask[self.joints] = True
         return mask
 
-    def error_cm(self, skeleton: Skeleton) -> float:
+    def error_cm(self, skeleton: Skeleton, factor: np.ndarray | None = None) -> float:
         """Largest position error the tracks' quantization adds to any joint, cm: the sum of ``sqrt(3) / 2 step``
-        over the tracked joints on its path from the root (itself included)."""
-        return float(_path_sums(skeleton, self.joints, _HALF_DIAGONAL * self.step).max(initial=0.0))
+        over the tracked joints on its path from the root (itself included), each times its ``factor`` (J,) when
+        given (a scaled rig: how much its parent's frame may stretch a length, :func:`.scales.frame_factors`)."""
+        amounts = _HALF_DIAGONAL * self.step * (1.0 if factor is None else factor[self.joints])
+        return float(_path_sums(skeleton, self.joints, amounts).max(initial=0.0))
 
     def bones_cm(self, skeleton: Skeleton) -> np.ndarray:
         """(J,) bone lengths for the budgets: each offset's length, a tracked joint's reach."""
@@ -115,7 +122,7 @@ class Tracks:
         writer.write_varint(self.count)
         for t, joint in enumerate(self.joints.tolist()):
             writer.write_varint(joint)
-            writer.write_u8(_KIND_TRANSLATION)
+            writer.write_u8(self.kind)
             writer.write_f32(self.step[t])
             for value in self.base[t]:
                 writer.write_f32(value)
@@ -200,26 +207,29 @@ def plan_tracks(motion: Motion, share_cm: float, fit_class) -> Tracks | None:
     return Tracks(joints, step, base, reach, classes, q)
 
 
-def read_tracks(reader: ByteReader, num_joints: int) -> Tracks:
-    """The tracks header of a stream of ``num_joints`` joints, every field checked.
+def read_tracks(reader: ByteReader, num_joints: int, kind: int = _KIND_TRANSLATION) -> Tracks:
+    """The tracks header of a stream of ``num_joints`` joints, every field checked: translation tracks (joints
+    1..J-1), or with ``kind`` :data:`KIND_SCALE` the scale tracks' (joints 0..J-1: the root may be scaled).
 
     Raises
     ------
     BitstreamError
         A count, joint, kind, step, base, reach or class outside what the format allows.
     """
-    count = reader.read_varint("track count")
-    if not 1 <= count <= num_joints - 1:
-        raise BitstreamError(f"mcb-rot: expected 1..{num_joints - 1} tracks, found {count}.")
+    first = 0 if kind == KIND_SCALE else 1
+    what = "scale" if kind == KIND_SCALE else "translation"
+    count = reader.read_varint(f"{what} track count")
+    if not 1 <= count <= num_joints - first:
+        raise BitstreamError(f"mcb-rot: expected 1..{num_joints - first} {what} tracks, found {count}.")
     joints, step, base, reach, classes = [], [], [], [], []
     for _ in range(count):
         joint = reader.read_varint("tracked joint")
-        if not (joints[-1] if joints else 0) < joint < num_joints:
-            raise BitstreamError(f"mcb-rot: a track's joint must be in 1..{num_joints - 1}, after the previous "
-                                 f"track's, found {joint}.")
-        kind = reader.read_u8("track kind")
-        if kind != _KIND_TRANSLATION:
-            raise BitstreamError(f"mcb-rot: track kind {kind} is not a translation (0); scale tracks are reserved.")
+        if not (joints[-1] + 1 if joints else first) <= joint < num_joints:
+            raise BitstreamError(f"mcb-rot: a {what} track's joint must be in {first}..{num_joints - 1}, after the "
+                                 f"previous track's, found {joint}.")
+        found = reader.read_u8("track kind")
+        if found != kind:
+            raise BitstreamError(f"mcb-rot: track kind {found} is not a {what} ({kind}).")
         joints.append(joint)
         step.append(reader.read_f32("track step"))
         base.append([reader.read_f32("track base") for _ in range(3)])
@@ -227,8 +237,10 @@ def read_tracks(reader: ByteReader, num_joints: int) -> Tracks:
         classes.append(list(reader.read_bytes(3, "track classes")))
     step, base, reach = np.array(step), np.array(base), np.array(reach)
     classes = np.array(classes, dtype=np.int64)
+    least = 0.0 if kind == _KIND_TRANSLATION else np.nextafter(0.0, 1.0)  # a scale's peak is > 0
     if not (np.all((step > 0) & (step <= _MAX_CM)) and np.all(np.abs(base) <= _MAX_CM)
-            and np.all((reach >= 0) & (reach <= 4 * _MAX_CM)) and classes.max() < SIDE):
-        raise BitstreamError("mcb-rot: a track's step, base, reach or class is outside the format's range.")
-    return Tracks(np.array(joints, dtype=np.int64), step, base, reach, classes)
+            and np.all((reach >= least) & (reach <= 4 * _MAX_CM)) and classes.max() < SIDE):
+        raise BitstreamError(f"mcb-rot: a {what} track's step, base, {'reach' if first else 'peak'} or class is "
+                             "outside the format's range.")
+    return Tracks(np.array(joints, dtype=np.int64), step, base, reach, classes, kind=kind)
 

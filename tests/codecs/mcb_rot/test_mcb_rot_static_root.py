@@ -138,11 +138,11 @@ def test_the_flag_on_a_stream_without_the_section_is_a_bitstream_error():
         codec.decode_payload(Header("mcb-rot", motion.num_frames, motion.num_joints, motion.fps), memoryview(hostile))
 
 
-def test_unknown_flags_past_the_static_root_are_refused():
+def test_unknown_flags_past_the_scale_tracks_are_refused():
     writer = ByteWriter()
     writer.write_f32(0.05)
     writer.write_f32(0.0499)
-    writer.write_varint(1 << 13)
+    writer.write_varint(1 << 14)  # (bit 13: scale tracks, mocapbench.codecs.mcb_rot.scales)
     writer.write_bytes(bytes(64))
     with pytest.raises(BitstreamError, match="unknown settings flags"):
         Settings.read(ByteReader(writer.getvalue()), 6)
