@@ -170,6 +170,12 @@ static void test_stream(const char *path, const unsigned char *data, size_t n) {
         free(context);
         return;
     }
+    if (strstr(path, "scales")) { /* scale tracks (settings flag bit 13): not read by this version */
+        CHECK(status == MCBROT_E_UNSUPPORTED, "%s: a stream with scale tracks gave status %d", path, status);
+        printf("ok %s: scale tracks answered unsupported\n", path);
+        free(context);
+        return;
+    }
     if (format != MCBROT_PAYLOAD_FORMAT) {
         CHECK(status == MCBROT_E_FORMAT, "%s: format %d gave status %d", path, format, status);
         printf("ok %s: payload format %d refused\n", path, format);
