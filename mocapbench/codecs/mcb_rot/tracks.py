@@ -220,7 +220,8 @@ def read_tracks(reader: ByteReader, num_joints: int, kind: int = _KIND_TRANSLATI
     what = "scale" if kind == KIND_SCALE else "translation"
     count = reader.read_varint(f"{what} track count")
     if not 1 <= count <= num_joints - first:
-        raise BitstreamError(f"mcb-rot: expected 1..{num_joints - first} {what} tracks, found {count}.")
+        raise BitstreamError(f"mcb-rot: expected 1..{num_joints - first} {'scale ' if first == 0 else ''}tracks, "
+                             f"found {count}.")
     joints, step, base, reach, classes = [], [], [], [], []
     for _ in range(count):
         joint = reader.read_varint("tracked joint")
