@@ -6,7 +6,7 @@
  * reach the payload parser and the entropy decoder instead of stopping at the checksum. An opened clip is then
  * sampled with bounded work (at most three chunks decoded): its first two frames, two times taken from the input's
  * last bytes with the rounding modes they name (one of them as a whole pose in float32: rotations and translation
- * tracks), and calls that must fail (a frame past the end, NaN and negative times). Contexts above 4 MiB are not
+ * tracks), every joint's scale, and calls that must fail (a frame past the end, NaN and negative times). Contexts above 4 MiB are not
  * allocated (an engine checks mcbrot_context_size against its budget the same way); the clamps keep an execution
  * cheap, so that a campaign reaches millions of inputs.
  */
@@ -27,7 +27,7 @@ static void exercise(void *context, const uint8_t *data, size_t size) {
     mcbrot_clip_info info;
     if (mcbrot_info(context, &info) != MCBROT_OK) abort();
     size_t joints = info.num_joints;
-    double *rotations = malloc(sizeof(double) * (4 * joints * 2 + 6));
+    double *rotations = malloc(sizeof(double) * (4 * joints * 2 + 6 + 3 * joints));
     double *roots = rotations + 4 * joints * 2;
     float *narrow = malloc(sizeof(float) * 7 * joints);
     if (!rotations || !narrow) abort();
@@ -41,6 +41,7 @@ static void exercise(void *context, const uint8_t *data, size_t size) {
     (void)mcbrot_sample(context, t, (int)(bits >> 15) & 3, rotations, roots);
     t = info.duration_s * (double)((bits >> 17) & 0x7fff) / 32767.0;
     (void)mcbrot_sample_pose_f32(context, t, (int)(bits >> 30), narrow, narrow + 4 * joints);
+    (void)mcbrot_sample_scales(context, t, (int)(bits >> 15) & 3, roots + 6); /* (scale tracks, flag bit 13) */
     (void)mcbrot_sample(context, -1.0, MCBROT_LINEAR, rotations, roots);
     (void)mcbrot_sample(context, NAN, MCBROT_NEAREST, rotations, roots);
     free(narrow);

@@ -25,8 +25,8 @@
  * mcbrot_sample_pose gives every joint's translation with its rotation. A rig whose root never moves (a ground-level
  * root at one place with the identity rotation, the pelvis below it carrying the trajectory) may be coded with that
  * root kept apart: the calls give the whole rig all the same (joint 0 the still root: its rotation the identity,
- * its translation its place; joint 1, the pelvis, a joint with a translation track). Scale tracks (settings flag bit
- * 13) are not read by this version: MCBROT_E_UNSUPPORTED (Python decodes them).
+ * its translation its place; joint 1, the pelvis, a joint with a translation track). A rig may scale joints (scale
+ * tracks, settings flag bit 13): mcbrot_sample_scales gives every joint's scale beside the pose.
  *
  * ABI: MCBROT_ABI_VERSION changes whenever a function's signature, the meaning of a status or the layout expected
  * of an output changes; mcbrot_abi_version() returns the library's, to compare with the header's.
@@ -63,8 +63,7 @@ typedef enum mcbrot_status {
     MCBROT_E_CONTEXT_SMALL = 6,  /* the context is smaller than mcbrot_context_size says */
     MCBROT_E_TIME = 7,           /* t is NaN or outside [0, duration] */
     MCBROT_E_NOT_OPEN = 8,       /* the context holds no opened clip */
-    MCBROT_E_UNSUPPORTED = 9     /* a feature of the stream this version does not implement (scale tracks: settings
-                                  * flag bit 13) */
+    MCBROT_E_UNSUPPORTED = 9     /* a feature of the stream this version does not implement */
 } mcbrot_status;
 
 /* How a time between frames is rounded. A time within a millionth of a frame of a frame is that frame. */
@@ -139,6 +138,14 @@ MCBROT_API int mcbrot_decode_pose_frames(void *context, uint32_t start, uint32_t
 
 /* The joints with a translation track (mcbrot_clip_info.num_tracks of them, increasing). */
 MCBROT_API int mcbrot_tracks(const void *context, uint32_t *joints);
+
+/* Scale tracks (settings flag bit 13: a joint's frame scaled, local = T R S, so a joint's scale stretches the steps
+ * to its children and its end sites, not the joint itself): the scaled joints (count, increasing; either may be NULL),
+ * every joint's scale at time t (J x 3, 1 where it has none; linear rounding lerps) and on frames [start, start +
+ * count) (count x J x 3). A clip without scale tracks gives 1 everywhere. */
+MCBROT_API int mcbrot_scales(const void *context, uint32_t *count, uint32_t *joints);
+MCBROT_API int mcbrot_sample_scales(void *context, double t, int rounding, double *scales);
+MCBROT_API int mcbrot_decode_scale_frames(void *context, uint32_t start, uint32_t count, double *scales);
 
 #ifdef __cplusplus
 }

@@ -68,6 +68,13 @@ typedef struct ctx_t {
     uint32_t still;         /* 1: a still root kept apart (flags bit 12): the outputs have joints + 1 joints */
     double still_offset[3], still_position[3]; /* cm */
     double *still_pose;     /* POSE_DOUBLES(joints + 1): the float32 calls' whole pose (a still root only) */
+    uint32_t num_scales;    /* scale tracks (flags bit 13) */
+    int32_t *scale_of;      /* J: the joint's scale track, or -1 (arrays of 0 bytes without scale tracks) */
+    uint32_t *scale_joint;  /* S' */
+    double *scale_step, *scale_base, *scale_peak; /* S', S' x 3, S' */
+    uint8_t *scale_class;   /* S' x 3: side classes */
+    double *scale_factor;   /* J: the most a joint's parent frame stretches a length (product of the peaks above) */
+    double *scale_values;   /* max_chunk_frames x S' x 3: the cached chunk's scales */
     /* arrays inside the context */
     int32_t *parents;       /* J */
     double *offsets;        /* (J + E) x 3: the joints', then the end sites' */
@@ -346,6 +353,8 @@ typedef struct header_t {
     uint32_t num_tracks;
     size_t tracks_at;
     int still;           /* flags bit 12: a still root kept apart; `joints` are the stream's others */
+    int scales;          /* flags bit 13: scale tracks */
+    uint32_t num_scales;
     double still_offset[3], still_position[3];
 } header_t;
 
@@ -363,9 +372,7 @@ static int read_settings(reader_t *r, header_t *h) {
     if ((s = read_varint(r, &flags, "settings flags", 2))) return s;
     if (flags >> 14)
         return fail(MSG(r), MCBROT_E_CORRUPT, "mcb-rot: unknown settings flags %#llx", (unsigned long long)flags);
-    if (flags & (1u << 13)) /* a game rig's scale tracks (scales.py): Python decodes them */
-        return fail(MSG(r), MCBROT_E_UNSUPPORTED, "mcb-rot: the stream carries scale tracks (settings flag bit 13), "
-                    "which this runtime does not read");
+    h->scales = (int)((flags >> 13) & 1);
     h->still = (int)((flags >> 12) & 1);
     h->cover_ends = (int)((flags >> 11) & 1);
     h->tracks = (int)((flags >> 10) & 1);
@@ -418,6 +425,9 @@ static int read_settings(reader_t *r, header_t *h) {
     h->shell = shell;
     h->segment_frames = (uint32_t)segment;
     h->chunk_frames = (uint32_t)chunk;
+    if (h->scales && (shell > 0 || h->still))
+        return fail(MSG(r), MCBROT_E_CORRUPT, "mcb-rot: scale tracks with a shell distance or a still root kept apart "
+                    "(the encoder writes neither)");
     return MCBROT_OK;
 }
 
@@ -609,6 +619,49 @@ static int read_tracks_header(reader_t *r, header_t *h, ctx_t *x) {
     return MCBROT_OK;
 }
 
+/* The scale tracks header (mocapbench/codecs/mcb_rot/scales.py; read_tracks of kind 1): varint T (1..J), then per
+ * track varint joint (increasing, 0..J-1) | u8 kind (1) | f32 step | 3 x f32 base | f32 peak | 3 x u8 class. Checked;
+ * written into the context when `x` is not NULL. */
+static int read_scales_header(reader_t *r, header_t *h, ctx_t *x) {
+    int s;
+    uint32_t count;
+    if ((s = read_count(r, &count, h->joints, "scale track count"))) return s;
+    if (count < 1) return fail(MSG(r), MCBROT_E_CORRUPT, "mcb-rot: expected 1..%u scale tracks, found 0", h->joints);
+    uint64_t next = 0;
+    for (uint32_t t = 0; t < count; ++t) {
+        uint64_t joint;
+        uint32_t kind;
+        double step, base[3], peak;
+        if ((s = read_varint(r, &joint, "scaled joint", 10))) return s;
+        if (!(joint >= next && joint < h->joints))
+            return fail(MSG(r), MCBROT_E_CORRUPT, "mcb-rot: a scale track's joint must be in 0..%u, after the previous "
+                        "track's, found %llu", h->joints - 1, (unsigned long long)joint);
+        next = joint + 1;
+        if ((s = read_u8(r, &kind, "track kind"))) return s;
+        if (kind != 1) return fail(MSG(r), MCBROT_E_CORRUPT, "mcb-rot: track kind %u is not a scale (1)", kind);
+        if ((s = read_f32(r, &step, "track step")) || (s = read_f32(r, &base[0], "track base")) ||
+            (s = read_f32(r, &base[1], "track base")) || (s = read_f32(r, &base[2], "track base")) ||
+            (s = read_f32(r, &peak, "track peak")) || (s = need(r, 3, "track classes")))
+            return s;
+        const uint8_t *classes = r->data + r->pos;
+        r->pos += 3;
+        if (!(step > 0 && step <= 1e6 && fabs(base[0]) <= 1e6 && fabs(base[1]) <= 1e6 && fabs(base[2]) <= 1e6 &&
+              peak > 0 && peak <= 4e6 && classes[0] < SIDE && classes[1] < SIDE && classes[2] < SIDE))
+            return fail(MSG(r), MCBROT_E_CORRUPT, "mcb-rot: a scale track's step, base, peak or class is outside the "
+                        "format's range");
+        if (x) {
+            x->scale_joint[t] = (uint32_t)joint;
+            x->scale_of[joint] = (int32_t)t;
+            x->scale_step[t] = step;
+            memcpy(x->scale_base + 3 * (size_t)t, base, sizeof base);
+            x->scale_peak[t] = peak;
+            memcpy(x->scale_class + 3 * (size_t)t, classes, 3);
+        }
+    }
+    h->num_scales = count;
+    return MCBROT_OK;
+}
+
 /* Whether bytes [0, n) are UTF-8 as Python's strict decoder takes it: no overlong form, no surrogate, nothing
  * above U+10FFFF, no stray or missing continuation byte. */
 static int is_utf8(const uint8_t *p, size_t n) {
@@ -787,6 +840,7 @@ static int plan(const container_t *c, header_t *h, reader_t *r, uint32_t *cuts_o
         return fail(MSG(r), MCBROT_E_CORRUPT, "mcb-rot: classes must be < %d", NUM_CLASSES);
     r->pos += 4;
     if (h->tracks && (s = read_tracks_header(r, h, NULL))) return s;
+    if (h->scales && (s = read_scales_header(r, h, NULL))) return s;
     uint64_t longest = h->max_length > h->chunk_frames ? h->max_length : h->chunk_frames;
     uint64_t most = longest * (channels + 4 * ((uint64_t)h->joints + 1));
     if ((s = read_count(r, &h->unit_values, most, "largest unit"))) return s;
@@ -892,7 +946,8 @@ typedef struct layout_t {
     size_t parents, offsets, end_parents, base_step, correction_step, turned, axes, overrides, seg_start, chunk_first,
         chunk_offset, class_table, dc, counts, values, order, blocks, longest, rank, cosines, block_rows, block_signal,
         bands, track_of, track_joint, track_step, track_base, track_reach, track_class, track_values, scratch,
-        still_pose, total;
+        still_pose, scale_of, scale_joint, scale_step, scale_base, scale_peak, scale_class, scale_factor, scale_values,
+        total;
     uint32_t frame_block;
 } layout_t;
 
@@ -955,6 +1010,15 @@ static void layout_of(const header_t *h, uint32_t chunks, uint32_t max_chunk_seg
     l->track_values = place(&at, 24 * T * (T ? max_chunk_frames : 0));
     l->scratch = place(&at, 8 * (2 * POSE_DOUBLES(J) + 2 * C + LANES + n + 1));
     l->still_pose = place(&at, h->still ? 8 * POSE_DOUBLES(J + 1) : 0);
+    size_t S3 = h->scales ? h->num_scales : 0, JS = S3 ? J : 0;
+    l->scale_of = place(&at, 4 * JS);
+    l->scale_joint = place(&at, 4 * S3);
+    l->scale_step = place(&at, 8 * S3);
+    l->scale_base = place(&at, 24 * S3);
+    l->scale_peak = place(&at, 8 * S3);
+    l->scale_class = place(&at, 3 * S3);
+    l->scale_factor = place(&at, 8 * JS);
+    l->scale_values = place(&at, 24 * S3 * (S3 ? max_chunk_frames : 0));
     /* the block tables, last: left out (frame_block 1) where they would take the context past MAX_CONTEXT */
     size_t without = (at + 15) & ~(size_t)15;
     l->block_rows = place(&at, 8 * FRAME_BLOCK * (n + 1));
@@ -1114,6 +1178,10 @@ static void budgets(ctx_t *x, double *rotation, double *base, double *dist, doub
         for (uint32_t e = 0; e < x->ends; ++e) {
             const double *o = x->offsets + 3 * ((size_t)J + e);
             double length = sqrt(o[0] * o[0] + o[1] * o[1] + o[2] * o[2]);
+            if (x->num_scales) { /* stretched by the joint's frame: its factor and its own peak (scales.py) */
+                int32_t k = x->end_parents[e], t = x->scale_of[k];
+                length = length * x->scale_factor[k] * (t >= 0 ? x->scale_peak[t] : 1.0);
+            }
             if (length > reach[x->end_parents[e]]) reach[x->end_parents[e]] = length;
         }
     for (uint32_t j = 0; j < J; ++j) vertices |= reach[j] > 0;
@@ -1121,7 +1189,7 @@ static void budgets(ctx_t *x, double *rotation, double *base, double *dist, doub
     for (uint32_t j = 1; j < J; ++j) { /* a translated joint's bone is its track's reach */
         const double *o = x->offsets + 3 * j;
         double bone = x->track_of[j] >= 0 ? x->track_reach[x->track_of[j]] : sqrt(o[0] * o[0] + o[1] * o[1] + o[2] * o[2]);
-        dist[j] = dist[parent[j]] + bone;
+        dist[j] = dist[parent[j]] + (x->num_scales ? bone * x->scale_factor[j] : bone);
     }
     /* lever[a] = max over the points a's rotation moves: proper descendants k (chain dist k - dist a) and, with
      * virtual children, those of a (reach a) and of its proper descendants (chain + reach k) */
@@ -1369,6 +1437,14 @@ static int open_with(void *context, size_t context_bytes, container_t *given, co
     x->track_values = (double *)(base + l.track_values);
     x->scratch = (double *)(base + l.scratch);
     x->still_pose = (double *)(base + l.still_pose);
+    x->scale_of = (int32_t *)(base + l.scale_of);
+    x->scale_joint = (uint32_t *)(base + l.scale_joint);
+    x->scale_step = (double *)(base + l.scale_step);
+    x->scale_base = (double *)(base + l.scale_base);
+    x->scale_peak = (double *)(base + l.scale_peak);
+    x->scale_class = base + l.scale_class;
+    x->scale_factor = (double *)(base + l.scale_factor);
+    x->scale_values = (double *)(base + l.scale_values);
     x->frame_block = l.frame_block;
     x->block_rows = l.frame_block > 1 ? (double *)(base + l.block_rows) : NULL;
     x->block_signal = l.frame_block > 1 ? (double *)(base + l.block_signal) : NULL;
@@ -1507,6 +1583,16 @@ static int open_with(void *context, size_t context_bytes, container_t *given, co
     r.pos += 4;
     for (uint32_t j = 0; j < J; ++j) x->track_of[j] = -1;
     if (h.tracks) read_tracks_header(&r, &h, x);
+    x->num_scales = h.scales ? h.num_scales : 0;
+    if (x->num_scales) { /* the frame factors (scales.py, frame_factors): products of the peaks above each joint */
+        for (uint32_t j = 0; j < J; ++j) x->scale_of[j] = -1;
+        read_scales_header(&r, &h, x);
+        x->scale_factor[0] = 1.0;
+        for (uint32_t j = 1; j < J; ++j) {
+            int32_t p = x->parents[j], t = x->scale_of[p];
+            x->scale_factor[j] = x->scale_factor[p] * (t >= 0 ? x->scale_peak[t] : 1.0);
+        }
+    }
     /* the class table (C x bands), built in place from the scales (last channel first: row c's scale sits at
      * index c, row c spans c * 12 .. c * 12 + 11 >= c) */
     for (uint32_t ch = C; ch-- > 0;) {
@@ -1648,6 +1734,40 @@ static int load_tracks(ctx_t *x, reader_t *r, uint32_t k, uint32_t frames) {
     return unit_end(r, &u, (uint32_t)total, what);
 }
 
+/* The chunk's scale tracks (scales.py): one unit as the translation tracks' (load_tracks), every value checked to
+ * lie in (0, its track's peak] as Python checks it. */
+static int load_scales(ctx_t *x, reader_t *r, uint32_t k, uint32_t frames) {
+    char what[48];
+    snprintf(what, sizeof what, "chunk %u scales", k);
+    uint32_t T = x->num_scales;
+    uint64_t total = (uint64_t)T * 3 * frames;
+    if (frames > x->max_chunk_frames || total > 0xffffffffu)
+        return fail(x->message, MESSAGE_BYTES, MCBROT_E_CORRUPT, "mcb-rot: %s: %u frames in a chunk", what, frames);
+    unit_t u;
+    int s = unit_begin(r, &u, (uint32_t)total, r->end, what);
+    if (s) return s;
+    for (uint32_t t = 0; t < T; ++t)
+        for (uint32_t axis = 0; axis < 3; ++axis) {
+            uint32_t cls = SIDE + x->scale_class[3 * t + axis];
+            double base = x->scale_base[3 * t + axis], step = x->scale_step[t], peak = x->scale_peak[t];
+            uint64_t velocity = 0, q = 0;
+            double *out = x->scale_values + 3 * (size_t)t + axis;
+            for (uint32_t i = 0; i < frames; ++i) {
+                int32_t d;
+                int e = unit_next(&u, cls, &d);
+                if (e) return unit_error(r, e, what);
+                velocity += (uint64_t)(int64_t)d;
+                q += velocity;
+                double value = base + step * (double)(int64_t)q;
+                if (!(value > 0 && value <= peak))
+                    return fail(x->message, MESSAGE_BYTES, MCBROT_E_CORRUPT, "mcb-rot: chunk %u: a decoded scale is "
+                                "not in (0, its track's peak]", k);
+                out[(size_t)i * 3 * T] = value;
+            }
+        }
+    return unit_end(r, &u, (uint32_t)total, what);
+}
+
 /* Decode chunk `k` into the cache: every coefficient and correction (and the translation tracks' values). */
 static int load_chunk(ctx_t *x, uint32_t k) {
     if (x->cached_chunk == (int64_t)k) return MCBROT_OK;
@@ -1738,6 +1858,7 @@ static int load_chunk(ctx_t *x, uint32_t k) {
     }
     if ((s = unit_end(&r, &u, (uint32_t)total, what))) return s;
     if (x->num_tracks && (s = load_tracks(x, &r, k, frames))) return s;
+    if (x->num_scales && (s = load_scales(x, &r, k, frames))) return s;
     if (r.pos != r.end)
         return fail(x->message, MESSAGE_BYTES, MCBROT_E_CORRUPT, "mcb-rot: expected the end of chunk %u, found %zu "
                     "more bytes", k, r.end - r.pos);
@@ -2326,5 +2447,74 @@ MCBROT_API int mcbrot_tracks(const void *context, uint32_t *joints) {
     if (joints && x->still) joints[0] = 1; /* a still root's child: its translation moves */
     if (joints)
         for (uint32_t t = 0; t < x->num_tracks; ++t) joints[t + x->still] = x->track_joint[t] + x->still;
+    return MCBROT_OK;
+}
+
+/* ---------------------------------------------------------------------------------------------------------- */
+/* scale tracks (flags bit 13)                                                                                 */
+
+/* Every joint's scale at frame f (W x 3, W the outputs' joints): its track's value, 1 where it has none (a still
+ * root kept apart has no scale tracks: the stream refuses both). */
+static int frame_scales(ctx_t *x, uint32_t f, double *out) {
+    uint32_t seg = upper_bound(x->seg_start, x->segments + 1, f) - 1;
+    uint32_t chunk = upper_bound(x->chunk_first, x->chunks + 1, seg) - 1;
+    int s = load_chunk(x, chunk);
+    if (s) return s;
+    size_t W = x->joints + x->still, T = x->num_scales;
+    for (size_t i = 0; i < 3 * W; ++i) out[i] = 1.0;
+    if (T) {
+        const double *values = x->scale_values + (size_t)(f - x->seg_start[x->chunk_first[chunk]]) * 3 * T;
+        for (size_t t = 0; t < T; ++t) memcpy(out + 3 * (size_t)x->scale_joint[t], values + 3 * t, 24);
+    }
+    return MCBROT_OK;
+}
+
+MCBROT_API int mcbrot_scales(const void *context, uint32_t *count, uint32_t *joints) {
+    int s = check_open(context);
+    if (s) return s;
+    const ctx_t *x = (const ctx_t *)context;
+    if (count) *count = x->num_scales;
+    if (joints && x->num_scales) memcpy(joints, x->scale_joint, 4 * (size_t)x->num_scales);
+    return MCBROT_OK;
+}
+
+MCBROT_API int mcbrot_decode_scale_frames(void *context, uint32_t start, uint32_t count, double *scales) {
+    int s = check_open(context);
+    if (s) return s;
+    ctx_t *x = (ctx_t *)context;
+    x->message[0] = 0;
+    if (!scales || start > x->frames || count > x->frames - start)
+        return fail(x->message, MESSAGE_BYTES, MCBROT_E_ARGUMENT, "mcb-rot: NULL output or frames %u..%llu outside "
+                    "the clip's %u", start, (unsigned long long)start + count, x->frames);
+    for (uint32_t f = 0; f < count; ++f)
+        if ((s = frame_scales(x, start + f, scales + 3 * ((size_t)x->joints + x->still) * f))) return s;
+    return MCBROT_OK;
+}
+
+MCBROT_API int mcbrot_sample_scales(void *context, double t, int rounding, double *scales) {
+    int s = check_open(context);
+    if (s) return s;
+    ctx_t *x = (ctx_t *)context;
+    x->message[0] = 0;
+    if (!scales || rounding < MCBROT_NEAREST || rounding > MCBROT_LINEAR)
+        return fail(x->message, MESSAGE_BYTES, MCBROT_E_ARGUMENT, "mcb-rot: NULL output or unknown rounding %d",
+                    rounding);
+    double duration = (double)(x->frames - 1) / x->fps;
+    if (!(t >= 0.0 && t <= duration))
+        return fail(x->message, MESSAGE_BYTES, MCBROT_E_TIME, "mcb-rot: t = %g s outside the clip [0, %g s]", t,
+                    duration);
+    double position = t * x->fps, last = (double)(x->frames - 1); /* the frames as sample_into picks them */
+    if (position > last) position = last;
+    double whole = floor(position + 0.5);
+    if (fabs(position - whole) <= 1e-6) position = whole;
+    double low = floor(position), alpha = position - low;
+    uint32_t f0 = (uint32_t)low;
+    if (rounding == MCBROT_NEAREST) return frame_scales(x, (uint32_t)(whole > last ? last : whole), scales);
+    if (rounding == MCBROT_CEIL) return frame_scales(x, (uint32_t)ceil(position), scales);
+    if (rounding == MCBROT_FLOOR || alpha == 0.0 || f0 + 1 >= x->frames) return frame_scales(x, f0, scales);
+    size_t W = x->joints + x->still;
+    double *second = x->scratch; /* W x 3 <= the scratch's first pose, 7 J + 3 */
+    if ((s = frame_scales(x, f0, scales)) || (s = frame_scales(x, f0 + 1, second))) return s;
+    for (size_t i = 0; i < 3 * W; ++i) scales[i] += alpha * (second[i] - scales[i]);
     return MCBROT_OK;
 }

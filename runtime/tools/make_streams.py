@@ -1,6 +1,6 @@
 """Write the runtime's own streams: test streams (``runtime/tests/streams/``: game rigs with translation tracks,
-flags bit 10, with a still root kept apart, flags bit 12, and with scale tracks, flags bit 13, which the runtime
-answers as unsupported; the repository's golden streams carry none of them) and the fuzzer's small seeds
+flags bit 10, with a still root kept apart, flags bit 12, and with scale tracks, flags bit 13, which the
+repository's golden streams do not carry) and the fuzzer's small seeds
 (``runtime/fuzz/seeds/``: a few joints and frames each, so that one execution costs little and a campaign reaches
 millions of inputs, with every part of the format present: cuts, re-references, corrections, tracks, a still root). The C tests
 (``make test``) and the fuzz campaigns read them; the Python tests compare the runtime with numpy on freshly made
@@ -37,7 +37,7 @@ def main() -> None:
                                     dict(eps_cm=0.3, segment_frames=32, chunk_frames=64)),
         "game-rig-still-root-stretch.mcb": (_still(synthetic_game_rig(num_frames=70, seed=7, stretch_cm=8.0)),
                                             dict(eps_cm=0.5)),
-        "game-rig-scales.mcb": (game_rig_motion(40, seed=9, scaled=True), dict(eps_cm=0.5)),  # bit 13: unsupported
+        "game-rig-scales.mcb": (game_rig_motion(40, seed=9, scaled=True), dict(eps_cm=0.5)),
     }
     for name, (motion, settings) in cases.items():
         (OUT / name).write_bytes(create("mcb-rot", **settings).encode(motion))
@@ -54,6 +54,8 @@ def main() -> None:
         "game-rig-12f.mcb": (game_rig_motion(12, seed=5), dict(eps_cm=1.0, segment_frames=8, chunk_frames=8)),
         "still-root-10f.mcb": (still_root_rig(10, seed=8, position=(1.0, 0.0, 2.0)),
                                dict(eps_cm=1.0, segment_frames=4, chunk_frames=8)),
+        "scales-12f.mcb": (game_rig_motion(12, seed=10, scaled=True),
+                           dict(eps_cm=1.0, segment_frames=8, chunk_frames=8)),
     }
     for name, (motion, settings) in small.items():
         (seeds / name).write_bytes(create("mcb-rot", **settings).encode(motion))

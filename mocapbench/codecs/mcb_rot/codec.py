@@ -89,8 +89,8 @@ child of its joint in the budgets and a checked point of the closed loop, so a l
 its lever instead of ``free_angle_deg`` (``end_sites=false``: the joints only, as before; the bytes the end sites cost are
 measured by the benchmark). A scaled joint has a scale track on a uniform grid too (:mod:`.scales`): the budgets
 take every length stretched by the most the scales above it stretch it, the scale error comes off the bound, and the
-closed loop places the joints with the decoded scales (numpy: the native runtime does not read scale tracks); a
-scaled rig has no shell bound and keeps a still root in the coded skeleton.
+closed loop places the joints with the decoded scales (matrix forward kinematics, in the decoder too); a scaled
+rig has no shell bound and keeps a still root in the coded skeleton.
 
 Departures from the issue's sketch: no trained prior (the stream needs no model, ``model_bytes`` is 0). Leaves
 (joints whose rotation moves no joint) get the fixed budget ``free_angle_deg`` unless ``shell_cm`` > 0.

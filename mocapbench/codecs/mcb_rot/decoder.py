@@ -127,10 +127,10 @@ def decode_range(
 
 
 def _decode_scaled(info: StreamInfo, payload: memoryview, start: int, stop: int, out: tuple) -> tuple:
-    """:func:`decode_range` of a stream with scale tracks (:mod:`.scales`; numpy: the runtime does not read them):
-    positions by the matrix forward kinematics of :class:`~mocapbench.motion.Motion` with the decoded scales, the
-    closed loop's (:class:`.checks.PointTargets`). ``out``: positions, roots, rotations, translations and scales
-    (the last two (n, J, 3) or None)."""
+    """:func:`decode_range` of a stream with scale tracks (:mod:`.scales`; the runtime's rotations, translations and
+    scales when it is built, else numpy's): positions by the matrix forward kinematics of
+    :class:`~mocapbench.motion.Motion` with the decoded scales, the closed loop's (:class:`.checks.PointTargets`).
+    ``out``: positions, roots, rotations, translations and scales (the last two (n, J, 3) or None)."""
     positions, roots, quats, translations, scales = out
     count, skeleton = stop - start, info.skeleton
     steps = np.empty((count, skeleton.num_joints, 3)) if translations is None else translations
@@ -138,7 +138,16 @@ def _decode_scaled(info: StreamInfo, payload: memoryview, start: int, stop: int,
     every = np.empty((count, skeleton.num_joints, 3)) if scales is None else scales
     layout = info.layout
     first_segment = int(np.searchsorted(layout.starts, start, side="right")) - 1
-    for chunks in _blocks(info, layout.chunks_of_frames(start, stop)):
+    clip = native_clip(info, payload)
+    if clip is not None:
+        contiguous = all(a.flags.c_contiguous for a in (steps, every, quats))
+        into = (steps, every, quats) if contiguous else tuple(np.empty(a.shape) for a in (steps, every, quats))
+        clip.poses(start, stop, into[0], into[2])
+        clip.scales(start, stop, into[1])
+        if not contiguous:
+            steps[...], every[...], quats[...] = into
+        roots[...] = steps[:, 0]
+    for chunks in () if clip is not None else _blocks(info, layout.chunks_of_frames(start, stop)):
         first = max(int(layout.starts[max(int(layout.chunk_starts[chunks[0]]), first_segment)]), start)
         block_roots, block_quats, block_steps, block_scales = decode_block(info, payload, chunks, None, (start, stop))
         low, high = max(first, start), min(first + len(block_roots), stop)
@@ -178,7 +187,7 @@ def native_clip(info: StreamInfo, payload: memoryview):
     """The runtime's opened clip of a format 6 payload (kept in ``info``'s cache), or None: an older format, the
     runtime not built, or ``MOCAPBENCH_NATIVE=0``. The clip has the whole rig's joints (a still root kept apart,
     :mod:`.static_root`, is one more than the stream's skeleton)."""
-    if info.version < 6 or info.scales is not None:  # (the runtime does not read scale tracks, flag bit 13)
+    if info.version < 6:
         return None
     if "native" not in info._cache:
         lib = native.library()

@@ -78,6 +78,7 @@ def library() -> ctypes.CDLL | None:
                                         ctypes.c_uint32, ctypes.c_double]
     lib.mcbrot_decode_frames.argtypes = [ctypes.c_void_p, ctypes.c_uint32, ctypes.c_uint32, dp, dp]
     lib.mcbrot_decode_pose_frames.argtypes = [ctypes.c_void_p, ctypes.c_uint32, ctypes.c_uint32, dp, dp]
+    lib.mcbrot_decode_scale_frames.argtypes = [ctypes.c_void_p, ctypes.c_uint32, ctypes.c_uint32, dp]
     lib.mcbrot_message.argtypes = [ctypes.c_void_p]
     lib.mcbrot_message.restype = ctypes.c_char_p
     if lib.mcbrot_abi_version() != ABI_VERSION:
@@ -133,5 +134,13 @@ class NativeClip:
         dp = ctypes.POINTER(ctypes.c_double)
         status = self._lib.mcbrot_decode_pose_frames(self._pointer, start, stop - start, quats.ctypes.data_as(dp),
                                                      translations.ctypes.data_as(dp))
+        if status:
+            _raise(status, self._lib.mcbrot_message(self._pointer).decode(errors="replace"))
+
+    def scales(self, start: int, stop: int, scales: np.ndarray) -> None:
+        """Write every joint's scale on frames ``start:stop`` (n, J, 3), C-contiguous float64 (1 where a joint has
+        no scale track)."""
+        dp = ctypes.POINTER(ctypes.c_double)
+        status = self._lib.mcbrot_decode_scale_frames(self._pointer, start, stop - start, scales.ctypes.data_as(dp))
         if status:
             _raise(status, self._lib.mcbrot_message(self._pointer).decode(errors="replace"))

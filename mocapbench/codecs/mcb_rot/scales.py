@@ -30,7 +30,8 @@ measured after that stretch:
 
 The encoder takes the translation and scale errors and twice the discrepancy off the bound its budgets are computed
 for (the translation tracks' and scale tracks' steps each follow ``track_share`` of ε), and its closed loop runs forward
-kinematics with the decoded scales (matrices: :mod:`.checks`), so its check sees the scale error. Non-uniform
+kinematics with the decoded scales (matrices: :mod:`.checks`), so its check sees the scale error. The native
+runtime reads scale tracks too (``mcbrot_sample_scales``); forward kinematics with them stays in Python. Non-uniform
 scales are carried (the bound above does not need a uniform scale). The shell bound (``shell_cm`` > 0) is not
 offered on a scaled rig: its vertices are defined on unscaled joint frames.
 """

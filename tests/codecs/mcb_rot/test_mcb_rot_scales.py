@@ -178,15 +178,63 @@ def test_random_corruptions_of_a_scaled_stream_end_in_a_bitstream_error_or_a_fin
     assert refused >= 75
 
 
-def test_the_runtime_answers_unsupported_and_numpy_decodes():
-    header, payload, _, _ = _scaled_stream()
-    info = stream.read_info(header, memoryview(payload))
-    assert decoder.native_clip(info, memoryview(payload)) is None
+def _decoded_both(data: bytes, start: int, stop: int):
+    """(runtime, numpy) positions and motion of frames start:stop of a one-window stream."""
+    from mocapbench.codecs.mcb_rot import codec as mcb_rot_codec
+
+    header, payload = container.unpack(data, "mcb-rot")
+    results = []
+    for use_native in (True, False):
+        info = stream.read_info(header, payload)
+        if not use_native:
+            info._cache["native"] = None
+        else:
+            assert decoder.native_clip(info, payload) is not None
+        results.append(mcb_rot_codec._decode_frames(info, payload, start, stop, header.fps))
+    return results
+
+
+@pytest.mark.parametrize("rig", sorted(RIGS))
+def test_the_runtime_decodes_scale_tracks_as_numpy_does(rig):
+    if native.library() is None:
+        pytest.skip("the native runtime is not available (no C compiler?)")
+    motion = RIGS[rig]()
+    data = create("mcb-rot", eps_cm=0.2, segment_frames=32, chunk_frames=32).encode(motion)
+    for start, stop in ((0, motion.num_frames), (5, 6), (20, 59)):
+        (positions, decoded), (ref_positions, ref) = _decoded_both(data, start, stop)
+        np.testing.assert_allclose(positions, ref_positions, rtol=0, atol=1e-6)
+        np.testing.assert_allclose(decoded.rotations, ref.rotations, rtol=0, atol=1e-9)
+        np.testing.assert_array_equal(decoded.scales, ref.scales)  # the same integers times the same steps
+        if ref.translations is not None:
+            np.testing.assert_array_equal(decoded.translations[:, 1:], ref.translations[:, 1:])
+    decoded = create("mcb-rot").decode(data)  # through the runtime
+    assert metrics.max_joint_error(motion.positions(), decoded.positions) <= 0.2
+
+
+def test_hostile_scaled_payloads_are_refused_by_the_runtime_in_one_line():
     lib = native.library()
     if lib is None:
         pytest.skip("the native runtime is not available (no C compiler?)")
-    with pytest.raises(BitstreamError, match="scale tracks"):
-        native.NativeClip(lib, payload, header.num_frames, header.num_joints, header.fps)
+    header, payload, at, section = _scaled_stream()
+    cases = [payload[:at] + HOSTILE[case](section) + payload[at + len(section):] for case in sorted(HOSTILE)]
+    rng = np.random.default_rng(5)
+    for _ in range(150):
+        bad = bytearray(payload)
+        for where in rng.integers(0, len(bad), rng.integers(1, 4)):
+            bad[where] = int(rng.integers(0, 256))
+        cases.append(bytes(bad))
+    refused = []
+    for case in cases:
+        try:
+            clip = native.NativeClip(lib, case, header.num_frames, header.num_joints, header.fps)
+            count, joints = header.num_frames, header.num_joints
+            clip.poses(0, count, np.empty((count, joints, 3)), np.empty((count, joints, 4)))
+            clip.scales(0, count, np.empty((count, joints, 3)))
+        except BitstreamError as error:
+            assert "\n" not in str(error) and str(error).startswith("mcb-rot")
+            refused.append(case)
+    assert all(case in refused for case in cases[: len(HOSTILE)])  # every bad section field, as numpy refuses it
+    assert len(refused) >= len(cases) // 2
 
 
 def test_a_decoded_scaled_rig_is_written_by_the_formats_that_hold_scale_and_refused_by_bvh(tmp_path):
