@@ -19,7 +19,9 @@ Design (two layers, in the spirit of near-lossless image coding such as JPEG-LS)
          (``root_step_rel``, 0.2): a root error moves all J joints, so in mean squared error it weighs J times a
          single joint's (the MSE-optimal root step is Δ / sqrt(J), 0.18 Δ for 31 joints).
          Δ is chosen per stream: with ``mean_cm`` = 0, by a rate search over multiples of ε (the smallest stream
-         wins); with ``mean_cm`` > 0, as the coarsest step whose decoded mean error is <= ``mean_cm``.
+         wins; below 60 fps the search also tries the flatter slope ``low_fps_slope``, 0.25, since a frame at
+         30 fps carries more of the motion's high frequencies); with ``mean_cm`` > 0, as the coarsest step whose
+         decoded mean error is <= ``mean_cm``.
       └─ refinement layer: r = P − P̂_base on absolute positions; joints with ||r|| <= ε are left alone, the others
          get r quantized to the nearest point of a body-centred cubic (BCC) lattice whose covering radius is ε,
          so every joint ends within ε. BCC is the best lattice covering of 3-D space: its cells hold 1.86× the
@@ -33,7 +35,9 @@ Design (two layers, in the spirit of near-lossless image coding such as JPEG-LS)
          (:mod:`mocapbench.entropy.ans`), so the near-certain zeros of high frequencies cost a fraction of a bit.
          ``"bands"``: no training; each frequency band is coded with its own canonical Huffman table or with zstd,
          whichever is smaller (tables travel in the stream).
-         The refinement positions are coded as Huffman-coded gaps between corrected joints; each lattice point
+         The refinement positions are coded as Huffman-coded gaps between corrected joints, or, where smaller,
+         joint by joint: each joint's count of corrected frames, then its per-frame flags by ANS with that
+         joint's frequency (corrections gather on the hands and feet); each lattice point
          as its index among the BCC points ordered by distance, by ANS with a trained index distribution
          (``"trained"``, about 4.3 bits a point on cmu_test) or as a parity bit and Huffman-coded coordinates
          (``"bands"``, about 6 bits).
@@ -57,6 +61,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+import constriction
 import numpy as np
 
 from mocapbench.codecs.base import Codec, CodecConfig, Header, NotFittedError, param, single_threaded_blas
@@ -106,6 +111,11 @@ _ENTROPY_CODERS = ("bands", "trained")  # stream codes 0, 1: append only
 _CUTS_FLAG = 0x80
 
 
+# Set on the entropy-coder byte when the refinement's corrected joints are coded joint by joint
+# (:func:`_write_joint_flags`) instead of as gaps; the encoder sets it only where that is smaller.
+_JOINT_FLAGS_FLAG = 0x40
+
+
 # What to do when the settings need a model and none is held for the motion's skeleton.
 _ON_MISSING_MODEL = ("untrained", "error")
 
@@ -122,6 +132,11 @@ _RDO_STEPS = tuple(2.0 ** (i / 4) for i in range(-4, 9))
 # Base-layer steps searched for a mean-error target, as multiples of mean_cm: 1 to 1024 in quarter octaves (on
 # cmu_test the mean error is 0.1-0.2 of the step).
 _MEAN_TARGET_STEPS = tuple(2.0 ** (i / 4) for i in range(0, 41))
+
+
+# Below this frame rate the rate search also tries ``low_fps_slope``: a frame carries more of the motion's
+# high frequencies at 30 fps than at 120, and a flatter quantization matrix keeps them cheaper to correct.
+_LOW_FPS = 60.0
 
 
 # The refinement works to eps * (1 - margin) so that float rounding in the decoder can never cross eps.
@@ -250,6 +265,92 @@ def _read_trained(reader: ByteReader, layout: "LayoutSlices", quantizer: tuple, 
     return decode_classed(reader, classes, model.tables, "mcb-linf: coefficients")
 
 
+def _write_refinement_positions(corrected: np.ndarray, num_frames: int, num_joints: int, zstd_level: int) -> bytes:
+    """Which joints the refinement corrects (flattened frame-major indices, ascending), in the smaller of two codings.
+
+    Returns a flag byte (0, or :data:`_JOINT_FLAGS_FLAG`: the encoder moves it onto the entropy-coder byte) followed
+    by the coded positions: the count and Huffman/zstd-coded gaps between corrected joints, or
+    :func:`_write_joint_flags`.
+    """
+    gaps = ByteWriter()
+    gaps.write_varint(len(corrected))
+    _write_symbols(gaps, np.diff(corrected, prepend=-1) - 1, zstd_level)
+    flags = ByteWriter()
+    _write_joint_flags(flags, corrected, num_frames, num_joints)
+    if len(flags.getvalue()) < len(gaps.getvalue()):
+        return bytes([_JOINT_FLAGS_FLAG]) + flags.getvalue()
+    return bytes([0]) + gaps.getvalue()
+
+
+def _read_gaps(reader: ByteReader, payload: memoryview, size: int) -> np.ndarray:
+    """Corrected joints (flattened indices below ``size``) coded as a count and gaps (:func:`_write_refinement_positions`)."""
+    num_corrected = reader.read_varint("corrected joint count")
+    if num_corrected > size:
+        raise BitstreamError(f"mcb-linf: expected at most {size} corrected joints, found {num_corrected}.")
+    gaps = _read_symbols(reader, payload, num_corrected, "refinement positions")
+    corrected = np.cumsum(gaps + 1) - 1
+    if num_corrected and (gaps.min() < 0 or corrected[-1] >= size):
+        raise BitstreamError("mcb-linf: refinement positions run past the end of the motion.")
+    return corrected
+
+
+def _joint_flag_model(count: int, num_frames: int):
+    """The binary model of a joint corrected on ``count`` of ``num_frames`` frames (0 < count < num_frames): its
+    frequency in this stream, from integers by correctly rounded division (the same model on every machine)."""
+    return constriction.stream.model.Categorical(
+        np.array([(num_frames - count) / num_frames, count / num_frames]), perfect=False
+    )
+
+
+def _write_joint_flags(writer: ByteWriter, corrected: np.ndarray, num_frames: int, num_joints: int) -> None:
+    """Corrected joints joint by joint: each joint's count of corrected frames (varints), then, for every joint
+    corrected on some frames but not all, one flag per frame coded by ANS with that joint's frequency
+    (``varint n_words, n_words uint32 ANS words``).
+
+    Corrections gather on a few joints (on a game rig at 30 fps, the hands and feet on about one frame in five,
+    the spine almost never): a probability per joint codes them in close to the entropy of each joint's flags,
+    where gaps over the frame-major order pay for the joints in between. The counts are the side information.
+    """
+    flags = np.zeros(num_frames * num_joints, dtype=np.int32)
+    flags[corrected] = 1
+    flags = flags.reshape(num_frames, num_joints)
+    counts = flags.sum(axis=0, dtype=np.int64)
+    writer.write_varints(counts)
+    coder = constriction.stream.stack.AnsCoder()
+    for joint in reversed(np.flatnonzero((counts > 0) & (counts < num_frames)).tolist()):  # a stack: last first
+        coder.encode_reverse(np.ascontiguousarray(flags[:, joint]), _joint_flag_model(int(counts[joint]), num_frames))
+    words = coder.get_compressed()
+    writer.write_varint(words.size)
+    writer.write_array(words, "<u4")
+
+
+def _read_joint_flags(reader: ByteReader, num_frames: int, num_joints: int) -> np.ndarray:
+    """Inverse of :func:`_write_joint_flags`: the corrected joints' flattened frame-major indices, ascending."""
+    counts = reader.read_varints(num_joints, "corrected frames per joint")
+    if counts.size and counts.max() > num_frames:
+        raise BitstreamError(f"mcb-linf: a joint is corrected on {counts.max()} frames; the window has {num_frames}.")
+    counts = counts.astype(np.int64)
+    flags = np.zeros((num_frames, num_joints), dtype=bool)
+    flags[:, counts == num_frames] = True
+    num_words = reader.read_varint("corrected-joint flags: ANS word count")
+    if num_words > reader.remaining // 4:
+        raise BitstreamError(f"mcb-linf: expected {num_words} ANS words of flags, only {reader.remaining} bytes left.")
+    words = np.frombuffer(reader.read_bytes(4 * num_words, "corrected-joint flags"), dtype="<u4").astype(np.uint32)
+    try:
+        coder = constriction.stream.stack.AnsCoder(words)
+        for joint in np.flatnonzero((counts > 0) & (counts < num_frames)).tolist():
+            values = coder.decode(_joint_flag_model(int(counts[joint]), num_frames), num_frames)
+            if int(values.sum()) != counts[joint]:
+                raise BitstreamError(f"mcb-linf: joint {joint}'s corrected-joint flags disagree with its count.")
+            flags[:, joint] = values.astype(bool)
+        finished = coder.is_empty()
+    except (ValueError, RuntimeError, AssertionError) as error:
+        raise BitstreamError(f"mcb-linf: the corrected-joint flags do not decode ({error}).") from None
+    if not finished:
+        raise BitstreamError("mcb-linf: the corrected-joint flags hold more data than the joints' counts.")
+    return np.flatnonzero(flags.ravel())
+
+
 def _write_lattice(writer: ByteWriter, lattice: np.ndarray, model: TrainedModel | None, zstd_level: int) -> None:
     """The refinement's lattice points (N, 3), half-cell units.
 
@@ -340,6 +441,10 @@ class McbLinfCodec(Codec):
         base_step_rel: float = param(2.0, low=0.05, high=64.0, unit="x eps", doc="base step when rdo is off")
         frequency_slope: float = param(
             2.0, low=0.0, high=64.0, doc="step of DCT frequency k is step * (1 + slope k / L): coarser high frequencies"
+        )
+        low_fps_slope: float = param(
+            0.25, low=0.0, high=64.0,
+            doc="below 60 fps the rate search also tries this frequency slope and keeps the smaller stream (0: off)",
         )
         root_step_rel: float = param(0.2, low=0.01, high=1.0, unit="x step", doc="step of the root's channels")
         rounding: float = param(
@@ -515,15 +620,20 @@ class McbLinfCodec(Codec):
         layout = CoefficientLayout.of(motion.num_frames, config.clip_frames, 3 * motion.num_joints, cuts)
         stream = _Stream(representation, entropy, model, cuts)
 
-        def attempt(step: float) -> _Candidate:
-            return self._encode_with_step(positions, parents, spectrum, layout, step, stream)
+        def attempt(step: float, slope: float = config.frequency_slope) -> _Candidate:
+            return self._encode_with_step(positions, parents, spectrum, layout, step, slope, stream)
 
         if config.mean_cm > 0:
             steps = [config.mean_cm * rel for rel in _MEAN_TARGET_STEPS]
             best = _coarsest_meeting_target(attempt, steps, config.mean_cm)
         else:
             steps = [config.eps_cm * rel for rel in (_RDO_STEPS if config.rdo else (config.base_step_rel,))]
-            best = min((attempt(step) for step in steps), key=lambda candidate: len(candidate.payload))
+            slopes = [config.frequency_slope]
+            if config.rdo and config.low_fps_slope > 0 and motion.fps < _LOW_FPS and config.low_fps_slope not in slopes:
+                slopes.append(config.low_fps_slope)
+            best = min(
+                (attempt(step, slope) for slope in slopes for step in steps), key=lambda candidate: len(candidate.payload)
+            )
         # The guarantee: decode what we are about to return and check it.
         header = Header(self.name, motion.num_frames, motion.num_joints, motion.fps)
         decoded = self._decode_window(header, memoryview(best.payload))
@@ -541,13 +651,16 @@ class McbLinfCodec(Codec):
         }
         return best.payload
 
-    def _encode_with_step(self, positions, parents, spectrum, layout: CoefficientLayout, step: float, stream):
-        """A :class:`_Candidate`: the payload coded with base step ``step`` (cm), its mean error, its corrections."""
+    def _encode_with_step(
+        self, positions, parents, spectrum, layout: CoefficientLayout, step: float, slope: float, stream
+    ) -> _Candidate:
+        """A :class:`_Candidate`: the payload coded with base step ``step`` (cm) and frequency slope ``slope``, its
+        mean error, its corrections."""
         num_frames, num_joints, _ = positions.shape
         config = self.config
         model, cuts = stream.model, stream.cuts
         steps = quantization_steps(
-            layout.frequencies, layout.channels, step, config.frequency_slope, config.root_step_rel, config.clip_frames
+            layout.frequencies, layout.channels, step, slope, config.root_step_rel, config.clip_frames
         )
         # Dead-zone rounding (offset < 1/2) zeroes more small coefficients; the refinement layer keeps the bound.
         coefficients = dead_zone_quantize(spectrum, steps, config.rounding)
@@ -564,11 +677,15 @@ class McbLinfCodec(Codec):
         writer = ByteWriter()
         writer.write_f64(config.eps_cm)
         writer.write_f64(step)
-        writer.write_f64(config.frequency_slope)
+        writer.write_f64(slope)
         writer.write_f64(config.root_step_rel)
         writer.write_varint(config.clip_frames)
         writer.write_u8(REPRESENTATIONS.index(stream.representation))
-        writer.write_u8(_ENTROPY_CODERS.index(stream.entropy) | (_CUTS_FLAG if len(cuts) else 0))
+        refinement = _write_refinement_positions(corrected, num_frames, num_joints, config.zstd_level)
+        joint_flags = refinement[0] == _JOINT_FLAGS_FLAG
+        writer.write_u8(
+            _ENTROPY_CODERS.index(stream.entropy) | (_CUTS_FLAG if len(cuts) else 0) | (_JOINT_FLAGS_FLAG if joint_flags else 0)
+        )
         # F again: the ANS coder can code a long run of near-certain zeros in almost no bytes, so the payload
         # alone does not pin F; a header F edited to 1e6 would otherwise build a 1e6-frame layout.
         writer.write_varint(num_frames)
@@ -582,8 +699,7 @@ class McbLinfCodec(Codec):
             _write_trained(writer, coefficients, layout, steps, model)
         else:
             _write_bands(writer, coefficients, layout, config.zstd_level)
-        writer.write_varint(len(corrected))
-        _write_symbols(writer, np.diff(corrected, prepend=-1) - 1, config.zstd_level)
+        writer.write_bytes(refinement[1:])
         _write_lattice(writer, lattice, model if stream.entropy == "trained" else None, config.zstd_level)
         return _Candidate(writer.getvalue(), step, mean_error, len(corrected))
 
@@ -623,7 +739,9 @@ class McbLinfCodec(Codec):
         temporaries of one layout slice or one DCT window; the layout's F·C arrays are never built.
         """
         reader = ByteReader(payload)
-        eps, step, slope, root_step_rel, clip_frames, representation, entropy, has_cuts = _read_settings(reader)
+        eps, step, slope, root_step_rel, clip_frames, representation, entropy, has_cuts, joint_flags = _read_settings(
+            reader
+        )
         num_frames, num_joints = header.num_frames, header.num_joints
         if reader.read_varint("frame count") != num_frames:
             raise BitstreamError(f"mcb-linf: the payload was written for another frame count than the header's {num_frames}.")
@@ -647,16 +765,11 @@ class McbLinfCodec(Codec):
         base_positions_into(positions, coefficients, layout, step, slope, root_step_rel, parents, representation, model)
         del coefficients
         positions = positions.reshape(-1, 3)
-        num_corrected = reader.read_varint("corrected joint count")
-        if num_corrected > num_frames * num_joints:
-            raise BitstreamError(
-                f"mcb-linf: expected at most {num_frames * num_joints} corrected joints, found {num_corrected}."
-            )
-        gaps = _read_symbols(reader, payload, num_corrected, "refinement positions")
-        corrected = np.cumsum(gaps + 1) - 1
-        if num_corrected and (gaps.min() < 0 or corrected[-1] >= num_frames * num_joints):
-            raise BitstreamError("mcb-linf: refinement positions run past the end of the motion.")
-        lattice = _read_lattice(reader, payload, num_corrected, model if entropy == "trained" else None)
+        if joint_flags:
+            corrected = _read_joint_flags(reader, num_frames, num_joints)
+        else:
+            corrected = _read_gaps(reader, payload, num_frames * num_joints)
+        lattice = _read_lattice(reader, payload, len(corrected), model if entropy == "trained" else None)
         reader.expect_end()
         half_cell = 2.0 * eps * (1.0 - _SAFETY_MARGIN) / np.sqrt(5.0)
         positions[corrected] += lattice * half_cell
@@ -668,7 +781,7 @@ class McbLinfCodec(Codec):
         if header.num_frames > WINDOW_FRAMES:  # a sequence of windows: describe the first
             reader.read_varint("window length")
             windows = {"windows of frames": f"{-(-header.num_frames // WINDOW_FRAMES)} x {WINDOW_FRAMES} (first shown)"}
-        eps, step, slope, root_step_rel, clip_frames, representation, entropy, has_cuts = _read_settings(reader)
+        eps, step, slope, root_step_rel, clip_frames, representation, entropy, has_cuts, _ = _read_settings(reader)
         frames = min(header.num_frames, WINDOW_FRAMES)
         reader.read_varint("frame count")  # F again (written before the cuts)
         cuts = read_cuts(reader, frames, "mcb-linf") if has_cuts else []
@@ -697,8 +810,9 @@ def _needs_model(representation: str, entropy: str) -> bool:
     return representation == "pca" or entropy == "trained"
 
 
-def _read_settings(reader: ByteReader) -> tuple[float, float, float, float, int, str, str, bool]:
-    """The stream's leading fields, checked: (eps, step, slope, root step, L, representation, entropy coder, cuts?)."""
+def _read_settings(reader: ByteReader) -> tuple[float, float, float, float, int, str, str, bool, bool]:
+    """The stream's leading fields, checked: (eps, step, slope, root step, L, representation, entropy coder, cuts?,
+    corrected joints coded joint by joint?)."""
     eps = reader.read_f64("eps")
     step = reader.read_f64("base step")
     slope = reader.read_f64("frequency slope")
@@ -706,8 +820,8 @@ def _read_settings(reader: ByteReader) -> tuple[float, float, float, float, int,
     clip_frames = reader.read_varint("clip length")
     representation = reader.read_u8("representation")
     entropy = reader.read_u8("entropy coder")
-    has_cuts = bool(entropy & _CUTS_FLAG)
-    entropy &= ~_CUTS_FLAG
+    has_cuts, joint_flags = bool(entropy & _CUTS_FLAG), bool(entropy & _JOINT_FLAGS_FLAG)
+    entropy &= ~(_CUTS_FLAG | _JOINT_FLAGS_FLAG)
     if (
         not (0 < eps < np.inf and 0 < step < np.inf and 0 <= slope <= 64 and 0 < root_step_rel <= 1)
         or not 4 <= clip_frames <= 4096
@@ -721,7 +835,7 @@ def _read_settings(reader: ByteReader) -> tuple[float, float, float, float, int,
         )
     return (
         eps, step, slope, root_step_rel, clip_frames, REPRESENTATIONS[representation], _ENTROPY_CODERS[entropy],
-        has_cuts,
+        has_cuts, joint_flags,
     )
 
 

@@ -203,3 +203,79 @@ def test_fit_from_clips_shorter_than_their_channel_count(frames, synthetic_motio
     data = codec.encode(synthetic_motion)
     assert codec.last_encode_stats["model_mode"] == "model"
     assert metrics.max_joint_error(synthetic_motion.positions(), codec.decode(data).positions) <= 0.5
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_corrected_joints_coded_joint_by_joint_read_back(seed):
+    """Any set of corrected joints, some joints never corrected and some on every frame, reads back exactly."""
+    from mocapbench.codecs.mcb_linf.codec import _read_joint_flags, _write_joint_flags
+    from mocapbench.entropy.bitio import ByteReader, ByteWriter
+
+    rng = np.random.default_rng(seed)
+    frames, joints = 37, 9
+    flags = rng.random((frames, joints)) < rng.random(joints)  # a rate per joint
+    flags[:, 0], flags[:, 1] = False, True
+    corrected = np.flatnonzero(flags.ravel())
+    writer = ByteWriter()
+    _write_joint_flags(writer, corrected, frames, joints)
+    reader = ByteReader(writer.getvalue())
+    np.testing.assert_array_equal(_read_joint_flags(reader, frames, joints), corrected)
+    reader.expect_end()
+
+
+def test_corrected_joint_flags_that_disagree_with_their_counts_are_refused():
+    from mocapbench.codecs.mcb_linf.codec import _read_joint_flags, _write_joint_flags
+    from mocapbench.entropy.bitio import ByteReader, ByteWriter
+
+    frames, joints = 40, 3
+    flags = np.zeros((frames, joints), dtype=bool)
+    flags[::3, 1] = True
+    writer = ByteWriter()
+    _write_joint_flags(writer, np.flatnonzero(flags.ravel()), frames, joints)
+    good = bytearray(writer.getvalue())
+    too_many = bytearray(good)
+    too_many[1] = frames + 1  # joint 1 corrected on more frames than the window has
+    with pytest.raises(BitstreamError, match="corrected on 41 frames"):
+        _read_joint_flags(ByteReader(bytes(too_many)), frames, joints)
+    other_count = bytearray(good)
+    other_count[1] += 1  # the flags no longer sum to the count
+    with pytest.raises(BitstreamError, match="corrected-joint flags"):
+        _read_joint_flags(ByteReader(bytes(other_count)), frames, joints)
+    with pytest.raises(BitstreamError):
+        _read_joint_flags(ByteReader(bytes(good[:-2])), frames, joints)
+
+
+def _stream_settings(codec, motion) -> tuple[float, bool]:
+    """(frequency slope, corrected joints coded joint by joint?) of the stream of one window."""
+    from mocapbench.codecs.mcb_linf.codec import _read_settings
+    from mocapbench.entropy.bitio import ByteReader
+
+    settings = _read_settings(ByteReader(codec.encode_payload(motion)))
+    return settings[2], settings[-1]
+
+
+def test_a_30_fps_clip_keeps_the_smaller_of_two_frequency_slopes():
+    motion = sinusoidal_motion(num_frames=150, fps=30.0, seed=3, max_frequency_hz=6.0)
+    searched = create("mcb-linf", eps_cm=0.1)
+    fixed = create("mcb-linf", eps_cm=0.1, low_fps_slope=0.0)
+    data = searched.encode(motion)
+    assert len(data) <= len(fixed.encode(motion))
+    assert _stream_settings(searched, motion)[0] in (2.0, 0.25)
+    assert metrics.max_joint_error(motion.positions(), create("mcb-linf").decode(data).positions) <= 0.1
+
+
+def test_a_120_fps_clip_is_coded_with_the_configured_slope_only(synthetic_motion):
+    searched = create("mcb-linf", eps_cm=0.5)
+    assert searched.encode(synthetic_motion) == create("mcb-linf", eps_cm=0.5, low_fps_slope=0.0).encode(
+        synthetic_motion
+    )
+    assert _stream_settings(searched, synthetic_motion)[0] == 2.0
+
+
+def test_the_encoder_codes_corrected_joints_the_smaller_way_and_keeps_the_bound():
+    """A fine bound on a fast 30 fps motion corrects many joints: the joint-by-joint coding is chosen there."""
+    motion = sinusoidal_motion(num_frames=120, fps=30.0, seed=5, max_frequency_hz=8.0, amplitude_deg=40.0)
+    codec = create("mcb-linf", eps_cm=0.05)
+    data = codec.encode(motion)
+    assert _stream_settings(codec, motion)[1]
+    assert metrics.max_joint_error(motion.positions(), create("mcb-linf").decode(data).positions) <= 0.05
