@@ -5,7 +5,7 @@
 
 Prints, as markdown:
 
-1. at eps = 0.5, 1, 2, 3 cm: mcb-linf's compression ratio over every other codec's ratio at the same L-inf
+1. at eps = 0.1, 0.5, 1, 2, 3 cm: mcb-linf's ratio (and its model bytes) over every other codec's ratio at the same L-inf
    (the other curve interpolated log-log along its Pareto front; "-" where its curve does not reach that error);
 2. the same at equal mean error;
 3. BD-rate against ``quant-delta-zstd`` on both error axes;
@@ -31,6 +31,7 @@ from mocapbench.experiments.document import markdown_table
 CODEC = "mcb-linf"
 ANCHOR = "quant-delta-zstd"
 EPSILONS_CM = (0.5, 1.0, 2.0, 3.0)
+COMPARED_EPSILONS_CM = (0.1, *EPSILONS_CM)  # the comparison tables also show the finest bound of the sweep
 
 
 def ratio_at_error(points: pd.DataFrame, error: str, target: float) -> float:
@@ -49,12 +50,13 @@ def comparison_table(points: pd.DataFrame, error: str) -> pd.DataFrame:
     """mcb-linf's ratio over each codec's ratio at mcb-linf's own error, for each eps."""
     ours = points[points["codec"] == CODEC]
     rows = []
-    for eps in EPSILONS_CM:
+    for eps in COMPARED_EPSILONS_CM:
         point = ours[np.isclose(ours["param_eps_cm"].astype(float), eps)]
         if point.empty:
             continue
         point = point.iloc[0]
-        row = {"eps_cm": eps, "mcb-linf ratio": point["compression_ratio"], error: point[error]}
+        row = {"eps_cm": eps, "mcb-linf ratio": point["compression_ratio"], error: point[error],
+               "model_bytes": point["model_bytes"]}
         for codec in sorted(set(points["codec"]) - {CODEC}):
             other = ratio_at_error(points[points["codec"] == codec], error, float(point[error]))
             row[codec] = point["compression_ratio"] / other if np.isfinite(other) else float("nan")
