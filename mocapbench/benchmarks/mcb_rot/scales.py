@@ -7,7 +7,8 @@ stretching spine), seeded 0.. ``--clips``, once with the chest's non-uniform squ
 once without it (``scale=1``, the same rotations and translations). Prints, as markdown (ratio = 12·J·F / stream
 bytes over the clips pooled; L∞ over every joint of every frame): mcb-rot at ε = 0.1, 0.5, 1 cm, its L∞ and its
 L∞ over the end sites, and ACL's ratio at mcb-rot's L∞ (interpolated log-log on the Pareto front of its precision
-grid at shell 3 cm and 0 cm: ACL at its best, :func:`.rd.ratio_at`), on both rigs.
+grid at shell 3 cm and 0 cm, each with and without ACL's pre-processing: ACL at its best, :func:`.rd.ratio_at`), on
+both rigs.
 """
 
 from __future__ import annotations
@@ -50,14 +51,16 @@ def main(argv: list[str] | None = None) -> None:
         acl = []
         if "acl" in CODECS:
             for shell in (3.0, 0.0):
-                acl += rd_points("acl", motions, "precision_cm", ACL_PRECISIONS_CM, shell_cm=shell)
+                for pre_process in (False, True):
+                    acl += rd_points("acl", motions, "precision_cm", ACL_PRECISIONS_CM, shell_cm=shell,
+                                     pre_process=pre_process)
         for point in ours:
             theirs = ratio_at(acl, "linf_cm", point["linf_cm"]) if acl else float("nan")
             print(f"| {label} | {point['eps_cm']:g} | {point['ratio']:.2f} | {point['linf_cm']:.3f} | "
                   f"{_end_linf(motions, point['eps_cm']):.3f} | {theirs:.2f} | {point['ratio'] / theirs:.2f} |")
     if "acl" not in CODECS:
         print(f"\nACL unavailable: {UNAVAILABLE.get('acl', 'not registered')}")
-    print(f"\nACL at its best over precision {ACL_PRECISIONS_CM} cm x shell 3 and 0 cm.")
+    print(f"\nACL at its best over precision {ACL_PRECISIONS_CM} cm x shell 3 and 0 cm x pre-processing off / on.")
 
 
 if __name__ == "__main__":
