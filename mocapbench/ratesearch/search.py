@@ -48,6 +48,13 @@ class Knob:
         ``bound_cm -> value`` for codecs with a guarantee: one encode, no search.
     fixed : mapping
         Other fields set with the knob (e.g. ``threshold_unit="cm"``); values may be callables of the bound.
+    grow : bool
+        For an integer knob whose error shrinks as it grows and whose tries cost more as it grows (a frequency
+        count: a network per try, its size growing with K): start from the cheap end and double (0, 1, 2, 4, ...)
+        until a try meets the bound, then bisect between the last miss and that try, as Algorithm 1 of the neural
+        Fourier paper grows its frequencies from none. No try is ever above twice the answer, where starting from
+        the safe end first trains the largest network of the range. With a monotone error both orders end on the
+        same smallest setting that meets the bound.
     """
 
     field: str
@@ -57,6 +64,7 @@ class Knob:
     integer: bool = False
     exact: Callable[[float], float] | None = None
     fixed: Mapping[str, Any] = field(default_factory=dict)
+    grow: bool = False
 
 
 _STEP = dict(low=1e-3, high=50.0)
@@ -86,7 +94,7 @@ KNOBS: dict[str, Knob | None] = {
                    integer=True, fixed={"root_levels_dropped": 0, "end_levels_dropped": 0}),
     # its own stopping rule is the L-inf error in cm: one encode (the measured error still decides `met`)
     "fourier-mlp-dct": Knob("threshold", 1e-3, 100.0, exact=lambda bound: bound, fixed={"threshold_unit": "cm"}),
-    "fourier-mlp-int": Knob("K", 0, 64, error_grows=False, integer=True),
+    "fourier-mlp-int": Knob("K", 0, 64, error_grows=False, integer=True, grow=True),
 }
 
 
@@ -329,7 +337,23 @@ def _bisect(knob: Knob, fixed, bound_cm, max_tries):
 
     # "safe" end: the smallest error; "coarse" end: the largest.
     safe, coarse = (knob.low, knob.high) if knob.error_grows else (knob.high, knob.low)
-    if knob.integer:
+    if knob.integer and knob.grow and not knob.error_grows:
+        lo, hi = int(knob.low), int(knob.high)
+        value = lo
+        met = yield from attempt(value)
+        while not met and value < hi:  # double up to the first setting that meets the bound
+            lo = value
+            value = min(hi, max(value + 1, 2 * value))
+            met = yield from attempt(value)
+        if met:
+            hi = value
+            while hi - lo > 1 and tries < max_tries + 2:
+                middle = (lo + hi) // 2
+                if (yield from attempt(middle)):
+                    hi = middle
+                else:
+                    lo = middle
+    elif knob.integer:
         coarse_met = yield from attempt(coarse)
         if not coarse_met and safe != coarse and (yield from attempt(safe)):
             lo, hi = sorted((int(safe), int(coarse)))
