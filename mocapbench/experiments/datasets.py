@@ -291,6 +291,8 @@ def iter_clips(spec: Mapping[str, Any], names: Sequence[str] | None = None) -> I
     """The clips of ``spec`` named in ``names`` (default: every clip), read one at a time in dataset order.
 
     Only the named files are parsed, and each ASF once; a caller that drops each motion after use holds one clip.
+    Clips of a data folder (``cmu``, ``bandai``) are kept for the next jobs of the process, read-only
+    (:mod:`mocapbench.experiments.clip_cache`).
 
     Raises
     ------
@@ -299,8 +301,52 @@ def iter_clips(spec: Mapping[str, Any], names: Sequence[str] | None = None) -> I
     """
     spec = _plain(spec)
     step = _frame_step(spec)
-    for motion in _iter_full_rate(spec, names):
-        yield motion.every(step)
+    files = _data_files(spec)
+    if files is None:
+        for motion in _iter_full_rate(spec, names):
+            yield motion.every(step)
+        return
+    # Clips of a data folder are kept across the jobs of this process (mocapbench.experiments.clip_cache).
+    from mocapbench.experiments import clip_cache
+
+    spec_key = _key(spec)
+    keep = _kept_clips(spec, names, repr(spec.get("name", "?")))
+    order = [name for name in files if name in keep]
+    keys = {name: (spec_key, name, _signature(files[name])) for name in order}
+    kept = {name: clip_cache.get(keys[name]) if keys[name][2] is not None else None for name in order}
+    missing = [name for name in order if kept[name] is None]
+    read = _iter_full_rate(spec, missing) if missing else iter(())
+    for name in order:
+        motion = kept[name]
+        if motion is None:
+            motion = next(read).every(step)
+            if keys[name][2] is not None:
+                motion = clip_cache.put(keys[name], motion)
+        yield motion
+
+
+def _data_files(spec: Mapping[str, Any]) -> dict[str, tuple[Path, ...]] | None:
+    """``name -> files`` of every clip of a ``cmu`` or ``bandai`` spec in dataset order; None for other kinds."""
+    where = repr(spec.get("name", "?"))
+    kind = spec.get("kind")
+    if kind == "cmu":
+        return {name: tuple(p for p in paths if p is not None) for name, _, paths in _cmu_files(spec, where)}
+    if kind == "bandai":
+        return {name: (file,) for name, _, file in _bandai_files(spec, where)}
+    return None
+
+
+def _signature(files: Sequence[Path]) -> tuple | None:
+    """What tells a file rewritten in place: each file's path, size and modification time (None if one cannot be
+    read: the clip is then read as before, and its reader says what is wrong)."""
+    out = []
+    for file in files:
+        try:
+            stat = Path(file).stat()
+        except OSError:
+            return None
+        out.append((str(file), stat.st_size, stat.st_mtime_ns))
+    return tuple(out)
 
 
 def _iter_full_rate(spec: Mapping[str, Any], names: Sequence[str] | None) -> Iterator[Motion]:
