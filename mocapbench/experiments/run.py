@@ -123,7 +123,10 @@ def run_job(cfg: Any, output_dir: Path, fitted_dir: Path | None = None) -> dict[
     -------
     dict
         The ``job.json`` record: ``status`` (``done`` or ``failed``), ``rows``, ``errors``, ``seconds`` (wall),
-        ``cpu_s`` (CPU time of the job's process), ``clips`` (of the shard), ``shard`` (``index``, ``count``).
+        ``cpu_s`` (CPU time of the job's process), ``clips`` (of the shard), ``shard`` (``index``, ``count``),
+        ``pid`` and ``process_cpu_s`` (the worker process and its CPU time so far at the job's end: the
+        difference between two jobs of one worker is the whole cost of the second, the launcher's share included,
+        which :func:`mocapbench.experiments.cost.calibrate_from` reads).
     """
     from hydra.utils import instantiate
     from omegaconf import OmegaConf
@@ -192,6 +195,8 @@ def run_job(cfg: Any, output_dir: Path, fitted_dir: Path | None = None) -> dict[
             keep_worst = cfg.get("save_worst", True)
             worst = worst_error(output_dir)
             motions = datasets.iter_clips(dataset_cfg, todo)
+            if not codec.encodes_many:
+                motions = _warm_up(codec, motions)
             batches = _encode_batches(codec, motions, timing) if codec.encodes_many else None
             for motion in tqdm(batches or motions, total=len(todo), desc=f"{codec.name} clips", unit="clip",
                                leave=False, disable=None):
@@ -214,12 +219,42 @@ def run_job(cfg: Any, output_dir: Path, fitted_dir: Path | None = None) -> dict[
         status = "done" if errors == 0 else "failed"
     except Exception as error:  # noqa: BLE001
         fail("setup", error)
+    end_cpu = time.process_time()
     record = {"status": status, "rows": count, "errors": errors, "seconds": time.perf_counter() - start,
-              "cpu_s": time.process_time() - start_cpu, "clips": len(clips), "shard": {"index": index, "count": total}}
+              "cpu_s": end_cpu - start_cpu, "clips": len(clips), "shard": {"index": index, "count": total},
+              "pid": os.getpid(), "process_cpu_s": end_cpu}
     tmp = job_path.with_name(f".{JOB_FILE}.tmp-{os.getpid()}")
     tmp.write_text(json.dumps(record))
     os.replace(tmp, job_path)
     return record
+
+
+#: Frames of the job's warm-up call (:func:`_warm_up`).
+WARMUP_FRAMES = 64
+
+
+def _warm_up(codec: Any, motions: Any):
+    """``motions`` unchanged, after one untimed encode and decode of the first ``WARMUP_FRAMES`` frames of the first.
+
+    The first call of a codec in a process pays for lazy imports and compiled kernels loaded from their cache;
+    this call pays it once per job, so that the timing of every clip can skip its own warm-up call
+    (``timing.warmup: 0``) without the job's first clip carrying it. A failure here is ignored: the clip itself
+    reports it.
+    """
+    import itertools
+
+    from mocapbench.metrics.timing import single_thread
+
+    motions = iter(motions)
+    first = next(motions, None)
+    if first is None:
+        return iter(())
+    try:
+        with single_thread(1):
+            codec.decode(codec.encode(first.slice(0, min(first.num_frames, WARMUP_FRAMES))))
+    except Exception:  # noqa: BLE001 - the clip's own encode says what is wrong
+        pass
+    return itertools.chain([first], motions)
 
 
 #: Most frames a job encodes in one :meth:`~mocapbench.codecs.base.Codec.encode_many` call (the clips are held
