@@ -16,7 +16,8 @@ from typing import Any, Sequence
 
 from mocapbench.experiments.sweep_progress import format_duration
 
-__all__ = ["SweepPlan", "BenchEstimate", "estimate_run", "format_estimate", "codec_times", "format_codec_times"]
+__all__ = ["SweepPlan", "BenchEstimate", "estimate_run", "format_estimate", "format_progress", "codec_times",
+           "format_codec_times"]
 
 
 @dataclass(frozen=True)
@@ -39,6 +40,7 @@ class BenchEstimate:
     codec_cpu_s: dict[str, float]
     measured: str  # when and where the costs were measured
     unpriced: tuple[str, ...] = ()  # sweeps that could not be priced, with the reason
+    sweep_wall_s: tuple[float, ...] = ()  # per sweep of the plans, in order (0 for one not priced)
 
 
 def estimate_run(plans: Sequence[SweepPlan], workers: int, common: Sequence[str] = ()) -> BenchEstimate:
@@ -50,6 +52,8 @@ def estimate_run(plans: Sequence[SweepPlan], workers: int, common: Sequence[str]
     jobs = 0
     per_codec: dict[str, float] = {}
     unpriced = []
+    sweep_walls = []
+    start_s = float(costs.get("sweep", {}).get("wall_s", 0.0))  # a sweep's process, set-up and workers
     for plan in plans:
         overrides = [f"dataset={plan.dataset}", *plan.overrides, *common]
         try:
@@ -57,15 +61,31 @@ def estimate_run(plans: Sequence[SweepPlan], workers: int, common: Sequence[str]
             frames = cost.dataset_frames(plan.dataset, [o for o in common if not o.startswith("hydra.")])
         except Exception as error:  # noqa: BLE001 - the sweep itself will say what is wrong
             unpriced.append(f"{plan.label} ({str(error).splitlines()[0][:120] if str(error) else type(error).__name__})")
+            sweep_walls.append(0.0)
             continue
         result = cost.estimate(costs, folders, frames, workers)
-        wall += result.wall_h * 3600
+        sweep_walls.append(result.wall_h * 3600 + start_s)
+        wall += sweep_walls[-1]
         cpu += result.cpu_h * 3600
         jobs += result.jobs
         for row in result.rows:
             per_codec[row["codec"]] = per_codec.get(row["codec"], 0.0) + row["cpu_h"] * 3600
     measured = f"{costs.get('measured', '?')} on {costs.get('machine', '?')}"
-    return BenchEstimate(wall, cpu, jobs, per_codec, measured, tuple(unpriced))
+    return BenchEstimate(wall, cpu, jobs, per_codec, measured, tuple(unpriced), tuple(sweep_walls))
+
+
+def format_progress(done: int, elapsed_s: float, estimate: BenchEstimate | None) -> str:
+    """One line after the ``done``-th sweep: elapsed time, and the time left by the estimate of the sweeps still
+    to run, scaled by how the finished sweeps compared with theirs (a loaded machine runs late throughout)."""
+    total = len(estimate.sweep_wall_s) if estimate is not None else 0
+    line = f"make bench: {done} sweep(s) done, {format_duration(elapsed_s)} elapsed"
+    if not total or done > total:
+        return line
+    expected = sum(estimate.sweep_wall_s[:done])
+    left = sum(estimate.sweep_wall_s[done:])
+    scale = elapsed_s / expected if expected > 0 else 1.0
+    return (f"{line} (estimated {format_duration(expected)}); {done}/{total} sweeps, about "
+            f"{format_duration(left * scale)} left")
 
 
 def format_estimate(estimate: BenchEstimate, workers: int, top: int = 4) -> str:

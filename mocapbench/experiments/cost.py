@@ -9,7 +9,10 @@
 The estimate multiplies measured per-frame costs by the dataset's frames. Costs live in
 ``mocapbench/configs/costs.json`` (written by ``--calibrate``, which runs the sweep on two synthetic clips of
 ``--calibration-frames`` frames and reads every row's ``encode_cpu_s + decode_cpu_s``, plus the job's overhead per
-clip (reading, positions, metrics) and a per-frame memory measurement of each codec at 4,000 frames). Each codec
+clip (reading, positions, metrics) and a per-frame memory measurement of each codec at 4,000 frames);
+``--calibrate-from`` takes them from a finished sweep's rows instead, and the job's own cost beyond its codec
+(``cpu_s_per_job`` plus ``cpu_s_per_frame`` of ``job``: its config, its clips, the metrics, the launcher's share)
+from its ``job.json`` (:func:`job_overhead`). Each codec
 config's clips are cut into shards the way the sweeper cuts them (:mod:`mocapbench.experiments.shards`), and the
 shards are scheduled on ``--workers`` workers, longest first, for the wall time. The peak memory of a job is the
 process's resident baseline plus the motion and the codec's measured peak per frame times the longest clip of its
@@ -90,9 +93,10 @@ def job_costs(costs: dict[str, Any], folder: str, frames: Sequence[int], count: 
     overhead = costs.get("job", {})
     per_frame += float(overhead.get("cpu_s_per_frame", 0.0))
     per_clip += float(overhead.get("cpu_s_per_clip", 0.0))
+    per_job = float(overhead.get("cpu_s_per_job", 0.0))
     if not frames:
-        return [per_clip]
-    return [sum(per_frame * frames[i] + per_clip for i in shard) for shard in pack(frames, count, packing)]
+        return [per_clip + per_job]
+    return [per_job + sum(per_frame * frames[i] + per_clip for i in shard) for shard in pack(frames, count, packing)]
 
 
 def _peak_bytes_per_frame(costs: dict[str, Any], codec: str) -> float:
@@ -166,6 +170,7 @@ def estimate(costs: dict[str, Any], folders: Sequence[str], frames: Sequence[int
     overhead = costs.get("job", {})
     per_clip_job = float(overhead.get("cpu_s_per_clip", 0.0))
     per_frame_job = float(overhead.get("cpu_s_per_frame", 0.0))
+    per_job = float(overhead.get("cpu_s_per_job", 0.0))
     baseline = float(overhead.get("baseline_rss_bytes", 300e6))
     motion_bytes = float(overhead.get("motion_bytes_per_frame", 1736.0))
     longest = max(frames) if frames else 0
@@ -190,7 +195,7 @@ def estimate(costs: dict[str, Any], folders: Sequence[str], frames: Sequence[int
                      + _peak_bytes_per_frame(costs, codec) * longest]
         else:  # a job holds one clip at a time: its peak is set by its longest clip
             shards = pack(frames, shard_count(frames, per_frame, max_cpu_s, per_clip, packing), packing)
-            jobs = [sum(cost[i] for i in shard) for shard in shards]
+            jobs = [per_job + sum(cost[i] for i in shard) for shard in shards]
             peaks = [baseline + per_frame_bytes * max(frames[i] for i in shard) for shard in shards]
         if mem_gb:
             over_mem += sum(1 for p in peaks if p > mem_gb * 1e9)
@@ -356,9 +361,51 @@ def calibrate_from(sweeps: Sequence[str | Path], out: Path | None = None) -> dic
         configs[folder_name] = {"codec": str(group["codec"].iloc[0]), "cpu_s_per_frame": cpu / frames,
                                 "cpu_s_per_clip": 0.0, "frames_measured": frames,
                                 "measured_on": f"{time.strftime('%Y-%m-%d')}, results of {group['dataset'].iloc[0]}"}
+    overhead = job_overhead(sweeps, data, float(costs.get("job", {}).get("cpu_s_per_frame", 0.0)))
+    if overhead is not None:
+        costs.setdefault("job", {}).update(overhead)
     target = out or Path(__file__).resolve().parents[1] / COSTS_FILE
     Path(target).write_text(json.dumps(costs, indent=1, sort_keys=True) + "\n")
     return costs
+
+
+def job_overhead(sweeps: Sequence[str | Path], data: Any, per_frame: float = 0.0) -> dict[str, Any] | None:
+    """A job's CPU seconds beyond its codec's encodes and decodes, ``cpu_s_per_job + cpu_s_per_frame * frames``.
+
+    Each job's whole cost is the difference of its worker's CPU time at the end of that job and at the end of the
+    worker's previous job (``process_cpu_s`` of ``job.json``): composing its config, reading and checking its
+    clips, the metrics, writing its files, the launcher's share. Its codec's share is what its rows say
+    (``encode_cpu_s``, ``decode_cpu_s`` times the calls). A worker's first job (imports, the clips read for the
+    first time) is left out. Over jobs of one length of clips only the constant is fit (``per_frame`` is kept);
+    over several, both by least squares. None when no job has a predecessor in its worker.
+    """
+    import numpy as np
+
+    cpu = (data["encode_cpu_s"] * _calls(data, "encode") + data["decode_cpu_s"] * _calls(data, "decode"))
+    by_job = cpu.groupby(data["job_dir"]).sum()
+    frames_of = data.groupby("job_dir")["frames"].sum()
+    records = []
+    for sweep in sweeps:
+        for job in Path(sweep).rglob("job.json"):
+            record = json.loads(job.read_text())
+            if "process_cpu_s" in record and str(job.parent) in by_job.index:
+                records.append((record["pid"], record["process_cpu_s"], str(job.parent)))
+    samples = []
+    last: dict[int, float] = {}
+    for pid, at, folder in sorted(records):
+        if pid in last:
+            samples.append((float(frames_of[folder]), at - last[pid] - float(by_job[folder])))
+        last[pid] = at
+    if not samples:
+        return None
+    frames = np.array([f for f, _ in samples])
+    rest = np.array([r for _, r in samples])
+    if np.ptp(frames) > 0:
+        per_frame, per_job = np.polyfit(frames, rest, 1)
+        per_frame = max(0.0, float(per_frame))
+    per_job = max(0.0, float(np.median(rest - per_frame * frames)))
+    return {"cpu_s_per_job": per_job, "cpu_s_per_frame": per_frame, "cpu_s_per_clip": 0.0, "overhead_jobs": len(samples),
+            "overhead_measured_on": f"{time.strftime('%Y-%m-%d')}, {len(samples)} jobs of {len(sweeps)} sweep(s)"}
 
 
 def _calls(group, step: str):

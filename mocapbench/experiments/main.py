@@ -88,7 +88,7 @@ def _bench_plans():
     return plans
 
 
-def _print_estimate(plans, common: list[str]) -> None:
+def _print_estimate(plans, common: list[str]):
     """How long the run will take, before it starts (see :mod:`mocapbench.experiments.bench_time`)."""
     from mocapbench.experiments.bench_time import estimate_run, format_estimate
 
@@ -100,8 +100,9 @@ def _print_estimate(plans, common: list[str]) -> None:
         estimate = estimate_run(plans, workers, common)
     except Exception as error:  # noqa: BLE001 - an estimate is a courtesy: the run goes on without it
         print(f"no estimate ({error}); starting the sweeps", flush=True)
-        return
+        return None
     print("make bench: " + format_estimate(estimate, workers), flush=True)
+    return estimate
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -143,13 +144,16 @@ def main(argv: list[str] | None = None) -> int:
             print(f"make bench needs the CMU clips: {where}", file=sys.stderr)
             return 2
         plans = _bench_plans()
-        if not args.no_estimate:
-            _print_estimate(plans, common)
-        for plan in plans:
+        estimate = None if args.no_estimate else _print_estimate(plans, common)
+        sweeps_start = time.perf_counter()
+        from mocapbench.experiments.bench_time import format_progress
+
+        for done, plan in enumerate(plans, 1):
             folder, code = _sweep(root, plan.label, [f"sweep={plan.sweep}", f"dataset={plan.dataset}",
                                                      *plan.overrides, *common])
             folders.append(folder)
             failures += code != 0
+            print(format_progress(done, time.perf_counter() - sweeps_start, estimate), flush=True)
     else:
         # One sweep over both datasets, so the two workers stay busy until the last job.
         datasets = "synthetic"

@@ -37,3 +37,15 @@ def test_estimate_line_names_the_time_and_the_costliest_codecs():
     line = format_estimate(estimate, workers=2, top=2)
     assert line.startswith("estimated 10.0 min wall on 2 workers (18.3 min CPU, 90 jobs; most CPU: a 8.3 min, b 6.7 min)")
     assert "c " not in line and line.endswith("measured 2026-12-02 on here")
+
+
+def test_progress_line_scales_the_time_left_by_the_sweeps_so_far():
+    from mocapbench.experiments.bench_time import format_progress
+
+    estimate = BenchEstimate(wall_s=600.0, cpu_s=1100.0, jobs=90, codec_cpu_s={}, measured="here",
+                             sweep_wall_s=(300.0, 200.0, 100.0))
+    # the first sweep took twice its estimate: the 300 s estimated for the rest read as 10 minutes
+    line = format_progress(1, 600.0, estimate)
+    assert line == "make bench: 1 sweep(s) done, 10.0 min elapsed (estimated 5.0 min); 1/3 sweeps, about 10.0 min left"
+    assert format_progress(3, 500.0, estimate).endswith("3/3 sweeps, about 0 s left")
+    assert format_progress(2, 10.0, None) == "make bench: 2 sweep(s) done, 10 s elapsed"

@@ -59,3 +59,31 @@ def test_the_command_prints_an_estimate_for_a_dataset_size(tmp_path):
     missing = subprocess.run([sys.executable, "-m", "mocapbench.experiments.cost", "--frames", "10", "--clips", "1",
                               "--costs", str(tmp_path / "none.json")], cwd=REPO, capture_output=True, text=True)
     assert missing.returncode == 2 and "--calibrate" in missing.stderr
+
+
+def test_job_overhead_is_a_workers_cpu_between_jobs_less_the_codecs_share(tmp_path):
+    import json
+
+    import pandas as pd
+
+    from mocapbench.experiments.cost import job_overhead
+
+    rows = []
+    # worker 7 runs a, b, c; worker 8 runs d, e. Each job: 2 s + 1 ms per frame beyond its codec's encode + decode.
+    plan = [(7, "a", 100, 50.0), (7, "b", 1000, 0.5), (7, "c", 3000, 1.0), (8, "d", 100, 60.0), (8, "e", 2000, 4.0)]
+    at = {7: 0.0, 8: 0.0}
+    for pid, name, frames, codec_cpu in plan:
+        folder = tmp_path / "sweep" / "svd" / name
+        folder.mkdir(parents=True)
+        at[pid] += codec_cpu + 2.0 + 0.001 * frames
+        (folder / "job.json").write_text(json.dumps({"status": "done", "pid": pid, "process_cpu_s": at[pid]}))
+        # one row of the job: encode timed 3 times, decode once (the calls count)
+        rows.append({"job_dir": str(folder), "frames": frames, "encode_cpu_s": codec_cpu / 4, "encode_repeats": 3,
+                     "encode_warmup": 0, "decode_cpu_s": codec_cpu / 4, "decode_repeats": 1, "decode_warmup": 0})
+    fit = job_overhead([tmp_path / "sweep"], pd.DataFrame(rows))
+    assert fit["overhead_jobs"] == 3  # each worker's first job (imports, first reads) is left out
+    assert abs(fit["cpu_s_per_job"] - 2.0) < 1e-6 and abs(fit["cpu_s_per_frame"] - 0.001) < 1e-9
+    # jobs of one length: only the constant is fit, the per-frame cost given is kept
+    only_b = pd.DataFrame([r for r in rows if r["job_dir"].endswith("/b")] + [rows[0]])
+    fit = job_overhead([tmp_path / "sweep"], only_b, per_frame=0.001)
+    assert fit["overhead_jobs"] == 1 and abs(fit["cpu_s_per_job"] - 2.0) < 1e-6 and fit["cpu_s_per_frame"] == 0.001
