@@ -87,6 +87,8 @@ class ModelArray:
     dtype : str
         numpy dtype string (``"<f4"``, ``"<u4"``, ``"u1"``), compared exactly.
     shape : tuple of int
+        Compared exactly, but for a -1 that takes any length (a byte string whose size the state's own reader
+        bounds and checks; the file's limits bound it first).
     """
 
     dtype: str
@@ -360,7 +362,9 @@ def _expected_state(codec: Codec, num_joints: int, headers: Mapping[str, _Member
             member = headers.get(f"state_{prefix}{key}")
             if member is None:
                 raise error(f"no array 'state_{prefix}{key}'; {codec.name} needs {sorted(declared)}")
-            if member.dtype != np.dtype(spec.dtype) or member.shape != spec.shape:
+            fits = len(member.shape) == len(spec.shape) and all(
+                wanted in (-1, size) for wanted, size in zip(spec.shape, member.shape))  # -1: any length
+            if member.dtype != np.dtype(spec.dtype) or not fits:
                 raise error(f"array 'state_{prefix}{key}' is {member.shape} of {member.dtype}; {codec.name} expects "
                             f"{spec.shape} of {np.dtype(spec.dtype)} for {joints} joints")
     return state_keys

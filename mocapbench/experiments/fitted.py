@@ -122,6 +122,14 @@ ADAPTERS: dict[str, Adapter] = {
     ),
     "lsdt-frame": _LSDT,
     "lsdt-clip": _LSDT,
+    # mcb-rot's prior (the training set's rigs, mocapbench.codecs.mcb_rot.prior): a stream of a rig it holds names
+    # it; the coding itself learns nothing, so one fit serves every eps.
+    "mcb-rot": Adapter(
+        fields=("static_root",),
+        needs_fit=lambda codec, train: True,
+        export=lambda codec: codec.model_state(),
+        load=_load_state,
+    ),
 }
 
 

@@ -369,7 +369,10 @@ static int read_settings(reader_t *r, header_t *h) {
                     "streams: decode them with Python and re-encode)", format, MCBROT_PAYLOAD_FORMAT);
     if ((s = read_f32(r, &h->eps, "eps")) || (s = read_f32(r, &h->bound, "bound"))) return s;
     uint64_t flags;
-    if ((s = read_varint(r, &flags, "settings flags", 2))) return s;
+    if ((s = read_varint(r, &flags, "settings flags", 3))) return s;
+    if (flags & (1u << 15)) /* coded against a prior's rig (prior.py): Python decodes it with that model */
+        return fail(MSG(r), MCBROT_E_UNSUPPORTED, "mcb-rot: the stream names a rig of a prior (settings flag bit "
+                    "15), which this runtime does not read");
     if (flags >> 14)
         return fail(MSG(r), MCBROT_E_CORRUPT, "mcb-rot: unknown settings flags %#llx", (unsigned long long)flags);
     h->scales = (int)((flags >> 13) & 1);

@@ -2,12 +2,14 @@
 measured in one run beside ACL 2.1 and the other codecs.
 
     python -m mocapbench.benchmarks.mcb_rot.rd [--dataset D] [--every 1 5] [--speed] [--discontinuities] [--ablation]
-        [--sweep DIR ...] [--data-dir D]
+        [--sweep DIR ...] [--data-dir D] [--prior TRAIN_SPLIT]
 
 Prints, as markdown (ratio = 12·J·F / stream bytes over all clips pooled; errors over every joint of every frame):
 
 1. mcb-rot at ε = 0.05, 0.1, 0.25, 0.5, 1, 2 cm at 120 fps and at 24 fps (every 5th frame): ratio, L∞, mean error,
-   ACL's shell error at 3 cm, and the bound check (max over clips of L∞ − ε, which must be <= 0);
+   ACL's shell error at 3 cm, and the bound check (max over clips of L∞ − ε, which must be <= 0); with ``--prior``
+   mcb-rot is fit on that split first (its prior of rigs, :mod:`mocapbench.codecs.mcb_rot.prior`) and the table
+   gives the prior's bytes (held out of every ratio) and the ratio with them paid once;
 2. ACL 2.1 run in the same process (``acl`` codec; the issue's table when ACL cannot run here), precision grid at
    shell 3 cm and 0 cm, each with and without ACL's pre-processing: mcb-rot's ratio over ACL's at mcb-rot's L∞ (ACL
    interpolated log-log on the Pareto front of all its settings together: ACL at its best), against ACL's whole
@@ -62,12 +64,17 @@ def every(motions: list[Motion], step: int) -> list[Motion]:
     return [m.every(step) for m in motions]
 
 
-def rd_points(name: str, motions: list[Motion], key: str, values, *, shell: bool = False, **fixed) -> list[dict]:
-    """Encode and decode every motion at each setting; pooled ratio and errors (one dict per setting)."""
+def rd_points(name: str, motions: list[Motion], key: str, values, *, shell: bool = False,
+              training: list[Motion] | None = None, **fixed) -> list[dict]:
+    """Encode and decode every motion at each setting; pooled ratio and errors (one dict per setting). With
+    ``training`` the codec is fit on those motions first (mcb-rot: its prior); ``model_bytes`` is the largest
+    model a stream needed, held out of ``ratio`` and paid once in ``ratio_model_paid``."""
     points = []
     for value in values:
         codec = create(name, **{key: value}, **fixed)
-        raw = stream = 0
+        if training is not None:
+            codec.fit(training)
+        raw = stream = model = 0
         linf = mean_sum = count = shell_max = slack = 0.0
         slack = -np.inf
         buffer = 0
@@ -77,6 +84,7 @@ def rd_points(name: str, motions: list[Motion], key: str, values, *, shell: bool
             errors = metrics.joint_errors(motion.positions(), decoded.positions)
             raw += metrics.raw_position_bytes(motion.num_joints, motion.num_frames)
             stream += len(data)
+            model = max(model, int(codec.model_bytes))
             buffer += codec.last_encode_stats.get("acl_buffer_bytes", len(data))
             linf = max(linf, float(errors.max()))
             mean_sum += float(errors.sum())
@@ -87,7 +95,7 @@ def rd_points(name: str, motions: list[Motion], key: str, values, *, shell: bool
                 shell_max = max(shell_max, float(metrics.motion_shell_errors(motion, decoded.motion).max()))
         points.append({"codec": name, key: value, **fixed, "ratio": raw / stream, "ratio_buffer": raw / buffer,
                        "linf_cm": linf, "mean_cm": mean_sum / count, "shell_max_cm": shell_max,
-                       "bound_margin_cm": slack})
+                       "bound_margin_cm": slack, "model_bytes": model, "ratio_model_paid": raw / (stream + model)})
     return points
 
 
@@ -126,10 +134,10 @@ def _acl_points(motions: list[Motion], fps: float) -> tuple[list[dict], str]:
 
 
 def _rd_section(motions: list[Motion], label: str, sweep_points: list[dict], epsilons=EPSILONS_CM,
-                others_too: bool = True) -> None:
+                others_too: bool = True, training: list[Motion] | None = None) -> None:
     """Sections 1-4 of the report for one frame rate: mcb-rot's curve, then ACL, then every other codec."""
     print(f"\n## {label}: {len(motions)} clips, {sum(m.num_frames for m in motions)} frames at {motions[0].fps:g} fps")
-    ours = rd_points("mcb-rot", motions, "eps_cm", epsilons, shell=True)
+    ours = rd_points("mcb-rot", motions, "eps_cm", epsilons, shell=True, training=training)
     _print_bound(ours)
     acl, source = _acl_points(motions, motions[0].fps)
     print(f"\n### Against ACL ({source})")
@@ -149,10 +157,12 @@ def _rd_section(motions: list[Motion], label: str, sweep_points: list[dict], eps
 
 def _print_bound(ours: list[dict]) -> None:
     """Section 1: mcb-rot's ratio and errors at each bound, and the bound check."""
-    print("\n### mcb-rot: rate and the bound (margin = max over clips of L-inf - eps, must be <= 0)")
-    _table(["eps cm", "ratio", "L-inf cm", "mean cm", "shell max cm (3 cm)", "bound margin cm"],
-           [[p["eps_cm"], p["ratio"], p["linf_cm"], p["mean_cm"], p["shell_max_cm"], p["bound_margin_cm"]]
-            for p in ours])
+    print("\n### mcb-rot: rate and the bound (margin = max over clips of L-inf - eps, must be <= 0; ratio: model "
+          "bytes held out, as in every table below; the last column pays them once for the whole set)")
+    _table(["eps cm", "ratio", "L-inf cm", "mean cm", "shell max cm (3 cm)", "bound margin cm", "model bytes",
+            "ratio, model paid"],
+           [[p["eps_cm"], p["ratio"], p["linf_cm"], p["mean_cm"], p["shell_max_cm"], p["bound_margin_cm"],
+             p["model_bytes"], p["ratio_model_paid"]] for p in ours])
 
 
 def _print_against_acl(ours: list[dict], acl: list[dict]) -> None:
@@ -376,16 +386,22 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--no-rd", action="store_true", help="skip the rate-distortion sections")
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--eps", type=float, nargs="+", default=list(EPSILONS_CM), help="mcb-rot's bounds, cm")
+    parser.add_argument("--prior", default=None, metavar="SPLIT",
+                        help="fit mcb-rot's prior (its rigs, format 6 flag bit 15) on this split first, e.g. "
+                             "bandai_train; its bytes are reported as model bytes, held out of the ratio")
     parser.add_argument("--no-others", action="store_true",
                         help="mcb-rot and ACL only (not quant-*, mcb-linf: the sweep's headline has those)")
     args = parser.parse_args(argv)
     motions = _load(args.dataset, args.data_dir)
     print(f"# mcb-rot on {args.dataset} (load average {os.getloadavg()[0]:.1f})")
     sweep_points = _sweep_points(args.sweep)
+    training = None if args.prior is None else _load(args.prior, args.data_dir)
+    if training is not None:
+        print(f"mcb-rot fit on {args.prior} ({len(training)} clips): a stream of a rig the prior holds names it")
     if not args.no_rd:
         for step in args.every:
             _rd_section(every(motions, step), f"{args.dataset}, every {step}. frame", sweep_points if step == 1 else [],
-                        tuple(args.eps), not args.no_others)
+                        tuple(args.eps), not args.no_others, None if training is None else every(training, step))
     if args.speed:
         _speed(motions, args.repeats)
     if args.discontinuities:

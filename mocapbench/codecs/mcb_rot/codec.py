@@ -99,12 +99,13 @@ Departures from the issue's sketch: no trained prior (the stream needs no model,
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
 from mocapbench.codecs import container
-from mocapbench.codecs.base import Codec, CodecConfig, Decoded, Header, TrackRefusal, param
+from mocapbench.codecs.base import Codec, CodecConfig, Decoded, Header, NotFittedError, TrackRefusal, param
 from mocapbench.codecs.limits import DecodeLimits, using_limits
 from mocapbench.codecs.mcb_rot import windowed
 from mocapbench.codecs.mcb_rot.decoder import decode_range
@@ -114,6 +115,7 @@ from mocapbench.codecs.mcb_rot.budgets import offset_discrepancy_cm
 from mocapbench.codecs.mcb_rot.checks import PointTargets
 from mocapbench.codecs.mcb_rot.compensate import Compensator, quantize
 from mocapbench.codecs.mcb_rot.refine import refine
+from mocapbench.codecs.mcb_rot.prior import Prior
 from mocapbench.codecs.mcb_rot.static_root import split_static_root
 from mocapbench.codecs.mcb_rot.tracks import plan_tracks
 from mocapbench.codecs.mcb_rot.scales import plan_scales, scale_error_cm, scales_of
@@ -136,7 +138,7 @@ from mocapbench.codecs.mcb_rot.stream import (
 )
 from mocapbench.codecs.registry import register_codec
 from mocapbench.codecs.mcb_rot.skeleton6 import pack_skeleton_runtime, unpack_skeleton_runtime
-from mocapbench.entropy.bitio import ByteReader
+from mocapbench.entropy.bitio import ByteReader, ByteWriter
 from mocapbench.entropy.errors import BitstreamError
 from mocapbench.metrics.shell import motion_shell_errors
 from mocapbench.motion import Motion
@@ -233,9 +235,50 @@ class McbRotCodec(Codec):
             True, doc="below 60 fps, also try segments of half segment_frames and keep the smaller stream"
         )
 
+    # The prior (:mod:`.prior`) a fit or a model file gave this codec, and whether the last encode named one of its rigs.
+    _prior: Prior | None = None
+    _used_prior: bool = False
+
     @property
     def latency_frames(self) -> int:
         return self.config.segment_frames
+
+    # -- learned state: the prior ---------------------------------------------------------------------
+    def fit(self, motions: Sequence[Motion]) -> "McbRotCodec":
+        """Hold a prior of the distinct rigs of ``motions`` (:mod:`.prior`): a stream of one of them names it
+        (flag bit 15) instead of carrying its skeleton. The coding of the motion itself learns nothing."""
+        self._prior = Prior.fit(motions, self.config.static_root)
+        self._last_info = None
+        return self
+
+    def model_arrays(self, num_joints: int) -> dict:
+        """The arrays of a model file (:mod:`mocapbench.codecs.model_file`): the prior's bytes, any length."""
+        from mocapbench.codecs.model_file import ModelArray
+
+        return {"prior": ModelArray("|u1", (-1,)), "num_joints": ModelArray("<i8", ())}
+
+    def model_state(self) -> dict[str, np.ndarray]:
+        """The prior as arrays (its bytes, and the joint count of its first rig)."""
+        if self._prior is None:
+            raise NotFittedError("mcb-rot: no prior to save; fit one on clips first "
+                                 "(`mocapbench fit CLIPS... -o MODEL.npz --codec mcb-rot`).")
+        return {"prior": np.frombuffer(self._prior.data, np.uint8).copy(),
+                "num_joints": np.array(self._prior.main_joints, dtype=np.int64)}
+
+    def load_model_state(self, arrays) -> "McbRotCodec":
+        """Hold the prior stored by :meth:`model_state` (ValueError naming what is wrong)."""
+        prior = Prior.from_bytes(np.asarray(arrays["prior"], dtype=np.uint8).tobytes())
+        if int(arrays["num_joints"]) != prior.main_joints:
+            raise ValueError(f"mcb-rot: num_joints says {int(arrays['num_joints'])}, the prior's first rig has "
+                             f"{prior.main_joints} joints.")
+        self._prior = prior
+        self._last_info = None
+        return self
+
+    @property
+    def model_bytes(self) -> int:
+        """Bytes of the prior the last encode named a rig of (0 when it carried its own rig or none is held)."""
+        return len(self._prior.data) if self._prior is not None and self._used_prior else 0
 
     # -- encoding --------------------------------------------------------------------------------------
     def encode_payload(self, motion: Motion) -> bytes:
@@ -262,10 +305,13 @@ class McbRotCodec(Codec):
         if self.config.segment_search and motion.fps < _HALF_SEGMENTS_BELOW_FPS and half >= _MIN_SEARCHED_SEGMENT:
             stats = self.last_encode_stats
             other = McbRotCodec(dataclasses.replace(self.config, segment_frames=half, segment_search=False))
+            other._prior, used = self._prior, self._used_prior
             shorter = other._encode_segments(motion)
             if len(shorter) < len(payload):
                 self.last_encode_stats = {**other.last_encode_stats, "segment_frames": half}
+                self._used_prior = other._used_prior
                 return shorter
+            self._used_prior = used
             self.last_encode_stats = {**stats, "segment_frames": self.config.segment_frames}
         return payload
 
@@ -285,8 +331,14 @@ class McbRotCodec(Codec):
                                "is defined on unscaled joint frames: set shell_cm=0 for a scaled rig.")
         split = split_static_root(full) if config.static_root else None
         still, motion = (None, full) if split is None else split
-        skeleton_blob = pack_skeleton_runtime(motion.skeleton, skeleton_step_exponent(config.eps_cm, motion.skeleton))
+        exponent = skeleton_step_exponent(config.eps_cm, motion.skeleton)
+        skeleton_blob = pack_skeleton_runtime(motion.skeleton, exponent)
         stored = unpack_skeleton_runtime(ByteReader(skeleton_blob))
+        rig = None if self._prior is None else self._prior.match(motion.skeleton, still, exponent)
+        if rig is not None:  # the prior holds this rig: the stream names it (flag bit 15), the same skeleton decoded
+            reference = ByteWriter()
+            self._prior.write_reference(reference, exponent, rig)
+            skeleton_blob = reference.getvalue()
         # A game rig's translation tracks, on a grid whose error (along the worst chain) comes off the bound.
         tracks = plan_tracks(motion, config.track_share * config.eps_cm, lambda values: fit_single(values, 0.5))
         # Its scale tracks (:mod:`.scales`): their error, and the lengths they stretch, come off the bound too.
@@ -320,12 +372,13 @@ class McbRotCodec(Codec):
                                    config.root_share, np.deg2rad(config.free_angle_deg), config.allocation_power,
                                    config.segment_frames, config.chunk_frames, config.shell_cm,
                                    tracks=tracks is not None, ends=config.end_sites, static_root=still is not None,
-                                   scales=scales is not None)
+                                   scales=scales is not None, prior=rig is not None)
         budgets = stream_budgets(settings, stored, tracks, scales)
         channels = 3 + 3 * motion.num_joints
         info = StreamInfo(settings, stored, budgets, layout, cuts, overrides, axis_codes,
                           np.zeros(channels, np.int64), np.zeros(NUM_BANDS, np.int64), tracks=tracks,
-                          static_root=still, scales=scales)
+                          static_root=still, scales=scales,
+                          prior_mean=None if rig is None else self._prior.rigs[rig].mean)
         steps = None if tracks is None else tracks.steps_of(stored, tracks.q)
         points = PointTargets(target, motion.rotations, stored, settings.shell_cm, ends=ends, translations=steps,
                               scales=None if scales is None else scales_of(scales, motion.num_joints, scales.q))
@@ -359,6 +412,7 @@ class McbRotCodec(Codec):
                 raise RuntimeError(f"mcb-rot: decoded shell error {shell} cm at {config.shell_cm} cm exceeds eps "
                                    f"{config.eps_cm} cm; not writing.")
             worst = max(worst, shell)
+        self._used_prior = rig is not None
         self.last_encode_stats = {"step_multiplier": chosen.multiplier, "frequency_slope": chosen.info.settings.slope,
                                   "corrections": int(len(chosen.corrections[0])), "attempts": encoder.attempts,
                                   "attempts_given_up": encoder.given_up,
@@ -375,7 +429,7 @@ class McbRotCodec(Codec):
 
     def _decode_window(self, header: Header, payload: memoryview):
         """Positions (F, J, 3) cm and the motion of a one-window payload."""
-        return _decode_frames(read_info(header, payload), payload, 0, header.num_frames, header.fps)
+        return _decode_frames(read_info(header, payload, self._prior), payload, 0, header.num_frames, header.fps)
 
     def _stream_info(self, header: Header, payload: memoryview) -> StreamInfo:
         """The parsed payload header, kept for the last stream seen: an engine sampling one clip at many times
@@ -383,7 +437,7 @@ class McbRotCodec(Codec):
         cached = getattr(self, "_last_info", None)
         if cached is not None and cached[0] == payload:
             return cached[1]
-        info = read_info(header, payload)
+        info = read_info(header, payload, self._prior)
         self._last_info = (bytes(payload), info)
         return info
 
@@ -474,7 +528,7 @@ class McbRotCodec(Codec):
         return self._describe_window(header, payload)
 
     def _describe_window(self, header: Header, payload: memoryview):
-        info = read_info(header, payload)
+        info = read_info(header, payload, self._prior)
         settings = info.settings
         return {"eps_cm (guaranteed L-inf)": settings.eps_cm, "step multiplier (x budget)": settings.multiplier,
                 "shell distance cm (bound also on vertices)": settings.shell_cm,

@@ -184,10 +184,11 @@ def _native_inner(info: StreamInfo, clip, start: int, stop: int, out: tuple, mov
 
 
 def native_clip(info: StreamInfo, payload: memoryview):
-    """The runtime's opened clip of a format 6 payload (kept in ``info``'s cache), or None: an older format, the
-    runtime not built, or ``MOCAPBENCH_NATIVE=0``. The clip has the whole rig's joints (a still root kept apart,
-    :mod:`.static_root`, is one more than the stream's skeleton)."""
-    if info.version < 6:
+    """The runtime's opened clip of a format 6 payload (kept in ``info``'s cache), or None: an older format, a
+    stream named against a prior (flag bit 15, which the runtime does not read), the runtime not built, or
+    ``MOCAPBENCH_NATIVE=0``. The clip has the whole rig's joints (a still root kept apart, :mod:`.static_root`, is
+    one more than the stream's skeleton)."""
+    if info.version < 6 or info.settings.prior:
         return None
     if "native" not in info._cache:
         lib = native.library()

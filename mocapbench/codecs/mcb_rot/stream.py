@@ -36,8 +36,10 @@ chunks default to 128 frames (one segment), and the bands are computed in intege
 The cost in bytes against format 5 is in the README. Format 6's optional sections sit behind flag bits that older
 streams never set: a game rig's translation tracks (bit 10, :mod:`.tracks`), a bound over the end sites too (bit 11,
 :mod:`.budgets`), a still root joint 0 kept apart from the coded skeleton (bit 12, :mod:`.static_root`: its
-section follows the skeleton part) and scale tracks (bit 13, :mod:`.scales`: their header after the translation
-tracks', a unit per chunk after theirs).
+section follows the skeleton part), scale tracks (bit 13, :mod:`.scales`: their header after the translation
+tracks', a unit per chunk after theirs), and a rig named in a prior fit on training clips (bit 15, :mod:`.prior`: a
+reference in place of the skeleton part and the still root section; a u8 before the segment means says whether the
+first segment's means are coded as differences from the rig's mean signal, :func:`.prior.first_means`).
 
 Coding only the coefficients up to each channel's last nonzero one (as JPEG's end-of-block) skips the runs of
 zeros at high frequencies: at ε = 1 cm 85 % of the AC coefficients of cmu_test are never coded, so decoding reads a
@@ -64,6 +66,7 @@ from mocapbench.codecs.mcb_rot.skeleton6 import unpack_skeleton_runtime
 from mocapbench.codecs.mcb_rot.tracks import KIND_SCALE, Tracks, read_tracks
 from mocapbench.codecs.mcb_rot.scales import SCALES, frame_factors, stretched_lengths
 from mocapbench.codecs.mcb_rot.static_root import StaticRoot, read_static_root
+from mocapbench.codecs.mcb_rot.prior import Prior, first_means, read_reference
 from mocapbench.entropy.ans import ClassTables, decode_classed, encode_classed
 from mocapbench.entropy.rans6 import RansTables, decode_unit, encode_unit, quantize_counts
 from mocapbench.entropy.bitio import ByteReader, ByteWriter
@@ -116,6 +119,8 @@ _MULTIPLIER_F32, _FLAT, _DEFAULT_BIT = 1, 2, 2  # flags: 1 multiplier as f32 (el
 # the classes, a unit per chunk after its rotations), its budgets cover the end sites (:mod:`.budgets`), and it
 # codes a still root's one child as its root (:mod:`.static_root`; the still root right after the skeleton part).
 _TRACKS, _ENDS, _STATIC_ROOT = 1 << 10, 1 << 11, 1 << 12  # scale tracks: SCALES, bit 13 (:mod:`.scales`)
+# Flag bit 15: the skeleton part and the still root are a reference to a rig of a prior (:mod:`.prior`).
+PRIOR = 1 << 15
 _GRID_ZERO = 64  # multiplier code k stands for 2^((k - 64) / 2)
 
 
@@ -146,14 +151,16 @@ class Settings:
     ends: bool = False  # format 6: the budgets and the bound cover the end sites (flags bit 11)
     static_root: bool = False  # format 6: the stream's skeleton lacks a still root joint 0 (flags bit 12)
     scales: bool = False  # format 6: the stream carries scale tracks (flags bit 13)
+    prior: bool = False  # format 6: the skeleton and still root are a prior's rig (flags bit 15, :mod:`.prior`)
 
     @classmethod
     def create(cls, eps_cm, bound_cm, multiplier, slope, rounding, root_share, free_angle_rad, power, segment, chunk,
-               shell_cm=0.0, tracks=False, ends=False, static_root=False, scales=False):
+               shell_cm=0.0, tracks=False, ends=False, static_root=False, scales=False,
+               prior=False):
         """Settings with every field rounded as it will be read back (the bound down, so it never grows)."""
         return cls(_f32(eps_cm), _f32_below(bound_cm), _f32(multiplier), _f32(slope), _f32(rounding), _f32(root_share),
                    _f32(free_angle_rad), _f32(power), int(segment), int(chunk), _f32(shell_cm), bool(tracks),
-                   bool(ends), bool(static_root), bool(scales))
+                   bool(ends), bool(static_root), bool(scales), bool(prior))
 
     def write(self, writer: ByteWriter) -> None:
         """Format 6 (as 5): u8 format | f32 eps | f32 bound | varint flags | multiplier (u8 grid code or f32) | the
@@ -164,6 +171,7 @@ class Settings:
         code = _multiplier_code(self.multiplier)
         flags = (code is None) * _MULTIPLIER_F32 | (self.slope == 0.0) * _FLAT
         flags |= self.tracks * _TRACKS | self.ends * _ENDS | self.static_root * _STATIC_ROOT | self.scales * SCALES
+        flags |= self.prior * PRIOR
         differing = []
         for bit, (name, default, kind) in enumerate(_DEFAULTS, start=_DEFAULT_BIT):
             value = getattr(self, name)
@@ -191,14 +199,15 @@ def _read_flagged_settings(reader: ByteReader, version: int) -> tuple:
     """Formats 4 to 6: f32 bound | varint flags | multiplier | the settings that differ from the defaults.
 
     Returns ``(bound, multiplier, slope, rounding, root_share, free_angle_rad, allocation_power, segment_frames,
-    chunk_frames, shell_cm, tracks, ends, static_root, scales)``, the fields of :class:`Settings` after ``eps_cm``.
+    chunk_frames, shell_cm, tracks, ends, static_root, scales, prior)``, the fields of :class:`Settings` after ``eps_cm``.
     """
     defaults = _DEFAULTS_5 if version == 5 else _DEFAULTS
     bound = reader.read_f32("bound")
-    flags = reader.read_varint("settings flags", max_bytes=2)
+    flags = reader.read_varint("settings flags", max_bytes=3)
     known = _DEFAULT_BIT + len(defaults) + (4 if version >= 6 else 0)  # format 6: bits 10, 11, 12, 13
-    if flags >> known:
+    if flags & ~((1 << known) - 1 | (PRIOR if version >= 6 else 0)):
         raise BitstreamError(f"mcb-rot: unknown settings flags {flags:#x}.")
+    prior = bool(flags & PRIOR)
     tracks, ends = bool(flags & _TRACKS) and version >= 6, bool(flags & _ENDS) and version >= 6
     static_root = bool(flags & _STATIC_ROOT) and version >= 6
     scales = bool(flags & SCALES) and version >= 6
@@ -214,7 +223,7 @@ def _read_flagged_settings(reader: ByteReader, version: int) -> tuple:
             values[name] = 0.0 if name == "slope" and flags & _FLAT else default
     listed = (values[n] for n in ("slope", "rounding", "root_share", "free_angle_rad", "allocation_power",
                                   "segment_frames", "chunk_frames", "shell_cm"))
-    return (bound, multiplier, *listed, tracks, ends, static_root, scales)
+    return (bound, multiplier, *listed, tracks, ends, static_root, scales, prior)
 
 
 def _read_listed_settings(reader: ByteReader, version: int) -> tuple:
@@ -226,7 +235,7 @@ def _read_listed_settings(reader: ByteReader, version: int) -> tuple:
     chunk_frames = reader.read_varint("chunk frames")
     shell = reader.read_f32("shell distance") if version >= 3 else 0.0
     return (bound, multiplier, slope, rounding, root_share, free, power, segment_frames, chunk_frames, shell,
-            False, False, False, False)
+            False, False, False, False, False)
 
 
 def _check_settings_range(eps, bound, multiplier, slope, rounding, root_share, free, power, segment_frames,
@@ -269,6 +278,7 @@ class StreamInfo:
     tracks: Tracks | None = None  # format 6, flags bit 10: the translation tracks' header (and q at the encoder)
     static_root: StaticRoot | None = None  # format 6, flags bit 12: the still root joint 0 the skeleton lacks
     scales: Tracks | None = None  # format 6, flags bit 13: the scale tracks' header (and q at the encoder)
+    prior_mean: np.ndarray | None = None  # format 6, flags bit 15: the named rig's mean signal (:mod:`.prior`)
     _cache: dict = field(default_factory=dict, repr=False)
 
     def replace(self, **changes) -> "StreamInfo":
@@ -555,7 +565,8 @@ def write_payload(info: StreamInfo, skeleton_blob: bytes, coefficients: dict, co
     scale, tilt = model.fit_offsets(np.concatenate(list(coded.values())), np.concatenate(channel_of),
                                     np.concatenate(bands), channels, settings.rounding)
     all_channels = np.tile(np.arange(channels), layout.num_segments)
-    dc_diff = np.diff(info.dc, axis=0, prepend=0).ravel()
+    predicted = _first_means(info)
+    dc_diff = np.diff(info.dc, axis=0, prepend=0 if predicted is None else predicted[None]).ravel()
     count_diff = np.diff(np.stack([counts[s] for s in range(layout.num_segments)]), axis=0, prepend=0).ravel()
     info = info.replace(
         scale=scale, tilt=tilt,
@@ -595,8 +606,8 @@ def write_payload(info: StreamInfo, skeleton_blob: bytes, coefficients: dict, co
 
     writer = ByteWriter()
     settings.write(writer)
-    writer.write_bytes(skeleton_blob)
-    if info.static_root is not None:
+    writer.write_bytes(skeleton_blob)  # with the prior flag: the reference to its rig (:mod:`.prior`)
+    if info.static_root is not None and not settings.prior:
         info.static_root.write(writer)
     write_cuts(writer, info.cuts)
     writer.write_varint(len(info.overrides))
@@ -616,6 +627,8 @@ def write_payload(info: StreamInfo, skeleton_blob: bytes, coefficients: dict, co
     if info.scales is not None:
         info.scales.write(writer)
     writer.write_varint(unit_values)
+    if settings.prior:
+        writer.write_u8(predicted is not None)
     side = layout.num_segments
     encode_unit(writer, np.concatenate([dc_diff, count_diff]),
                 np.concatenate([_tilted(scale, info.dc_tilt, side), _tilted(scale, info.count_tilt, side)]),
@@ -624,6 +637,15 @@ def write_payload(info: StreamInfo, skeleton_blob: bytes, coefficients: dict, co
     for chunk in chunks:
         writer.write_bytes(chunk)
     return writer.getvalue()
+
+
+def _first_means(info: StreamInfo) -> np.ndarray | None:
+    """(C,) the first segment's quantized means predicted from the prior's rig, or None (no prior, or too close
+    to call: :func:`.prior.first_means`)."""
+    if info.prior_mean is None:
+        return None
+    base = info.settings.multiplier * info.channel_steps
+    return first_means(info.prior_mean, info.axes, base, info.settings.segment_frames)
 
 
 _OFFSET_LIMIT = 2 * model.NUM_CLASSES  # channel scales and band tilts (+ 64) lie in [0, 128)
@@ -668,15 +690,22 @@ def read_small_ints(reader: ByteReader, count: int, limit: int, what: str) -> np
 
 
 # -- reading ---------------------------------------------------------------------------------------------------
-def read_info(header: Header, payload: memoryview) -> StreamInfo:
-    """Parse and check everything before the chunks."""
+def read_info(header: Header, payload: memoryview, prior: Prior | None = None) -> StreamInfo:
+    """Parse and check everything before the chunks (``prior``: the one a stream with flag bit 15 names)."""
     reader = ByteReader(payload)
     version = reader.read_u8("mcb-rot format")
     if version not in _READABLE:
         raise BitstreamError(f"mcb-rot: expected payload format {' or '.join(map(str, _READABLE))}, found {version}.")
     settings = Settings.read(reader, version)
-    skeleton = unpack_skeleton_runtime(reader) if version >= 6 else unpack_skeleton_compact(reader, stepped=version >= 4)
-    static_root = read_static_root(reader) if settings.static_root else None
+    if settings.prior:
+        skeleton, static_root, prior_mean = read_reference(reader, prior)
+        if (static_root is not None) != settings.static_root:
+            raise BitstreamError("mcb-rot: the prior's rig and the stream's still-root flag disagree.")
+    else:
+        skeleton = (unpack_skeleton_runtime(reader) if version >= 6
+                    else unpack_skeleton_compact(reader, stepped=version >= 4))
+        static_root = read_static_root(reader) if settings.static_root else None
+        prior_mean = None
     num_frames, num_joints = header.num_frames, skeleton.num_joints
     if num_joints + (static_root is not None) != header.num_joints:
         raise BitstreamError(f"mcb-rot: the skeleton has {num_joints} joints"
@@ -725,9 +754,25 @@ def read_info(header: Header, payload: memoryview) -> StreamInfo:
     if version >= 4:  # the segment means and the significance counts, one stream
         side_classes = np.concatenate([_tilted(scale, dc_tilt, num_segments), _tilted(scale, count_tilt, num_segments)])
         what = "mcb-rot: segment means and significance counts"
+        predicted = None
+        if settings.prior:
+            flag = reader.read_u8("first means predicted")
+            if flag > 1:
+                raise BitstreamError(f"mcb-rot: the first-means flag must be 0 or 1, found {flag}.")
+            if flag:
+                budgets = stream_budgets(settings, skeleton, track_header, scale_header)
+                base = settings.multiplier * np.concatenate([np.full(3, budgets.root_cm), np.repeat(budgets.base_rad, 3)])
+                predicted = first_means(prior_mean, axes_from_codes(axis_codes), base, settings.segment_frames)
+                if predicted is None:
+                    raise BitstreamError("mcb-rot: the stream predicts its first segment's means where a rounding is "
+                                         "too close to call.")
         side = (decode_unit(reader, side_classes, runtime_tables(), what) if version >= 6
                 else decode_classed(reader, side_classes, coder_tables, what))
-        dc = np.cumsum(side[: num_segments * channels].reshape(num_segments, channels), axis=0)
+        dc = side[: num_segments * channels].reshape(num_segments, channels)
+        if predicted is not None:
+            dc = dc.copy()
+            dc[0] += predicted
+        dc = np.cumsum(dc, axis=0)
         counts = np.cumsum(side[num_segments * channels :].reshape(num_segments, channels), axis=0)
         bad = (counts < 0) | (counts > (layout.lengths - 1)[:, None])
         if bad.any():
@@ -749,7 +794,7 @@ def read_info(header: Header, payload: memoryview) -> StreamInfo:
     budgets = stream_budgets(settings, skeleton, track_header, scale_header)
     return StreamInfo(settings, skeleton, budgets, layout, cuts, overrides, axis_codes, scale, tilt, dc_tilt,
                       count_tilt, gap_class, value_class, dc, offsets, counts, version, unit_values, track_header,
-                      static_root, scale_header)
+                      static_root, scale_header, prior_mean)
 
 
 def end_site_reach(skeleton: Skeleton) -> np.ndarray:
