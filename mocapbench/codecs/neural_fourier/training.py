@@ -1,7 +1,7 @@
 """Training of the neural Fourier codecs' networks, many at once (torch, imported only by the encoders).
 
 Tojo, Chen, Umetani 2022 train one small network per clip: ``h = 2 (2K + 1)`` hidden units, a few thousand
-weights. One such network costs little arithmetic per Adam step and a fixed overhead of dozens of tensor
+weights. One such network costs little arithmetic per optimizer step and a fixed overhead of dozens of tensor
 operations, and it takes tens of thousands of steps; trained one at a time through autograd and ``torch.optim``,
 the overhead is most of the time. Here every network of a call is trained side by side:
 
@@ -17,17 +17,27 @@ the overhead is most of the time. Here every network of a call is trained side b
   more batched products, the bias gradients inside the weight gradients), so no autograd graph is built. ELU is
   computed as ``max(z, e − 1)`` with ``e = exp(min(z, 0))``, and ``e`` is also ELU's derivative (1 where
   ``z > 0``), so one exponential serves both.
-* **Adam by hand**, on the flat tensor: the update of ``torch.optim.Adam`` (β = 0.9, 0.999, ε = 1e-8, bias
-  corrections), each network with its own moments. All networks of a group take the same step number and rate, so
-  each one follows exactly the schedule it would follow alone.
+* **The optimizer** (the paper names none). ``optimizer="lbfgs"`` with ``solve_output=True`` (opt-in):
+
+  - *Output layer solved* (variable projection). The network is linear in ``[W2 | b2]``, so at every evaluation
+    ``[W2 | b2]`` is set to the least-squares fit of eq. (3) on the current hidden activations ``[a2; 1]`` (per
+    output row, normal equations of size h + 1, in float64 with a tiny relative ridge), and only ``[W0 | b0]``
+    and ``[W1 | b1]`` are optimized: the loss is then a function of the hidden layers alone, and its gradient is
+    the gradient of eq. (3) at the solved output layer (the output layer's own gradient is 0 there).
+  - *L-BFGS* (:func:`_lbfgs`) on those weights, each network with its own curvature pairs, step length and
+    Armijo backtracking, one loss-and-gradient evaluation per iteration; accepted losses never rise.
+
+  Together they reach in a few hundred iterations the loss that Adam reaches in tens of thousands of steps (the
+  README has the measurement). ``optimizer="adam"`` (the default) is the update of
+  ``torch.optim.Adam`` (β = 0.9, 0.999, ε = 1e-8, bias corrections), each network with its own moments, all
+  networks of a group at the same step number and rate (:func:`_adam`).
 * **Padding that changes nothing.** Clips of different lengths are padded with frames whose loss weight is 0, and
   skeletons with fewer pose parameters with outputs whose loss weight is 0: the padded rows add 0 to every
   gradient. Padding costs arithmetic, so the networks are cut into groups of similar length
   (:func:`frame_groups`) and the groups are trained one after another.
 * **Stopping.** A network whose loss has stopped falling (relative decrease over the last ``stop_window`` steps at
-  most ``stop_tolerance``, tested after the warm-up) is frozen there; the round ends when all are. The benchmark's
-  schedules fall the whole way down (see the README), so this guards against wasted steps on easy clips and
-  changes nothing on the others.
+  most ``stop_tolerance``; for Adam tested after the warm-up) is frozen there; so is an L-BFGS network whose line
+  search shrinks its step below 10⁻⁶ (float32 lowers its loss no further). The round ends when all are.
 
 Each network draws its initial weights from its own generator seeded with the codec's seed, in the order one
 network trained alone draws them, so a network's result does not depend on which others share its batch, up to the
@@ -48,6 +58,9 @@ _LR_FLOOR = 0.1  # the per-round peak learning rate never falls below this fract
 _COSINE_END = 0.05  # the cosine decay ends at this fraction of the round's peak rate
 _ADAM_BETAS = (0.9, 0.999)
 _ADAM_EPS = 1e-8
+_LBFGS_MEMORY = 6  # curvature pairs kept per network
+_ARMIJO = 1e-4  # sufficient-decrease constant of the L-BFGS line search
+_RIDGE = 1e-6  # ridge of the output layer's least squares, relative to the mean of its Gram matrix's diagonal
 # A group of networks costs about (networks × longest clip) frames of arithmetic per step plus a fixed overhead of
 # tensor operations, worth this many frames on one CPU core; frame_groups balances the two.
 _STEP_OVERHEAD_FRAMES = 200
@@ -80,6 +93,8 @@ class TrainingSettings:
     stop_tolerance: float = 0.0
     stop_window: int = 200
     device: str = "cpu"
+    optimizer: str = "adam"
+    solve_output: bool = False
 
     @classmethod
     def from_config(cls, config: Any) -> "TrainingSettings":
@@ -91,6 +106,8 @@ class TrainingSettings:
             stop_tolerance=float(getattr(config, "stop_tolerance", 0.0)),
             stop_window=int(getattr(config, "stop_window", 200)),
             device=str(getattr(config, "device", "cpu")),
+            optimizer=str(getattr(config, "optimizer", "adam")),
+            solve_output=bool(getattr(config, "solve_output", False)),
         )
 
 
@@ -297,7 +314,7 @@ def _unpack(flat: np.ndarray, layers: Sequence[tuple[int, int]], like: Sequence[
 
 def _train_group(networks: Sequence[Network], omegas: Sequence[Sequence[float]], iterations: int,
                  settings: TrainingSettings) -> None:
-    """One round for networks of the same width: lockstep full-batch Adam on stacked weights.
+    """One round for networks of the same width: lockstep full-batch training on stacked weights.
 
     Every layer is one matrix with its bias as the last column, and every layer's input has a row of ones (0 on
     padded frames), so a layer is one batched product and a weight gradient (bias included) is another. Activations
@@ -342,20 +359,14 @@ def _train_group(networks: Sequence[Network], omegas: Sequence[Sequence[float]],
     a2_ones = a1_ones.clone()
     a1, a2 = a1_ones[:, :hidden], a2_ones[:, :hidden]
     w0, w1, w2 = (params[:, offsets[i]:offsets[i + 1]].unflatten(1, layers[i]) for i in range(3))
-    first_moment = torch.zeros_like(params)
-    second_moment = torch.zeros_like(params)
     gradient = torch.empty_like(params)
     gradient_w0, gradient_w1, gradient_w2 = (gradient[:, offsets[i]:offsets[i + 1]].unflatten(1, layers[i])
                                              for i in range(3))
-    beta1, beta2 = _ADAM_BETAS
-    rounds = networks[0].rounds
-    peak = settings.learning_rate * max(settings.round_lr_decay**rounds, _LR_FLOOR)
-    warmup = max(1, int(round(settings.warmup_fraction * iterations))) if settings.warmup_fraction > 0 else 0
-    losses = torch.empty(iterations + 1, count, dtype=dtype, device=device)
     stopping = settings.stop_tolerance > 0 and settings.stop_window > 0
-    active = torch.ones(count, 1, dtype=dtype, device=device)
-    stopped = np.full(count, iterations)
-    for step in range(iterations + 1):
+    inverse_scale = torch.where(scale > 0, 1.0 / scale.clamp_min(1e-30), torch.zeros_like(scale))
+
+    def evaluate(with_gradient: bool = True):
+        """eq. (3) per network at ``params`` (B,), and its gradient into ``gradient`` when asked."""
         # eq. (2): W2 ELU(W1 ELU(W0 x + b0) + b1) + b2, ELU(z) = max(z, e − 1), e = exp(min(z, 0)) = ELU'(z)
         z1 = torch.bmm(w0, features)
         e1 = torch.clamp_max(z1, 0.0).exp_()
@@ -365,9 +376,69 @@ def _train_group(networks: Sequence[Network], omegas: Sequence[Sequence[float]],
         torch.maximum(z2, torch.sub(e2, 1.0, out=a2), out=a2)  # in place: no temporary
         if padded_frames:
             a2.mul_(frame_mask)
-        scaled_out = w2 * scale  # (B, m, h + 1): [s ∘ W2 | s ∘ b2]
+        if settings.solve_output:
+            # [W2 | b2] that minimizes eq. (3) for these hidden layers: per output row, linear least squares on
+            # [a2; 1] (normal equations in float64, a relative ridge of _RIDGE against a singular Gram matrix).
+            gram = torch.bmm(a2_ones, a2_ones.transpose(1, 2)).double()
+            gram.diagonal(dim1=1, dim2=2).add_(_RIDGE * gram.diagonal(dim1=1, dim2=2).mean(dim=1, keepdim=True))
+            projected = torch.bmm(targets, a2_ones.transpose(1, 2)).double()  # (B, m, h + 1)
+            scaled_out = torch.linalg.solve(gram, projected.transpose(1, 2)).transpose(1, 2).to(dtype)
+            torch.mul(scaled_out, inverse_scale, out=w2)
+        else:
+            scaled_out = w2 * scale  # (B, m, h + 1): [s ∘ W2 | s ∘ b2]
         residual = torch.baddbmm(targets, scaled_out, a2_ones, beta=-1.0)  # (F(x) − y) ∘ s, (B, m, N)
-        losses[step] = torch.linalg.vector_norm(residual, dim=(1, 2)).square_().mul_(0.5)
+        loss = torch.linalg.vector_norm(residual, dim=(1, 2)).square_().mul_(0.5)
+        if not with_gradient:
+            return loss
+        # d loss / d [W2 | b2] = s ∘ (residual [a2; 1]ᵀ); d loss / d a2 = (s ∘ W2)ᵀ residual; then back through
+        # both ELUs (their derivatives are e2, e1) and the first two layers.
+        if settings.solve_output:
+            gradient_w2.zero_()  # [W2 | b2] is solved, not stepped (its gradient is 0 at the solution)
+        else:
+            gradient_w2.copy_(torch.bmm(a2_ones, residual.transpose(1, 2)).transpose(1, 2)).mul_(scale)
+        d2 = torch.bmm(scaled_out[:, :, :hidden].transpose(1, 2), residual).mul_(e2)
+        gradient_w1.copy_(torch.bmm(d2, a1_ones.transpose(1, 2)))
+        d1 = torch.bmm(w1[:, :, :hidden].transpose(1, 2), d2).mul_(e1)
+        gradient_w0.copy_(torch.bmm(d1, features.transpose(1, 2)))
+        return loss
+
+    if settings.optimizer == "lbfgs":
+        # With a solved output layer only [W0 | b0] and [W1 | b1] are the optimizer's variables.
+        free = int(offsets[2]) if settings.solve_output else int(offsets[-1])
+        losses, stopped = _lbfgs(torch, params[:, :free], gradient[:, :free], evaluate, iterations, settings,
+                                 stopping)
+    else:
+        losses, stopped = _adam(torch, params, gradient, evaluate, iterations, settings, networks[0].rounds,
+                                stopping)
+    step = len(losses) - 1
+    losses = losses.cpu().numpy().astype(np.float64)
+    params = params.cpu().numpy()
+    for b, network in enumerate(networks):
+        network.weights = _unpack(params[b], layers, network.weights)
+        last = min(int(stopped[b]), step)
+        network.loss_history.append(losses[: last + 1, b].copy())
+        network.rounds += 1
+
+
+def _adam(torch, params, gradient, evaluate, iterations: int, settings: TrainingSettings, rounds: int,
+          stopping: bool):
+    """Full-batch Adam (``torch.optim.Adam``'s update, per network) with the warm-up and cosine schedule.
+
+    ``evaluate(with_gradient)`` returns the loss per network (B,) at ``params`` (B × |α|, updated in place) and
+    writes its gradient into ``gradient``. Returns the loss before each step and after the last one, shape
+    (steps + 1, B), and per network the step at which it stopped.
+    """
+    count = params.shape[0]
+    beta1, beta2 = _ADAM_BETAS
+    peak = settings.learning_rate * max(settings.round_lr_decay**rounds, _LR_FLOOR)
+    warmup = max(1, int(round(settings.warmup_fraction * iterations))) if settings.warmup_fraction > 0 else 0
+    first_moment = torch.zeros_like(params)
+    second_moment = torch.zeros_like(params)
+    losses = torch.empty(iterations + 1, count, dtype=params.dtype, device=params.device)
+    active = torch.ones(count, 1, dtype=params.dtype, device=params.device)
+    stopped = np.full(count, iterations)
+    for step in range(iterations + 1):
+        losses[step] = evaluate(step < iterations)
         if step == iterations:
             break
         if stopping and step >= warmup + settings.stop_window and step % 50 == 0:
@@ -379,13 +450,6 @@ def _train_group(networks: Sequence[Network], omegas: Sequence[Sequence[float]],
                 active = active.masked_fill(converged, 0.0)
                 if not bool(active.any()):
                     break
-        # d loss / d [W2 | b2] = s ∘ (residual [a2; 1]ᵀ); d loss / d a2 = (s ∘ W2)ᵀ residual; then back through
-        # both ELUs (their derivatives are e2, e1) and the first two layers.
-        gradient_w2.copy_(torch.bmm(a2_ones, residual.transpose(1, 2)).transpose(1, 2)).mul_(scale)
-        d2 = torch.bmm(scaled_out[:, :, :hidden].transpose(1, 2), residual).mul_(e2)
-        gradient_w1.copy_(torch.bmm(d2, a1_ones.transpose(1, 2)))
-        d1 = torch.bmm(w1[:, :, :hidden].transpose(1, 2), d2).mul_(e1)
-        gradient_w0.copy_(torch.bmm(d1, features.transpose(1, 2)))
         # Adam (torch.optim.Adam's update, per network): moments, bias corrections, step.
         t = step + 1
         rate = learning_rate(step, iterations, warmup, peak)
@@ -394,10 +458,95 @@ def _train_group(networks: Sequence[Network], omegas: Sequence[Sequence[float]],
         denominator = (second_moment.sqrt() / math.sqrt(1 - beta2**t)).add_(_ADAM_EPS)
         update = first_moment * active if stopping else first_moment
         params.addcdiv_(update, denominator, value=-rate / (1 - beta1**t))
-    losses = losses[: step + 1].cpu().numpy().astype(np.float64)  # rows after an early stop were never written
-    params = params.cpu().numpy()
-    for b, network in enumerate(networks):
-        network.weights = _unpack(params[b], layers, network.weights)
-        last = min(int(stopped[b]), step)
-        network.loss_history.append(losses[: last + 1, b].copy())
-        network.rounds += 1
+    return losses[: step + 1], stopped
+
+
+def _lbfgs(torch, params, gradient, evaluate, iterations: int, settings: TrainingSettings, stopping: bool):
+    """Full-batch L-BFGS per network, in lockstep: one loss-and-gradient evaluation per iteration.
+
+    Each network keeps its own last ``_LBFGS_MEMORY`` curvature pairs (two-loop recursion, initial scale
+    ``s·y / y·y`` of its newest pair) and its own step length: a trial point that fails the Armijo test
+    (``f(x + α d) ≤ f(x) + 10⁻⁴ α ∇f·d``) is rejected and the step shrunk (the minimum of the quadratic through the
+    two losses and the slope, kept within 0.1 α … 0.5 α); an accepted one resets α to 1. A pair with too little
+    curvature (``s·y ≤ 10⁻⁸ |s| |y|``) is not stored. The first direction is the gradient scaled so that no weight
+    moves by more than ``learning_rate``. A network stops when its loss fell by at most ``stop_tolerance``
+    (relative) over the last ``stop_window`` iterations, or when its step shrinks below 10⁻⁶ (float32 cannot lower
+    the loss further). Same return values as :func:`_adam` (``losses[i]``: the loss of the accepted point after i
+    iterations).
+    """
+    count, size = params.shape
+    device, dtype = params.device, params.dtype
+    memory = _LBFGS_MEMORY
+    s_history = torch.zeros(memory, count, size, dtype=dtype, device=device)
+    y_history = torch.zeros(memory, count, size, dtype=dtype, device=device)
+    rho = torch.zeros(memory, count, dtype=dtype, device=device)
+    newest = -1  # slot of the newest pair (the history is a ring shared by the networks)
+    losses = torch.empty(iterations + 1, count, dtype=dtype, device=device)
+    stopped = np.full(count, iterations)
+    active = torch.ones(count, dtype=torch.bool, device=device)
+    point = params.clone()
+    loss = evaluate()
+    grad = gradient.clone()
+    losses[0] = loss
+    gamma = settings.learning_rate / grad.abs().amax(dim=1).clamp_min(1e-30)
+    direction = -gamma[:, None] * grad
+    alpha = torch.ones(count, dtype=dtype, device=device)
+    step = 0
+    for step in range(1, iterations + 1):
+        slope = torch.linalg.vecdot(grad, direction)
+        uphill = active & ~(slope < 0)  # no descent along the quasi-Newton direction: the scaled gradient instead
+        if bool(uphill.any()):
+            direction = torch.where(uphill[:, None], -gamma[:, None] * grad, direction)
+            slope = torch.linalg.vecdot(grad, direction)
+        moving = active & (slope < 0)
+        alpha_used = torch.where(moving, alpha, torch.zeros_like(alpha))
+        torch.addcmul(point, alpha_used[:, None], direction, out=params)
+        trial_loss = evaluate()
+        accepted = moving & torch.isfinite(trial_loss) & (trial_loss <= loss + _ARMIJO * alpha_used * slope)
+        # Rejected: shrink the step (minimum of the quadratic through f(x), f'(x; d) and f(x + α d)).
+        excess = (trial_loss - loss - slope * alpha_used).clamp_min(1e-30)
+        shrunk = (-slope * alpha_used * alpha_used / (2 * excess)).nan_to_num(0.0)
+        shrunk = torch.minimum(torch.maximum(shrunk, 0.1 * alpha_used), 0.5 * alpha_used)
+        alpha = torch.where(accepted, torch.ones_like(alpha), torch.where(moving, shrunk, alpha))
+        # Accepted: store the pair, move.
+        mask = accepted[:, None].to(dtype)
+        s = (params - point) * mask
+        y = (gradient - grad) * mask
+        sy = torch.linalg.vecdot(s, y)
+        yy = torch.linalg.vecdot(y, y)
+        curved = accepted & (sy > 1e-8 * torch.sqrt(torch.linalg.vecdot(s, s) * yy))
+        newest = (newest + 1) % memory
+        s_history[newest] = s
+        y_history[newest] = y
+        rho[newest] = torch.where(curved, 1.0 / sy.clamp_min(1e-30), torch.zeros_like(sy))
+        gamma = torch.where(curved, sy / yy.clamp_min(1e-30), gamma)
+        point = torch.where(accepted[:, None], params, point)
+        grad = torch.where(accepted[:, None], gradient, grad)
+        loss = torch.where(accepted, trial_loss, loss)
+        losses[step] = loss
+        # New directions (two-loop recursion) for the networks that moved; the others retry along theirs.
+        q = grad.clone()
+        coefficients = []
+        for back in range(memory):
+            i = (newest - back) % memory
+            a = rho[i] * torch.linalg.vecdot(s_history[i], q)
+            q.addcmul_(a[:, None], y_history[i], value=-1.0)
+            coefficients.append((i, a))
+        r = gamma[:, None] * q
+        for i, a in reversed(coefficients):
+            b = rho[i] * torch.linalg.vecdot(y_history[i], r)
+            r.addcmul_((a - b)[:, None], s_history[i])
+        direction = torch.where(accepted[:, None], -r, direction)
+        # Stopping.
+        finished = (active & ~accepted & moving & (alpha < 1e-6)) | (active & ~moving)
+        if stopping and step >= settings.stop_window and step % 10 == 0:
+            before = losses[step - settings.stop_window]
+            finished |= active & ((before - loss).abs() <= settings.stop_tolerance * before)
+        if bool(finished.any()):
+            for b in torch.nonzero(finished).flatten().tolist():
+                stopped[b] = step
+            active = active & ~finished
+            if not bool(active.any()):
+                break
+    params.copy_(point)
+    return losses[: step + 1], stopped

@@ -159,3 +159,67 @@ def test_cuda_asked_for_without_a_gpu_is_one_clear_error():
     codec = create("fourier-mlp-int", **{**create("fourier-mlp-int").smoke_params, "device": "cuda"})
     with pytest.raises(ValueError, match="device=cuda"):
         codec.encode(sinusoidal_motion(num_frames=30, seed=1))
+
+
+LBFGS = TrainingSettings(**{**SETTINGS.__dict__, "optimizer": "lbfgs", "solve_output": True})
+
+
+def _hidden(network: Network, omegas: list[float]) -> np.ndarray:
+    """``[a2; 1]`` of the trained network, float64, shape (N, h + 1)."""
+    from mocapbench.codecs.neural_fourier.codec import _elu, fourier_features
+
+    w0, b0, w1, b1, _, _ = network.weights64()
+    x = fourier_features(np.linspace(0, 1, network.num_frames), np.asarray(omegas))
+    a2 = _elu(_elu(x @ w0.T + b0) @ w1.T + b1)
+    return np.hstack([a2, np.ones((len(a2), 1))])
+
+
+@pytest.mark.torch
+def test_lbfgs_with_a_solved_output_layer_never_raises_the_loss_and_solves_the_output_layer():
+    pytest.importorskip("torch")
+    omegas = [1.0, 2.5]
+    network = _network(90)
+    train_round([network], [omegas], 40, LBFGS)
+    history = network.loss_history[0]
+    assert len(history) > 10
+    assert np.all(np.diff(history) <= 0)  # a step is accepted only when the loss does not rise (Armijo)
+    # The stored output layer is the weighted least-squares fit on the final hidden activations (eq. (3) is
+    # separable per output, so the weights w drop out of each row's fit).
+    hidden = _hidden(network, omegas)
+    best, *_ = np.linalg.lstsq(hidden, network.targets, rcond=None)
+    stored = np.hstack([network.weights64()[4], network.weights64()[5][:, None]]).T
+    residual_best = np.linalg.norm((hidden @ best - network.targets) * network.loss_weights)
+    residual_stored = np.linalg.norm((hidden @ stored - network.targets) * network.loss_weights)
+    assert residual_stored <= residual_best * (1 + 1e-3)
+    # A wrong output layer (the least-squares fit, perturbed) is measurably worse: the check above can fail.
+    assert np.linalg.norm((hidden @ (best * 1.05) - network.targets) * network.loss_weights) > residual_best * 1.001
+
+
+@pytest.mark.torch
+def test_lbfgs_reaches_in_a_tenth_of_the_steps_a_lower_loss_than_adam():
+    pytest.importorskip("torch")
+    omegas = [1.0, 2.5]
+    adam, lbfgs = _network(120), _network(120)
+    train_round([adam], [omegas], 600, SETTINGS)
+    train_round([lbfgs], [omegas], 60, LBFGS)
+    assert lbfgs.loss_history[0][-1] < adam.loss_history[0][-1]
+    assert len(lbfgs.loss_history[0]) <= 61
+
+
+@pytest.mark.torch
+def test_lbfgs_networks_trained_together_match_each_trained_alone():
+    """Padded frames and outputs change nothing in the least-squares output layer or the line search."""
+    pytest.importorskip("torch")
+    shapes = [(40, 13), (75, 7), (120, 13)]
+    omegas = [[1.0, 3.0]] * len(shapes)
+    together = [_network(f, m) for f, m in shapes]
+    train_round(together, omegas, 15, LBFGS)
+    for (frames, outputs), network in zip(shapes, together):
+        alone = _network(frames, outputs)
+        train_round([alone], omegas[:1], 15, LBFGS)
+        # The first iterations agree closely (the float32 least-squares solve amplifies the order of sums); later
+        # the line search's accept-or-shrink decisions can go apart on a rounding-level difference in a loss, so
+        # only the end is compared loosely. A network trained on another's data lands far outside both bounds.
+        np.testing.assert_allclose(network.loss_history[0][:6], alone.loss_history[0][:6], rtol=1e-2)
+        np.testing.assert_allclose(network.loss_history[0][-1], alone.loss_history[0][-1], rtol=0.25)
+        assert network.weights[4].shape == alone.weights[4].shape
