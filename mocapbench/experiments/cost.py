@@ -355,12 +355,22 @@ def calibrate_from(sweeps: Sequence[str | Path], out: Path | None = None) -> dic
     data["folder"] = [_config_folder(d) for d in data["job_dir"]]
     costs = load_costs(out)
     configs = costs.setdefault("configs", {})
+    import numpy as np
+
     for folder_name, group in data.groupby("folder"):
-        cpu = float((group["encode_cpu_s"] * _calls(group, "encode") + group["decode_cpu_s"] * _calls(group, "decode")).sum())
+        per_row = group["encode_cpu_s"] * _calls(group, "encode") + group["decode_cpu_s"] * _calls(group, "decode")
+        cpu = float(per_row.sum())
         frames = int(group["frames"].sum())
-        configs[folder_name] = {"codec": str(group["codec"].iloc[0]), "cpu_s_per_frame": cpu / frames,
-                                "cpu_s_per_clip": 0.0, "frames_measured": frames,
-                                "measured_on": f"{time.strftime('%Y-%m-%d')}, results of {group['dataset'].iloc[0]}"}
+        per_frame, per_clip = cpu / frames, 0.0
+        if group["dataset"].nunique() > 1 and np.ptp(group["frames"]) > 0:
+            # clips of several rates (cmu_test and cmu_test_24fps): a cost per clip beside the cost per frame
+            slope, constant = np.polyfit(group["frames"].astype(float), per_row.astype(float), 1)
+            if slope > 0 and constant > 0:
+                per_frame, per_clip = float(slope), float(constant)
+        configs[folder_name] = {"codec": str(group["codec"].iloc[0]), "cpu_s_per_frame": per_frame,
+                                "cpu_s_per_clip": per_clip, "frames_measured": frames,
+                                "measured_on": f"{time.strftime('%Y-%m-%d')}, results of "
+                                               f"{', '.join(sorted(map(str, group['dataset'].unique())))}"}
     overhead = job_overhead(sweeps, data, float(costs.get("job", {}).get("cpu_s_per_frame", 0.0)))
     if overhead is not None:
         costs.setdefault("job", {}).update(overhead)
