@@ -35,8 +35,9 @@ def section_text(monkeypatch, capsys) -> str:
 def test_the_bound_table_holds_the_bound_at_every_eps(section_text):
     bound = next(rows for name, rows in _tables(section_text).items() if name.startswith("mcb-rot: rate"))
     assert [float(row[0]) for row in bound] == [0.5, 1.0]
-    for eps, ratio, linf, _mean, _shell, margin in bound:
+    for eps, ratio, linf, _mean, _shell, margin, model_bytes, ratio_paid in bound:
         assert float(ratio) > 1 and 0 < float(linf) <= float(eps) and float(margin) <= 0
+        assert int(model_bytes) == 0 and float(ratio_paid) == pytest.approx(float(ratio), rel=1e-3)  # no prior here
 
 
 def test_the_comparison_tables_hold_acl_and_the_sweep_curve(section_text):

@@ -31,6 +31,8 @@ refine
     The encoder's closed loop: corrections until every joint is within the bound.
 tracks
     A game rig's translation tracks (payload format 6).
+scales
+    A game rig's scale tracks (format 6, settings flag bit 13).
 static_root
     A game rig's still ground root kept apart, its moving pelvis coded as the root (payload format 6).
 skeleton6
@@ -43,6 +45,8 @@ kinematics
     Forward kinematics on quaternions, the decoder's hot loop (numba).
 native
     The native C runtime from Python: built on first use, loaded with ctypes.
+prior
+    A prior of the training clips' rigs (settings flag bit 15): a known rig named instead of carried.
 windowed
     Long captures coded as independent windows (bounded memory).
 """
