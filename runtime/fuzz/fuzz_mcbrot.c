@@ -9,6 +9,12 @@
  * tracks), every joint's scale, and calls that must fail (a frame past the end, NaN and negative times). Contexts above 4 MiB are not
  * allocated (an engine checks mcbrot_context_size against its budget the same way); the clamps keep an execution
  * cheap, so that a campaign reaches millions of inputs.
+ *
+ * Mode bit 1 set: a prior (flags bit 15, mocapbench/codecs/mcb_rot/prior.py) comes first: u16 little-endian length
+ * n, n bytes of prior (cut to what the input holds), then the stream, opened with that prior. The fuzzer is built
+ * with FUZZING_BUILD_MODE_UNSAFE_FOR_PRODUCTION, under which the runtime skips the comparison of the stream's
+ * fingerprint with the prior's CRC32, so that mutations of the prior and of the stream reach the prior's parser and
+ * the rig it gives (the C tests check the comparison).
  */
 #include <math.h>
 #include <stdint.h>
@@ -53,16 +59,31 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
     int payload_mode = data[0] & 1;
     const uint8_t *stream = data + 1;
     size_t bytes = size - 1;
+    const uint8_t *prior = NULL;
+    size_t prior_bytes = 0;
+    if (data[0] & 2) {
+        if (bytes < 2) return 0;
+        prior_bytes = (size_t)stream[0] | (size_t)stream[1] << 8;
+        if (prior_bytes > bytes - 2) prior_bytes = bytes - 2;
+        prior = stream + 2;
+        stream += 2 + prior_bytes;
+        bytes -= 2 + prior_bytes;
+    }
     size_t context_bytes = 0;
     char message[256];
     if (!payload_mode) {
-        if (mcbrot_context_size(stream, bytes, &context_bytes, message, sizeof message) != MCBROT_OK) return 0;
+        if (mcbrot_context_size_with_prior(stream, bytes, prior, prior_bytes, &context_bytes, message,
+                                           sizeof message) != MCBROT_OK)
+            return 0;
         if (context_bytes > MAX_CONTEXT) return 0;
         void *context = aligned_alloc(MCBROT_CONTEXT_ALIGN, (context_bytes + 15) & ~(size_t)15);
         if (!context) return 0;
-        if (mcbrot_open(context, context_bytes, stream, bytes) == MCBROT_OK) exercise(context, data, size);
+        if (mcbrot_open_with_prior(context, context_bytes, stream, bytes, prior, prior_bytes) == MCBROT_OK)
+            exercise(context, data, size);
         /* a context one byte short must be refused */
-        if (context_bytes > 256 && mcbrot_open(context, context_bytes - 16, stream, bytes) != MCBROT_E_CONTEXT_SMALL)
+        if (context_bytes > 256 &&
+            mcbrot_open_with_prior(context, context_bytes - 16, stream, bytes, prior, prior_bytes) !=
+                MCBROT_E_CONTEXT_SMALL)
             abort();
         free(context);
         return 0;
@@ -79,13 +100,14 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
     double fps = 120.0;
     const uint8_t *payload = stream + fixed;
     size_t payload_bytes = bytes - fixed;
-    if (mcbrot_payload_context_size(payload, payload_bytes, frames, joints, fps, &context_bytes, message,
-                                    sizeof message) != MCBROT_OK)
+    if (mcbrot_payload_context_size_with_prior(payload, payload_bytes, frames, joints, fps, prior, prior_bytes,
+                                               &context_bytes, message, sizeof message) != MCBROT_OK)
         return 0;
     if (context_bytes > MAX_CONTEXT) return 0;
     void *context = aligned_alloc(MCBROT_CONTEXT_ALIGN, (context_bytes + 15) & ~(size_t)15);
     if (!context) return 0;
-    if (mcbrot_open_payload(context, context_bytes, payload, payload_bytes, frames, joints, fps) == MCBROT_OK)
+    if (mcbrot_open_payload_with_prior(context, context_bytes, payload, payload_bytes, frames, joints, fps, prior,
+                                       prior_bytes) == MCBROT_OK)
         exercise(context, data, size);
     free(context);
     return 0;

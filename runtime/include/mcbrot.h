@@ -28,8 +28,18 @@
  * its translation its place; joint 1, the pelvis, a joint with a translation track). A rig may scale joints (scale
  * tracks, settings flag bit 13): mcbrot_sample_scales gives every joint's scale beside the pose.
  *
+ * Priors: a stream may name its rig (skeleton and still root) in a prior fit on training clips (settings flag bit
+ * 15; the prior's bytes are what mcb-rot's model file holds, mocapbench/codecs/mcb_rot/prior.py) instead of carrying
+ * it. Such a stream opens with the *_with_prior calls, given the prior's bytes: the stream's fingerprint must be
+ * their CRC32 (else MCBROT_E_PRIOR), the prior is checked whole as Python checks it (a malformed one:
+ * MCBROT_E_PRIOR), the rig index must be in it (else MCBROT_E_CORRUPT). Everything the clip needs of the rig is
+ * copied into the context at open (its size is the same as for the stream that carries its rig): the prior need
+ * not stay in memory after open. A stream without the flag ignores the prior given.
+ *
  * ABI: MCBROT_ABI_VERSION changes whenever a function's signature, the meaning of a status or the layout expected
- * of an output changes; mcbrot_abi_version() returns the library's, to compare with the header's.
+ * of an output changes, or calls or statuses are added; mcbrot_abi_version() returns the library's, to compare with
+ * the header's. Version 3 added the *_with_prior calls and MCBROT_E_PRIOR (a caller of version 2 works unchanged;
+ * version 2 answered a prior stream MCBROT_E_UNSUPPORTED, version 3 answers MCBROT_E_PRIOR when no prior is given).
  */
 #ifndef MCBROT_H
 #define MCBROT_H
@@ -41,7 +51,7 @@
 extern "C" {
 #endif
 
-#define MCBROT_ABI_VERSION 2
+#define MCBROT_ABI_VERSION 3
 /* The newest payload format this library reads. */
 #define MCBROT_PAYLOAD_FORMAT 6
 /* Alignment the context must have. */
@@ -63,7 +73,9 @@ typedef enum mcbrot_status {
     MCBROT_E_CONTEXT_SMALL = 6,  /* the context is smaller than mcbrot_context_size says */
     MCBROT_E_TIME = 7,           /* t is NaN or outside [0, duration] */
     MCBROT_E_NOT_OPEN = 8,       /* the context holds no opened clip */
-    MCBROT_E_UNSUPPORTED = 9     /* a feature of the stream this version does not implement */
+    MCBROT_E_UNSUPPORTED = 9,    /* a feature of the stream this version does not implement */
+    MCBROT_E_PRIOR = 10          /* the stream names a prior (flags bit 15) and none was given, another one (its
+                                  * fingerprint differs) or a malformed one */
 } mcbrot_status;
 
 /* How a time between frames is rounded. A time within a millionth of a frame of a frame is that frame. */
@@ -107,6 +119,20 @@ MCBROT_API int mcbrot_payload_context_size(const uint8_t *payload, size_t payloa
                                            size_t message_bytes);
 MCBROT_API int mcbrot_open_payload(void *context, size_t context_bytes, const uint8_t *payload, size_t payload_bytes,
                                    uint32_t frames, uint32_t joints, double fps);
+
+/* The same for a stream (or a bare payload) that names a rig of a prior (settings flag bit 15): `prior` holds the
+ * prior's bytes (`prior_bytes` long), read during the call only. With prior NULL these are the calls above. */
+MCBROT_API int mcbrot_context_size_with_prior(const uint8_t *stream, size_t stream_bytes, const uint8_t *prior,
+                                              size_t prior_bytes, size_t *size, char *message, size_t message_bytes);
+MCBROT_API int mcbrot_open_with_prior(void *context, size_t context_bytes, const uint8_t *stream, size_t stream_bytes,
+                                      const uint8_t *prior, size_t prior_bytes);
+MCBROT_API int mcbrot_payload_context_size_with_prior(const uint8_t *payload, size_t payload_bytes, uint32_t frames,
+                                                      uint32_t joints, double fps, const uint8_t *prior,
+                                                      size_t prior_bytes, size_t *size, char *message,
+                                                      size_t message_bytes);
+MCBROT_API int mcbrot_open_payload_with_prior(void *context, size_t context_bytes, const uint8_t *payload,
+                                              size_t payload_bytes, uint32_t frames, uint32_t joints, double fps,
+                                              const uint8_t *prior, size_t prior_bytes);
 
 MCBROT_API int mcbrot_info(const void *context, mcbrot_clip_info *info);
 

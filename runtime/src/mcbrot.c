@@ -157,6 +157,7 @@ MCBROT_API const char *mcbrot_status_text(int status) {
     case MCBROT_E_TIME: return "the time is NaN or outside the clip";
     case MCBROT_E_NOT_OPEN: return "the context holds no opened clip";
     case MCBROT_E_UNSUPPORTED: return "the stream uses a feature this library does not implement";
+    case MCBROT_E_PRIOR: return "the stream names a prior that was not given, another prior, or a malformed one";
     default: return "unknown status";
     }
 }
@@ -263,6 +264,8 @@ typedef struct container_t {
     double fps;
     const uint8_t *payload;
     size_t payload_bytes;
+    const uint8_t *prior; /* the prior given beside the stream (NULL: none), for a stream with flags bit 15 */
+    size_t prior_bytes;
 } container_t;
 
 static uint32_t le32(const uint8_t *p) {
@@ -356,6 +359,14 @@ typedef struct header_t {
     int scales;          /* flags bit 13: scale tracks */
     uint32_t num_scales;
     double still_offset[3], still_position[3];
+    /* flags bit 15: the skeleton and the still root are rig `rig` of the prior given beside the stream (prior.py);
+     * the skeleton's positions above (parents_at, end_parents_at) are then in the prior's bytes, and its offsets
+     * are float64 at prior_offsets_at, rounded onto the stream's grid as pack_skeleton_runtime rounds them */
+    int prior;
+    const uint8_t *prior_data;
+    size_t prior_bytes, prior_offsets_at, prior_mean_at;
+    int rig_still;      /* the named rig has a still root */
+    uint32_t predicted; /* the first segment's means are coded as differences from the rig's (prior.first_means) */
 } header_t;
 
 static const double defaults_f32[] = {0.0, 0.0, 0.0, 1.0, 0.45f, 0.05f, 0.017453292519943295f, 0.0};
@@ -370,11 +381,9 @@ static int read_settings(reader_t *r, header_t *h) {
     if ((s = read_f32(r, &h->eps, "eps")) || (s = read_f32(r, &h->bound, "bound"))) return s;
     uint64_t flags;
     if ((s = read_varint(r, &flags, "settings flags", 3))) return s;
-    if (flags & (1u << 15)) /* coded against a prior's rig (prior.py): Python decodes it with that model */
-        return fail(MSG(r), MCBROT_E_UNSUPPORTED, "mcb-rot: the stream names a rig of a prior (settings flag bit "
-                    "15), which this runtime does not read");
-    if (flags >> 14)
+    if ((flags >> 14) & ~(uint64_t)2)
         return fail(MSG(r), MCBROT_E_CORRUPT, "mcb-rot: unknown settings flags %#llx", (unsigned long long)flags);
+    h->prior = (int)((flags >> 15) & 1);
     h->scales = (int)((flags >> 13) & 1);
     h->still = (int)((flags >> 12) & 1);
     h->cover_ends = (int)((flags >> 11) & 1);
@@ -727,6 +736,173 @@ static int read_still_root(reader_t *r, header_t *h) {
     return MCBROT_OK;
 }
 
+/* ---------------------------------------------------------------------------------------------------------- */
+/* the prior (flags bit 15, mocapbench/codecs/mcb_rot/prior.py): the rigs of the training clips, given by the     */
+/* caller beside a stream that names one of them                                                               */
+
+#define PRIOR_VERSION 1
+#define MAX_RIGS 4096u
+#define MAX_RIG_NAMES (1u << 20)
+
+static double le64f(const uint8_t *p) {
+    uint64_t bits = 0;
+    for (int i = 7; i >= 0; --i) bits = bits << 8 | p[i];
+    double value;
+    memcpy(&value, &bits, 8);
+    return value;
+}
+
+/* `count` float64 values at the reader, each finite and within 1e6 (cm, or rad for the mean signal): skipped. */
+static int skip_f64s(reader_t *r, size_t count, const char *what) {
+    int s = need(r, 8 * count, what);
+    if (s) return s;
+    for (size_t i = 0; i < count; ++i)
+        if (!(fabs(le64f(r->data + r->pos + 8 * i)) <= 1e6))
+            return fail(MSG(r), MCBROT_E_CORRUPT, "%s: a value is not finite or beyond 1e6", what);
+    r->pos += 8 * count;
+    return MCBROT_OK;
+}
+
+/* The joint names and channel orders of a rig (prior.py, Rig.write): J order bytes (< 6), then the names as a
+ * varint length and NUL-separated UTF-8, J of them, nothing after. Not checked: that the names differ (Python's
+ * Skeleton refuses a repeated name; the runtime never uses names, and the check would cost J^2). */
+static int check_rig_names(reader_t *r, uint32_t joints) {
+    uint64_t n;
+    int s = read_varint(r, &n, "length of names", 10);
+    if (s) return s;
+    if (n > MAX_RIG_NAMES)
+        return fail(MSG(r), MCBROT_E_CORRUPT, "expected at most %u bytes for names, the length field says %llu",
+                    MAX_RIG_NAMES, (unsigned long long)n);
+    if ((s = need(r, (size_t)n, "names"))) return s;
+    reader_t inner = {r->data + r->pos, 0, (size_t)n, r->message, r->message_bytes};
+    r->pos += (size_t)n;
+    if ((s = need(&inner, joints, "channel orders"))) return s;
+    for (uint32_t j = 0; j < joints; ++j)
+        if (inner.data[j] >= 6)
+            return fail(MSG(r), MCBROT_E_CORRUPT, "channel order index must be < 6, found %u", inner.data[j]);
+    inner.pos = joints;
+    uint32_t size;
+    if ((s = read_size(&inner, &size, "joint names"))) return s;
+    const uint8_t *names = inner.data + inner.pos;
+    inner.pos += size;
+    if (inner.pos != inner.end)
+        return fail(MSG(r), MCBROT_E_CORRUPT, "expected the end of the skeleton, found %zu more bytes",
+                    inner.end - inner.pos);
+    if (!is_utf8(names, size)) return fail(MSG(r), MCBROT_E_CORRUPT, "the joint names are not UTF-8");
+    uint32_t separators = 0;
+    for (uint32_t i = 0; i < size; ++i) separators += names[i] == 0;
+    if (separators != joints - 1)
+        return fail(MSG(r), MCBROT_E_CORRUPT, "the skeleton has %u joints and %u names", joints, separators + 1);
+    return MCBROT_OK;
+}
+
+/* Walk the prior's bytes (prior.py, Prior.from_bytes and _read_rig), every field checked as Python checks it,
+ * and keep rig `index`'s fields in `h` (its skeleton's positions are then in the prior's bytes). The rig count is
+ * written to `rigs`. A failure's message is what a stream's would be; the caller names the prior. */
+static int walk_prior(reader_t *r, header_t *h, uint64_t index, uint32_t *rigs) {
+    uint32_t version, count;
+    int s = read_u8(r, &version, "prior version");
+    if (s) return s;
+    if (version != PRIOR_VERSION)
+        return fail(MSG(r), MCBROT_E_CORRUPT, "version %u, this runtime reads %d", version, PRIOR_VERSION);
+    uint64_t n;
+    if ((s = read_varint(r, &n, "rig count", 10))) return s;
+    if (n < 1 || n > MAX_RIGS)
+        return fail(MSG(r), MCBROT_E_CORRUPT, "expected 1..%u rigs, found %llu", MAX_RIGS, (unsigned long long)n);
+    count = (uint32_t)n;
+    for (uint32_t k = 0; k < count; ++k) {
+        uint32_t joints, ends, still;
+        if ((s = read_count(r, &joints, MAX_JOINTS, "joint count")) ||
+            (s = read_count(r, &ends, MAX_JOINTS, "end-site count")))
+            return s;
+        if (joints < 1) return fail(MSG(r), MCBROT_E_CORRUPT, "rig %u has no joint", k);
+        size_t parents_at = r->pos;
+        for (uint32_t j = 1; j < joints; ++j) {
+            uint64_t step;
+            if ((s = read_varint(r, &step, "parents", 10))) return s;
+            if (step < 1 || step > j)
+                return fail(MSG(r), MCBROT_E_CORRUPT, "rig %u: joint %u names a parent %llu joints before it (1..%u)",
+                            k, j, (unsigned long long)step, j);
+        }
+        size_t end_parents_at = r->pos;
+        for (uint32_t e = 0; e < ends; ++e) {
+            uint64_t joint;
+            if ((s = read_varint(r, &joint, "end-site parents", 10))) return s;
+            if (joint >= joints)
+                return fail(MSG(r), MCBROT_E_CORRUPT, "rig %u: end site %u names joint %llu of %u", k, e,
+                            (unsigned long long)joint, joints);
+        }
+        size_t offsets_at = r->pos;
+        if ((s = skip_f64s(r, 3 * ((size_t)joints + ends), "offsets")) || (s = check_rig_names(r, joints)) ||
+            (s = read_u8(r, &still, "still root flag")))
+            return s;
+        if (still > 1) return fail(MSG(r), MCBROT_E_CORRUPT, "the still root flag must be 0 or 1, found %u", still);
+        header_t other; /* a rig not named: its still root checked, not kept */
+        if (still && (s = read_still_root(r, k == index ? h : &other))) return s;
+        size_t mean_at = r->pos;
+        if ((s = skip_f64s(r, 3 + 3 * (size_t)joints, "mean signal"))) return s;
+        if (k == index) {
+            h->joints = joints;
+            h->ends = ends;
+            h->parents_at = parents_at;
+            h->end_parents_at = end_parents_at;
+            h->prior_offsets_at = offsets_at;
+            h->prior_mean_at = mean_at;
+            h->rig_still = (int)still;
+        }
+    }
+    if (r->pos != r->end)
+        return fail(MSG(r), MCBROT_E_CORRUPT, "expected the end of the prior, found %zu more bytes", r->end - r->pos);
+    *rigs = count;
+    return MCBROT_OK;
+}
+
+/* The stream's u32 fingerprint of its prior against the CRC32 of the prior given. (A fuzzing build skips the
+ * comparison, so that mutated priors reach the prior's parser.) */
+static int check_fingerprint(const container_t *c, reader_t *r) {
+    int s = need(r, 4, "prior fingerprint");
+    if (s) return s;
+    uint32_t fingerprint = le32(r->data + r->pos);
+    r->pos += 4;
+    if (!c->prior)
+        return fail(MSG(r), MCBROT_E_PRIOR, "mcb-rot: the stream was coded against a prior (model %08x) and none was "
+                    "given; open it with mcbrot_open_with_prior and that model", fingerprint);
+    uint32_t held = crc32_of(c->prior, c->prior_bytes);
+#if !defined(FUZZING_BUILD_MODE_UNSAFE_FOR_PRODUCTION)
+    if (held != fingerprint)
+        return fail(MSG(r), MCBROT_E_PRIOR, "mcb-rot: the stream was coded against prior %08x, the prior given is "
+                    "%08x; open it with the model it was coded with", fingerprint, held);
+#else
+    (void)held;
+#endif
+    return MCBROT_OK;
+}
+
+/* After the grid exponent: the rig index, checked against the prior (walked whole), and the rig's fields. */
+static int read_prior_reference(const container_t *c, header_t *h, reader_t *r) {
+    uint64_t index;
+    int s = read_varint(r, &index, "prior rig index", 10);
+    if (s) return s;
+    char why[MESSAGE_BYTES];
+    reader_t p = {c->prior, 0, c->prior_bytes, why, sizeof why};
+    uint32_t rigs = 0;
+    if (walk_prior(&p, h, index, &rigs)) {
+        const char *text = strncmp(why, "mcb-rot: ", 9) == 0 ? why + 9 : why;
+        return fail(MSG(r), MCBROT_E_PRIOR, "mcb-rot: the prior is malformed: %s", text);
+    }
+    if (index >= rigs)
+        return fail(MSG(r), MCBROT_E_CORRUPT, "mcb-rot: the stream names rig %llu of the prior, which holds %u",
+                    (unsigned long long)index, rigs);
+    if (h->rig_still != h->still)
+        return fail(MSG(r), MCBROT_E_CORRUPT, "mcb-rot: the prior's rig and the stream's still-root flag disagree");
+    if (h->joints + (uint32_t)h->still != c->joints)
+        return fail(MSG(r), MCBROT_E_CORRUPT, "mcb-rot: the skeleton has %u joints%s, the header says %u", h->joints,
+                    h->still ? " and a still root" : "", c->joints);
+    h->prior_data = c->prior;
+    h->prior_bytes = c->prior_bytes;
+    return MCBROT_OK;
+}
+
 /* Pass 1 over the payload header: every field up to the side unit read and checked, sizes found. The cuts are
  * needed for the segment count: they are read into `cuts` (at most F - 1 values) when not NULL, else only
  * counted. */
@@ -734,7 +910,8 @@ static int plan(const container_t *c, header_t *h, reader_t *r, uint32_t *cuts_o
     int s;
     memset(h, 0, sizeof *h);
     if ((s = read_settings(r, h))) return s;
-    /* skeleton, runtime part */
+    /* skeleton, runtime part (with the prior flag: u32 the prior's fingerprint, then the grid exponent and the rig) */
+    if (h->prior && (s = check_fingerprint(c, r))) return s;
     uint64_t zig;
     if ((s = read_varint(r, &zig, "offset grid exponent", 10))) return s;
     int64_t exponent = (int64_t)(zig >> 1) ^ -(int64_t)(zig & 1);
@@ -742,6 +919,9 @@ static int plan(const container_t *c, header_t *h, reader_t *r, uint32_t *cuts_o
         return fail(MSG(r), MCBROT_E_CORRUPT, "mcb-rot: skeleton: offset grid exponent %lld outside [-40, 10]",
                     (long long)exponent);
     h->exponent = (int)exponent;
+    if (h->prior) {
+        if ((s = read_prior_reference(c, h, r))) return s;
+    } else {
     if ((s = read_count(r, &h->joints, MAX_JOINTS, "joint count")) || (s = read_count(r, &h->ends, MAX_JOINTS,
                                                                                      "end-site count")))
         return s;
@@ -773,6 +953,7 @@ static int plan(const container_t *c, header_t *h, reader_t *r, uint32_t *cuts_o
     if ((s = read_size(r, &blob, "skeleton names size"))) return s;
     r->pos += blob; /* zstd: names and channel orders, not needed to sample */
     if (h->still && (s = read_still_root(r, h))) return s;
+    }
     /* cuts */
     h->cuts_at = r->pos;
     if ((s = read_count(r, &h->num_cuts, c->frames - 1, "cut count"))) return s;
@@ -847,6 +1028,11 @@ static int plan(const container_t *c, header_t *h, reader_t *r, uint32_t *cuts_o
     uint64_t longest = h->max_length > h->chunk_frames ? h->max_length : h->chunk_frames;
     uint64_t most = longest * (channels + 4 * ((uint64_t)h->joints + 1));
     if ((s = read_count(r, &h->unit_values, most, "largest unit"))) return s;
+    if (h->prior) {
+        if ((s = read_u8(r, &h->predicted, "first means predicted"))) return s;
+        if (h->predicted > 1)
+            return fail(MSG(r), MCBROT_E_CORRUPT, "mcb-rot: the first-means flag must be 0 or 1, found %u", h->predicted);
+    }
     h->side_at = r->pos;
     return MCBROT_OK;
 }
@@ -1106,11 +1292,13 @@ static int size_of(const uint8_t *stream, size_t n, container_t *c, header_t *h,
     return MCBROT_OK;
 }
 
-MCBROT_API int mcbrot_context_size(const uint8_t *stream, size_t stream_bytes, size_t *size, char *message,
-                                   size_t message_bytes) {
+static int stream_size(const uint8_t *stream, size_t stream_bytes, const uint8_t *prior, size_t prior_bytes,
+                       size_t *size, char *message, size_t message_bytes) {
     if (message && message_bytes) message[0] = 0;
     if (!size) return fail(message, message_bytes, MCBROT_E_ARGUMENT, "mcb-rot: `size` is NULL");
     container_t c = {0};
+    c.prior = prior;
+    c.prior_bytes = prior ? prior_bytes : 0;
     header_t h;
     layout_t l;
     uint32_t chunks, most, most_frames;
@@ -1118,6 +1306,16 @@ MCBROT_API int mcbrot_context_size(const uint8_t *stream, size_t stream_bytes, s
     if (s) return s;
     *size = l.total;
     return MCBROT_OK;
+}
+
+MCBROT_API int mcbrot_context_size(const uint8_t *stream, size_t stream_bytes, size_t *size, char *message,
+                                   size_t message_bytes) {
+    return stream_size(stream, stream_bytes, NULL, 0, size, message, message_bytes);
+}
+
+MCBROT_API int mcbrot_context_size_with_prior(const uint8_t *stream, size_t stream_bytes, const uint8_t *prior,
+                                              size_t prior_bytes, size_t *size, char *message, size_t message_bytes) {
+    return stream_size(stream, stream_bytes, prior, prior_bytes, size, message, message_bytes);
 }
 
 static int payload_container(const uint8_t *payload, size_t bytes, uint32_t frames, uint32_t joints, double fps,
@@ -1134,12 +1332,14 @@ static int payload_container(const uint8_t *payload, size_t bytes, uint32_t fram
     return MCBROT_OK;
 }
 
-MCBROT_API int mcbrot_payload_context_size(const uint8_t *payload, size_t payload_bytes, uint32_t frames,
-                                           uint32_t joints, double fps, size_t *size, char *message,
-                                           size_t message_bytes) {
+static int payload_size(const uint8_t *payload, size_t payload_bytes, uint32_t frames, uint32_t joints,
+                        double fps, const uint8_t *prior, size_t prior_bytes, size_t *size, char *message,
+                        size_t message_bytes) {
     if (message && message_bytes) message[0] = 0;
     if (!size) return fail(message, message_bytes, MCBROT_E_ARGUMENT, "mcb-rot: `size` is NULL");
     container_t c = {0};
+    c.prior = prior;
+    c.prior_bytes = prior ? prior_bytes : 0;
     header_t h;
     layout_t l;
     uint32_t chunks, most, most_frames;
@@ -1149,6 +1349,20 @@ MCBROT_API int mcbrot_payload_context_size(const uint8_t *payload, size_t payloa
     return MCBROT_OK;
 }
 
+MCBROT_API int mcbrot_payload_context_size(const uint8_t *payload, size_t payload_bytes, uint32_t frames,
+                                           uint32_t joints, double fps, size_t *size, char *message,
+                                           size_t message_bytes) {
+    return payload_size(payload, payload_bytes, frames, joints, fps, NULL, 0, size, message, message_bytes);
+}
+
+MCBROT_API int mcbrot_payload_context_size_with_prior(const uint8_t *payload, size_t payload_bytes, uint32_t frames,
+                                                      uint32_t joints, double fps, const uint8_t *prior,
+                                                      size_t prior_bytes, size_t *size, char *message,
+                                                      size_t message_bytes) {
+    return payload_size(payload, payload_bytes, frames, joints, fps, prior, prior_bytes, size, message,
+                        message_bytes);
+}
+
 static int open_with(void *context, size_t context_bytes, container_t *c, const uint8_t *stream, size_t stream_bytes);
 
 MCBROT_API int mcbrot_open(void *context, size_t context_bytes, const uint8_t *stream, size_t stream_bytes) {
@@ -1156,15 +1370,36 @@ MCBROT_API int mcbrot_open(void *context, size_t context_bytes, const uint8_t *s
     return open_with(context, context_bytes, &c, stream, stream_bytes);
 }
 
-MCBROT_API int mcbrot_open_payload(void *context, size_t context_bytes, const uint8_t *payload, size_t payload_bytes,
-                                   uint32_t frames, uint32_t joints, double fps) {
+MCBROT_API int mcbrot_open_with_prior(void *context, size_t context_bytes, const uint8_t *stream, size_t stream_bytes,
+                                      const uint8_t *prior, size_t prior_bytes) {
+    container_t c = {0};
+    c.prior = prior;
+    c.prior_bytes = prior ? prior_bytes : 0;
+    return open_with(context, context_bytes, &c, stream, stream_bytes);
+}
+
+static int open_payload(void *context, size_t context_bytes, const uint8_t *payload, size_t payload_bytes,
+                        uint32_t frames, uint32_t joints, double fps, const uint8_t *prior, size_t prior_bytes) {
     if (!context || (uintptr_t)context % MCBROT_CONTEXT_ALIGN) return MCBROT_E_ARGUMENT;
     if (context_bytes < sizeof(ctx_t)) return MCBROT_E_CONTEXT_SMALL;
     container_t c = {0};
     int s = payload_container(payload, payload_bytes, frames, joints, fps, &c, ((ctx_t *)context)->message,
                               MESSAGE_BYTES);
     if (s) return s;
+    c.prior = prior;
+    c.prior_bytes = prior ? prior_bytes : 0;
     return open_with(context, context_bytes, &c, NULL, 0);
+}
+
+MCBROT_API int mcbrot_open_payload(void *context, size_t context_bytes, const uint8_t *payload, size_t payload_bytes,
+                                   uint32_t frames, uint32_t joints, double fps) {
+    return open_payload(context, context_bytes, payload, payload_bytes, frames, joints, fps, NULL, 0);
+}
+
+MCBROT_API int mcbrot_open_payload_with_prior(void *context, size_t context_bytes, const uint8_t *payload,
+                                              size_t payload_bytes, uint32_t frames, uint32_t joints, double fps,
+                                              const uint8_t *prior, size_t prior_bytes) {
+    return open_payload(context, context_bytes, payload, payload_bytes, frames, joints, fps, prior, prior_bytes);
 }
 
 /* ---------------------------------------------------------------------------------------------------------- */
@@ -1490,21 +1725,28 @@ static int open_with(void *context, size_t context_bytes, container_t *given, co
     x->table_length[0] = x->table_length[1] = 0;
     uint32_t J = x->joints, C = x->channels, S = x->segments;
     reader_t r = {c.payload, 0, c.payload_bytes, message, MESSAGE_BYTES};
-    /* skeleton */
-    r.pos = h.parents_at;
+    /* skeleton (the stream's, or the prior's rig: the same fields, checked by plan) */
+    reader_t sk = h.prior ? (reader_t){h.prior_data, 0, h.prior_bytes, message, MESSAGE_BYTES} : r;
+    sk.pos = h.parents_at;
     x->parents[0] = -1;
     for (uint32_t j = 1; j < J; ++j) {
         uint64_t step;
-        read_varint(&r, &step, "parents", 10);
+        read_varint(&sk, &step, "parents", 10);
         x->parents[j] = (int32_t)(j - step);
     }
     for (uint32_t e = 0; e < h.ends; ++e) {
         uint64_t joint;
-        read_varint(&r, &joint, "end-site parents", 10);
+        read_varint(&sk, &joint, "end-site parents", 10);
         x->end_parents[e] = (int32_t)joint;
     }
-    read_offsets(&r, r.data + h.offsets_at, h.offsets_bytes, J + h.ends, ldexp(1.0, h.exponent), x->offsets,
-                 J + h.ends);
+    if (h.prior) { /* float64 offsets onto the stream's grid, as pack_skeleton_runtime: np.round (half to even) */
+        double step = ldexp(1.0, h.exponent);
+        for (size_t i = 0; i < 3 * ((size_t)J + h.ends); ++i)
+            x->offsets[i] = (nearbyint(le64f(h.prior_data + h.prior_offsets_at + 8 * i) / step) + 0.0) * step;
+    } else {
+        read_offsets(&r, r.data + h.offsets_at, h.offsets_bytes, J + h.ends, ldexp(1.0, h.exponent), x->offsets,
+                     J + h.ends);
+    }
     /* cuts -> segment starts (the cuts go to the segment array's tail first) */
     r.pos = h.cuts_at;
     uint32_t num_cuts;
@@ -1623,6 +1865,35 @@ static int open_with(void *context, size_t context_bytes, container_t *given, co
         x->correction_step[0] = root_cm * scale;
         for (uint32_t j = 0; j < J; ++j) rotation[j] *= scale;
     }
+    /* the first segment's quantized means predicted from the prior's rig (prior.first_means): its mean signal
+     * turned onto the principal axes, times sqrt(segment frames) over the base step, rounded; a value within 1e-6
+     * of a rounding boundary makes the stream invalid (the encoder then writes the flag 0) */
+    double *predicted = NULL;
+    if (h.predicted) {
+        predicted = x->scratch; /* C values (the scratch holds more) */
+        const uint8_t *mean = h.prior_data + h.prior_mean_at;
+        double root_n = sqrt((double)x->segment_frames);
+        for (uint32_t ch = 0; ch < C; ++ch) {
+            double value;
+            if (ch < 3) {
+                value = le64f(mean + 8 * ch);
+            } else {
+                uint32_t j = (ch - 3) / 3, l = (ch - 3) % 3;
+                const uint8_t *v = mean + 8 * (3 + 3 * (size_t)j);
+                if (x->turned[j] < 0) {
+                    value = le64f(v + 8 * l);
+                } else { /* axes.to_axes: the sum over the rotation vector's components, in numpy's order */
+                    const double *m = x->axes + 9 * (size_t)x->turned[j];
+                    value = (le64f(v) * m[l] + le64f(v + 8) * m[3 + l]) + le64f(v + 16) * m[6 + l];
+                }
+            }
+            double scaled = value * root_n / x->base_step[ch];
+            if (!(fabs(scaled) < 0x1p40) || fabs(scaled - floor(scaled) - 0.5) < 1e-6)
+                return fail(message, MESSAGE_BYTES, MCBROT_E_CORRUPT, "mcb-rot: the stream predicts its first "
+                            "segment's means where a rounding is too close to call");
+            predicted[ch] = floor(scaled + 0.5);
+        }
+    }
     /* side unit: segment means then significance counts (differences along the segments) */
     r.pos = h.side_at;
     {
@@ -1636,7 +1907,7 @@ static int open_with(void *context, size_t context_bytes, container_t *given, co
                 int e = unit_next(&u, SIDE + clip_class(x->class_table[(size_t)ch * NUM_BANDS] + x->dc_tilt), &v);
                 if (e) return unit_error(&r, e, what);
                 size_t i = (size_t)seg * C + ch;
-                x->dc[i] = (seg ? x->dc[i - C] : 0) + v;
+                x->dc[i] = (seg ? x->dc[i - C] : (predicted ? (int64_t)predicted[ch] : 0)) + v;
             }
         for (uint32_t seg = 0; seg < S; ++seg) {
             uint32_t length = x->seg_start[seg + 1] - x->seg_start[seg];

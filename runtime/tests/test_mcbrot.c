@@ -2,7 +2,10 @@
  * with ASan and UBSan). Every stream: the right status for what it is (format 6 mcb-rot opens; older mcb-rot
  * formats, other codecs refused); every format 6 stream: every frame decodes to unit quaternions, the sampling
  * modes agree with the frames, and every hostile variant (each truncation, flipped bytes, a context too small,
- * times outside the clip) is refused with a status and a message. Prints one line per stream; exit 1 on failure. */
+ * times outside the clip) is refused with a status and a message. A stream `name.mcb` with `name.prior` beside it
+ * names a rig of that prior (flags bit 15): it opens with the prior, and is refused without it, with another prior
+ * (one byte changed: the fingerprint differs) and with the prior cut short. Prints one line per stream; exit 1 on
+ * failure. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -21,6 +24,10 @@ static int failures = 0;
         }                                                                                                          \
     } while (0)
 
+/* The prior of the stream under test (NULL: none). */
+static const unsigned char *prior = NULL;
+static size_t prior_bytes = 0;
+
 static unsigned char *read_file(const char *path, size_t *n) {
     FILE *f = fopen(path, "rb");
     if (!f) return NULL;
@@ -35,10 +42,10 @@ static unsigned char *read_file(const char *path, size_t *n) {
 
 static void *open_clip(const unsigned char *data, size_t n, int *status, size_t *size) {
     char message[256];
-    *status = mcbrot_context_size(data, n, size, message, sizeof message);
+    *status = mcbrot_context_size_with_prior(data, n, prior, prior_bytes, size, message, sizeof message);
     if (*status) return NULL;
     void *context = aligned_alloc(16, (*size + 15) & ~(size_t)15);
-    *status = mcbrot_open(context, *size, data, n);
+    *status = mcbrot_open_with_prior(context, *size, data, n, prior, prior_bytes);
     if (*status) {
         free(context);
         return NULL;
@@ -201,6 +208,32 @@ static void test_scales(const char *path, void *context, const mcbrot_clip_info 
     free(one);
 }
 
+/* A stream that names a prior: refused (MCBROT_E_PRIOR, a message naming the prior) without it, when sized or
+ * opened; with another prior (a byte changed: the fingerprint differs); with the prior cut short; with a NULL prior. */
+static void test_prior(const char *path, const unsigned char *data, size_t n, size_t size) {
+    char message[256];
+    size_t none;
+    CHECK(mcbrot_context_size(data, n, &none, message, sizeof message) == MCBROT_E_PRIOR && strstr(message, "prior"),
+          "%s: sized without its prior: %s", path, message);
+    void *context = aligned_alloc(16, size);
+    CHECK(mcbrot_open(context, size, data, n) == MCBROT_E_PRIOR && strstr(mcbrot_message(context), "none was given"),
+          "%s: opened without its prior", path);
+    unsigned char *other = malloc(prior_bytes);
+    for (size_t at = 0; at < prior_bytes; at += 1 + at / 4) {
+        memcpy(other, prior, prior_bytes);
+        other[at] ^= 0x21;
+        CHECK(mcbrot_open_with_prior(context, size, data, n, other, prior_bytes) == MCBROT_E_PRIOR &&
+                  strstr(mcbrot_message(context), "coded against prior"),
+              "%s: opened with another prior (byte %zu changed): %s", path, at, mcbrot_message(context));
+    }
+    for (size_t cut = 0; cut < prior_bytes; cut += 1 + cut / 8)
+        CHECK(mcbrot_open_with_prior(context, size, data, n, prior, cut) == MCBROT_E_PRIOR,
+              "%s: opened with its prior cut at %zu bytes", path, cut);
+    CHECK(mcbrot_open_with_prior(context, size, data, n, NULL, 5) == MCBROT_E_PRIOR, "%s: a NULL prior", path);
+    free(other);
+    free(context);
+}
+
 static void test_stream(const char *path, const unsigned char *data, size_t n) {
     size_t size;
     int status;
@@ -262,11 +295,13 @@ static void test_stream(const char *path, const unsigned char *data, size_t n) {
     CHECK(strlen(mcbrot_message(context)) > 10, "no message for a bad time");
     CHECK(mcbrot_decode_frames(context, (uint32_t)F, 1, pose, root) == MCBROT_E_ARGUMENT, "a frame past the end");
     void *small = aligned_alloc(16, size);
-    CHECK(mcbrot_open(small, size - 16, data, n) == MCBROT_E_CONTEXT_SMALL, "a small context accepted");
+    CHECK(mcbrot_open_with_prior(small, size - 16, data, n, prior, prior_bytes) == MCBROT_E_CONTEXT_SMALL,
+          "a small context accepted");
     CHECK(strstr(mcbrot_message(small), "needs") != NULL, "the message says what it needs");
     CHECK(mcbrot_sample(small, 0.0, MCBROT_NEAREST, pose, root) == MCBROT_E_NOT_OPEN, "a failed open samples");
     free(small);
     test_hostile(data, n);
+    if (prior) test_prior(path, data, n, size);
     printf("ok %s: %zu frames, %zu joints, %u tracks, context %zu bytes (+ %zu stream)\n", path, F, J, info.num_tracks,
            info.context_bytes, n);
     free(rotations);
@@ -280,8 +315,20 @@ int main(int argc, char **argv) {
         size_t n;
         unsigned char *data = read_file(argv[i], &n);
         CHECK(data != NULL, "cannot read %s", argv[i]);
+        char beside[4096];
+        size_t length = strlen(argv[i]);
+        unsigned char *model = NULL;
+        if (length > 4 && length < sizeof beside && strcmp(argv[i] + length - 4, ".mcb") == 0) {
+            memcpy(beside, argv[i], length - 4);
+            memcpy(beside + length - 4, ".prior", 7);
+            model = read_file(beside, &prior_bytes);
+        }
+        prior = model;
         if (data) test_stream(argv[i], data, n);
         free(data);
+        free(model);
+        prior = NULL;
+        prior_bytes = 0;
     }
     printf("%d failure(s)\n", failures);
     return failures ? 1 : 0;

@@ -2,7 +2,9 @@
 flags bit 10, with a still root kept apart, flags bit 12, and with scale tracks, flags bit 13, which the
 repository's golden streams do not carry) and the fuzzer's small seeds
 (``runtime/fuzz/seeds/``: a few joints and frames each, so that one execution costs little and a campaign reaches
-millions of inputs, with every part of the format present: cuts, re-references, corrections, tracks, a still root). The C tests
+millions of inputs, with every part of the format present: cuts, re-references, corrections, tracks, a still root). A
+stream that names a rig of a prior (flags bit 15) is written with the prior's bytes beside it (``name.prior`` next to
+``name.mcb``): the C tests open it with them, the fuzzer's seeds carry them. The C tests
 (``make test``) and the fuzz campaigns read them; the Python tests compare the runtime with numpy on freshly made
 streams, so these files only need to be valid.
 
@@ -42,6 +44,8 @@ def main() -> None:
     for name, (motion, settings) in cases.items():
         (OUT / name).write_bytes(create("mcb-rot", **settings).encode(motion))
         print(OUT / name)
+    _write_prior(OUT / "game-rig-prior.mcb", [still_root_rig(30, seed=1), game_rig_motion(30, seed=2)],
+                 still_root_rig(150, seed=12, position=(0.0, 0.0, 0.0)), dict(eps_cm=0.5, chunk_frames=64))
     seeds = ROOT / "runtime" / "fuzz" / "seeds"
     seeds.mkdir(parents=True, exist_ok=True)
     small = {
@@ -60,6 +64,25 @@ def main() -> None:
     for name, (motion, settings) in small.items():
         (seeds / name).write_bytes(create("mcb-rot", **settings).encode(motion))
         print(seeds / name, (seeds / name).stat().st_size, "bytes")
+    _write_prior(seeds / "prior-3j-10f.mcb", [random_motion(11, 3, 12, 0.0, 0.3), random_motion(12, 2, 12, 0.0, 0.3)],
+                 random_motion(11, 3, 10, 0.0, 0.3), dict(eps_cm=1.0, segment_frames=4, chunk_frames=8))
+    _write_prior(seeds / "prior-still-root-9f.mcb", [still_root_rig(12, seed=13)], still_root_rig(9, seed=13),
+                 dict(eps_cm=1.0, segment_frames=4, chunk_frames=8))
+
+
+def _write_prior(path: Path, training, motion, settings) -> None:
+    """A stream of ``motion`` naming its rig in a prior fit on ``training`` (which holds that rig), and the prior's
+    bytes beside it (``.prior``)."""
+    from mocapbench.codecs import container, create
+    from mocapbench.codecs.mcb_rot import stream
+
+    codec = create("mcb-rot", **settings).fit(training)
+    data = codec.encode(motion)
+    header, payload = container.unpack(data, "mcb-rot")
+    assert stream.read_info(header, payload, codec._prior).settings.prior, "the prior does not hold the clip's rig"
+    path.write_bytes(data)
+    path.with_suffix(".prior").write_bytes(codec._prior.data)
+    print(path, len(data), "bytes, prior", len(codec._prior.data), "bytes")
 
 
 def _still(motion):

@@ -184,17 +184,18 @@ def _native_inner(info: StreamInfo, clip, start: int, stop: int, out: tuple, mov
 
 
 def native_clip(info: StreamInfo, payload: memoryview):
-    """The runtime's opened clip of a format 6 payload (kept in ``info``'s cache), or None: an older format, a
-    stream named against a prior (flag bit 15, which the runtime does not read), the runtime not built, or
-    ``MOCAPBENCH_NATIVE=0``. The clip has the whole rig's joints (a still root kept apart, :mod:`.static_root`, is
+    """The runtime's opened clip of a format 6 payload (kept in ``info``'s cache), or None: an older format, the
+    runtime not built, or ``MOCAPBENCH_NATIVE=0``. A stream named against a prior (flag bit 15) opens with the
+    prior's bytes ``read_info`` kept. The clip has the whole rig's joints (a still root kept apart, :mod:`.static_root`, is
     one more than the stream's skeleton)."""
-    if info.version < 6 or info.settings.prior:
+    if info.version < 6:
         return None
     if "native" not in info._cache:
         lib = native.library()
         # fps 1: frames are asked for by index, the runtime's time-based sampling is not used here
         info._cache["native"] = None if lib is None else native.NativeClip(
-            lib, payload, info.layout.num_frames, info.skeleton.num_joints + (info.static_root is not None), 1.0)
+            lib, payload, info.layout.num_frames, info.skeleton.num_joints + (info.static_root is not None), 1.0,
+            info.prior_data)
     return info._cache["native"]
 
 

@@ -30,11 +30,11 @@ __all__ = ["ABI_VERSION", "RUNTIME_DIR", "library", "NativeClip", "NativeError"]
 
 log = logging.getLogger(__name__)
 
-ABI_VERSION = 2
+ABI_VERSION = 3
 RUNTIME_DIR = Path(__file__).resolve().parents[3] / "runtime"
 _SOURCES = ("src/mcbrot.c", "src/mcbrot_tables.h", "include/mcbrot.h")
 _FLAGS = ["-O2", "-std=c99", "-fPIC", "-shared", "-fvisibility=hidden"]
-_STATUS_BITSTREAM = {2, 3, 4, 5, 9}  # truncated, corrupt, not mcb-rot, format, unsupported
+_STATUS_BITSTREAM = {2, 3, 4, 5, 9, 10}  # truncated, corrupt, not mcb-rot, format, unsupported, prior
 
 
 class NativeError(RuntimeError):
@@ -72,10 +72,12 @@ def library() -> ctypes.CDLL | None:
     u8p, size_p = ctypes.POINTER(ctypes.c_uint8), ctypes.POINTER(ctypes.c_size_t)
     dp = ctypes.POINTER(ctypes.c_double)
     lib.mcbrot_abi_version.restype = ctypes.c_int
-    lib.mcbrot_payload_context_size.argtypes = [u8p, ctypes.c_size_t, ctypes.c_uint32, ctypes.c_uint32,
-                                                ctypes.c_double, size_p, ctypes.c_char_p, ctypes.c_size_t]
-    lib.mcbrot_open_payload.argtypes = [ctypes.c_void_p, ctypes.c_size_t, u8p, ctypes.c_size_t, ctypes.c_uint32,
-                                        ctypes.c_uint32, ctypes.c_double]
+    lib.mcbrot_payload_context_size_with_prior.argtypes = [u8p, ctypes.c_size_t, ctypes.c_uint32, ctypes.c_uint32,
+                                                           ctypes.c_double, u8p, ctypes.c_size_t, size_p,
+                                                           ctypes.c_char_p, ctypes.c_size_t]
+    lib.mcbrot_open_payload_with_prior.argtypes = [ctypes.c_void_p, ctypes.c_size_t, u8p, ctypes.c_size_t,
+                                                   ctypes.c_uint32, ctypes.c_uint32, ctypes.c_double, u8p,
+                                                   ctypes.c_size_t]
     lib.mcbrot_decode_frames.argtypes = [ctypes.c_void_p, ctypes.c_uint32, ctypes.c_uint32, dp, dp]
     lib.mcbrot_decode_pose_frames.argtypes = [ctypes.c_void_p, ctypes.c_uint32, ctypes.c_uint32, dp, dp]
     lib.mcbrot_decode_scale_frames.argtypes = [ctypes.c_void_p, ctypes.c_uint32, ctypes.c_uint32, dp]
@@ -95,9 +97,13 @@ def _raise(status: int, message: str) -> None:
 
 
 class NativeClip:
-    """One opened payload (format 6): its context (a numpy buffer) and the payload bytes it points into."""
+    """One opened payload (format 6): its context (a numpy buffer) and the payload bytes it points into.
 
-    def __init__(self, lib: ctypes.CDLL, payload: bytes, num_frames: int, num_joints: int, fps: float) -> None:
+    ``prior``: the bytes of the prior a stream with flags bit 15 names (:mod:`.prior`; read at open only), or None.
+    """
+
+    def __init__(self, lib: ctypes.CDLL, payload: bytes, num_frames: int, num_joints: int, fps: float,
+                 prior: bytes | None = None) -> None:
         self._lib = lib
         self._payload = bytes(payload)  # kept alive: the context points into it
         self.num_frames, self.num_joints = num_frames, num_joints
@@ -105,14 +111,16 @@ class NativeClip:
         self._data = data
         size = ctypes.c_size_t()
         message = ctypes.create_string_buffer(256)
-        status = lib.mcbrot_payload_context_size(data, len(self._payload), num_frames, num_joints, fps,
-                                                 ctypes.byref(size), message, 256)
+        model = None if prior is None else (ctypes.c_uint8 * len(prior)).from_buffer_copy(prior)
+        model_bytes = 0 if prior is None else len(prior)
+        status = lib.mcbrot_payload_context_size_with_prior(data, len(self._payload), num_frames, num_joints, fps,
+                                                            model, model_bytes, ctypes.byref(size), message, 256)
         if status:
             _raise(status, message.value.decode(errors="replace"))
         self.context_bytes = size.value
         self._context = np.zeros(size.value // 8 + 2, dtype=np.float64)  # 16-aligned (numpy aligns to 16 or more)
-        status = lib.mcbrot_open_payload(self._pointer, size.value, data, len(self._payload), num_frames, num_joints,
-                                         fps)
+        status = lib.mcbrot_open_payload_with_prior(self._pointer, size.value, data, len(self._payload), num_frames,
+                                                    num_joints, fps, model, model_bytes)
         if status:
             _raise(status, lib.mcbrot_message(self._pointer).decode(errors="replace"))
 

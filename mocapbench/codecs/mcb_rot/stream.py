@@ -279,6 +279,7 @@ class StreamInfo:
     static_root: StaticRoot | None = None  # format 6, flags bit 12: the still root joint 0 the skeleton lacks
     scales: Tracks | None = None  # format 6, flags bit 13: the scale tracks' header (and q at the encoder)
     prior_mean: np.ndarray | None = None  # format 6, flags bit 15: the named rig's mean signal (:mod:`.prior`)
+    prior_data: bytes | None = None  # format 6, flags bit 15: the prior's bytes (the native runtime reads the rig there)
     _cache: dict = field(default_factory=dict, repr=False)
 
     def replace(self, **changes) -> "StreamInfo":
@@ -794,7 +795,7 @@ def read_info(header: Header, payload: memoryview, prior: Prior | None = None) -
     budgets = stream_budgets(settings, skeleton, track_header, scale_header)
     return StreamInfo(settings, skeleton, budgets, layout, cuts, overrides, axis_codes, scale, tilt, dc_tilt,
                       count_tilt, gap_class, value_class, dc, offsets, counts, version, unit_values, track_header,
-                      static_root, scale_header, prior_mean)
+                      static_root, scale_header, prior_mean, prior.data if settings.prior else None)
 
 
 def end_site_reach(skeleton: Skeleton) -> np.ndarray:

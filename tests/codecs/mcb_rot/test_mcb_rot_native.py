@@ -165,14 +165,14 @@ def test_hostile_payloads_are_refused_with_one_line_never_a_crash(lib):
     assert refused >= len(cases) // 2
 
 
-def _full_both(data: bytes, start: int = 0, stop: int | None = None):
+def _full_both(data: bytes, start: int = 0, stop: int | None = None, prior=None):
     """(native, numpy) positions (n, J, 3) and motion of frames start:stop of a one-window stream, the whole rig (a
-    still root kept apart put back in front)."""
+    still root kept apart put back in front); ``prior``: the one a stream with flags bit 15 names."""
     header, payload = container.unpack(data, "mcb-rot")
     stop = header.num_frames if stop is None else stop
     results = []
     for use_native in (True, False):
-        info = stream.read_info(header, payload)
+        info = stream.read_info(header, payload, prior)
         if not use_native:
             info._cache["native"] = None
         else:

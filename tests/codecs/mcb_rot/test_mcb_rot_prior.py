@@ -13,7 +13,6 @@ import pytest
 from mocapbench.codecs import create
 from mocapbench.codecs.base import BitstreamError
 from mocapbench.codecs.container import unpack
-from mocapbench.codecs.mcb_rot import native
 from mocapbench.codecs.mcb_rot.prior import Prior, first_means
 from mocapbench.codecs.model_file import ModelFileError, load_model, save_model
 from mocapbench.motion import Motion
@@ -106,15 +105,6 @@ def test_malformed_priors_are_refused_in_one_line(fitted, tmp_path):
             archive.writestr(name, content)
     with pytest.raises(ModelFileError, match="bad.npz: mcb-rot: the prior is malformed: version 9"):
         load_model(tmp_path / "bad.npz")
-
-
-def test_the_native_runtime_answers_unsupported_for_a_stream_with_the_prior(fitted):
-    found = native.library()
-    if found is None:
-        pytest.skip("the native runtime is not available (no C compiler?)")
-    header, payload = unpack(fitted.encode(game_rig_motion(40, seed=6)), "mcb-rot")
-    with pytest.raises(BitstreamError, match="rig of a prior .*flag bit 15"):
-        native.NativeClip(found, bytes(payload), header.num_frames, header.num_joints, header.fps)
 
 
 def test_the_first_means_are_predicted_where_no_rounding_is_close_and_refused_where_one_is():
