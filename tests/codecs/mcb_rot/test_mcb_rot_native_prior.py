@@ -189,3 +189,22 @@ def test_hostile_prior_bytes_are_refused_as_python_refuses_them(lib, fitted):
         np.testing.assert_allclose(native_out[0], numpy_out[0], rtol=0, atol=1e-6)
         decoded += 1
     assert refused >= 100 and decoded >= 5
+
+
+def test_a_bandai_clip_named_in_a_prior_decodes_alike_through_the_runtime(lib, bandai_dir):
+    """A real game-studio clip (the first of the test split, at most 150 frames) coded against a prior fit on the
+    first 30 frames of three test clips: its rig named, native = numpy, the bound held."""
+    from mocapbench.datasets.bandai import clip_files
+    from mocapbench.io.bvh import read_bvh
+
+    clips = clip_files("bandai_test", bandai_dir)
+    codec = create("mcb-rot", eps_cm=EPS).fit([read_bvh(path).slice(0, 30) for _, _, path in clips[:3]])
+    name, _, path = clips[0]
+    motion = read_bvh(path)
+    motion = motion.slice(0, min(150, motion.num_frames))
+    data = codec.encode(motion)
+    header, payload = container.unpack(data, "mcb-rot")
+    assert stream.read_info(header, payload, codec._prior).settings.prior, name
+    _assert_alike(data, codec._prior)
+    _assert_alike(data, codec._prior, 31, 97)
+    assert metrics.max_joint_error(motion.positions(), codec.decode(data).positions) <= EPS
