@@ -1,4 +1,6 @@
-"""Write runtime/src/mcbrot_tables.h: format 6's rANS tables, from the Python codec (the source of truth).
+"""Write runtime/src/mcbrot_tables.h: format 6's rANS tables, from the Python codec (the source of truth), and the
+CRC32 tables (zlib's polynomial, four tables: the runtime checks four bytes a step, the container's CRC and a
+prior's fingerprint being most of the time a clip takes to open).
 
     PYTHONPATH=. python runtime/tools/gen_tables.py            # rewrite the header
     PYTHONPATH=. python runtime/tools/gen_tables.py --check    # exit 1 if the header differs (a test runs this)
@@ -16,6 +18,31 @@ HEADER = Path(__file__).resolve().parents[1] / "src" / "mcbrot_tables.h"
 #: than Python's, so that a token's search in C rarely goes past its bucket's first token (a mispredicted branch
 #: per step costs more than the table's 32 KB, of which a stream touches the few classes it uses).
 LOOKUP = 256
+
+
+def crc32_tables():
+    """(4, 256) uint32: zlib's CRC32 table and the three that advance it one, two and three more bytes (slicing by
+    four), checked against :func:`zlib.crc32`."""
+    import zlib
+
+    import numpy as np
+
+    first = []
+    for byte in range(256):
+        crc = byte
+        for _ in range(8):
+            crc = (crc >> 1) ^ 0xEDB88320 if crc & 1 else crc >> 1
+        first.append(crc)
+    tables = [first]
+    for _ in range(3):
+        tables.append([(value >> 8) ^ first[value & 0xFF] for value in tables[-1]])
+    data, crc = bytes(range(256)) * 3, 0xFFFFFFFF
+    for at in range(0, len(data), 4):
+        crc ^= int.from_bytes(data[at:at + 4], "little")
+        crc = (tables[3][crc & 0xFF] ^ tables[2][(crc >> 8) & 0xFF] ^ tables[1][(crc >> 16) & 0xFF]
+               ^ tables[0][crc >> 24])
+    assert crc ^ 0xFFFFFFFF == zlib.crc32(data)
+    return np.array(tables, dtype=np.uint32)
 
 
 def render() -> str:
@@ -41,6 +68,8 @@ def render() -> str:
         + rows("mcbrot_cum", "uint16_t", tables.cum)
         + f"#define MCBROT_LOOKUP_SHIFT {int(np.log2(precision // LOOKUP))}\n"
         + rows("mcbrot_lookup", "uint8_t", lookup)
+        + "/* CRC32 (zlib's polynomial), slicing by four: mcbrot_crc32[0] is zlib's table */\n"
+        + rows("mcbrot_crc32", "uint32_t", crc32_tables())
         + "#endif\n"
     )
 
