@@ -16,7 +16,8 @@ from typing import Any, Sequence
 
 from mocapbench.experiments.sweep_progress import format_duration
 
-__all__ = ["SweepPlan", "BenchEstimate", "estimate_run", "format_estimate", "format_progress", "codec_times",
+__all__ = ["SweepPlan", "BenchEstimate", "estimate_run", "format_estimate", "format_estimate_table",
+           "format_progress", "codec_times",
            "format_codec_times"]
 
 
@@ -41,6 +42,10 @@ class BenchEstimate:
     measured: str  # when and where the costs were measured
     unpriced: tuple[str, ...] = ()  # sweeps that could not be priced, with the reason
     sweep_wall_s: tuple[float, ...] = ()  # per sweep of the plans, in order (0 for one not priced)
+    sweep_cpu_s: tuple[float, ...] = ()  # per sweep of the plans, in order (0 for one not priced)
+    sweep_jobs: tuple[int, ...] = ()  # per sweep of the plans, in order
+    labels: tuple[str, ...] = ()  # the plans' labels, in order
+    sweep_codec_cpu_s: tuple[dict[str, float], ...] = ()  # per sweep: CPU seconds per codec
 
 
 def estimate_run(plans: Sequence[SweepPlan], workers: int, common: Sequence[str] = ()) -> BenchEstimate:
@@ -52,7 +57,7 @@ def estimate_run(plans: Sequence[SweepPlan], workers: int, common: Sequence[str]
     jobs = 0
     per_codec: dict[str, float] = {}
     unpriced = []
-    sweep_walls = []
+    sweep_walls, sweep_cpus, sweep_jobs, sweep_codecs = [], [], [], []
     start_s = float(costs.get("sweep", {}).get("wall_s", 0.0))  # a sweep's process, set-up and workers
     for plan in plans:
         overrides = [f"dataset={plan.dataset}", *plan.overrides, *common]
@@ -62,16 +67,23 @@ def estimate_run(plans: Sequence[SweepPlan], workers: int, common: Sequence[str]
         except Exception as error:  # noqa: BLE001 - the sweep itself will say what is wrong
             unpriced.append(f"{plan.label} ({str(error).splitlines()[0][:120] if str(error) else type(error).__name__})")
             sweep_walls.append(0.0)
+            sweep_cpus.append(0.0)
+            sweep_jobs.append(0)
+            sweep_codecs.append({})
             continue
         result = cost.estimate(costs, folders, frames, workers)
         sweep_walls.append(result.wall_h * 3600 + start_s)
         wall += sweep_walls[-1]
         cpu += result.cpu_h * 3600
         jobs += result.jobs
+        sweep_cpus.append(result.cpu_h * 3600)
+        sweep_jobs.append(result.jobs)
+        sweep_codecs.append({row["codec"]: row["cpu_h"] * 3600 for row in result.rows})
         for row in result.rows:
             per_codec[row["codec"]] = per_codec.get(row["codec"], 0.0) + row["cpu_h"] * 3600
     measured = f"{costs.get('measured', '?')} on {costs.get('machine', '?')}"
-    return BenchEstimate(wall, cpu, jobs, per_codec, measured, tuple(unpriced), tuple(sweep_walls))
+    return BenchEstimate(wall, cpu, jobs, per_codec, measured, tuple(unpriced), tuple(sweep_walls),
+                         tuple(sweep_cpus), tuple(sweep_jobs), tuple(p.label for p in plans), tuple(sweep_codecs))
 
 
 def format_progress(done: int, elapsed_s: float, estimate: BenchEstimate | None) -> str:
@@ -96,6 +108,22 @@ def format_estimate(estimate: BenchEstimate, workers: int, top: int = 4) -> str:
             f"({format_duration(estimate.cpu_s)} CPU, {estimate.jobs} jobs; most CPU: {share}); "
             f"per-frame costs measured {estimate.measured}"
             + (f"; not priced: {', '.join(estimate.unpriced)}" if estimate.unpriced else ""))
+
+
+def format_estimate_table(estimate: BenchEstimate) -> str:
+    """Markdown tables of the estimate in seconds: per sweep (jobs, CPU, wall on the workers, the sweep's start-up
+    included), then each codec's CPU per sweep."""
+    lines = ["| sweep | jobs | CPU s | wall s |", "|---|---:|---:|---:|"]
+    for label, jobs, cpu, wall in zip(estimate.labels, estimate.sweep_jobs, estimate.sweep_cpu_s,
+                                      estimate.sweep_wall_s):
+        lines.append(f"| {label} | {jobs} | {cpu:.0f} | {wall:.0f} |")
+    lines.append(f"| all | {estimate.jobs} | {estimate.cpu_s:.0f} | {estimate.wall_s:.0f} |")
+    lines += ["", "| codec CPU s | " + " | ".join(estimate.labels) + " | all |",
+              "|---|" + "---:|" * (len(estimate.labels) + 1)]
+    for codec, total in sorted(estimate.codec_cpu_s.items(), key=lambda item: -item[1]):
+        cells = [f"{each[codec]:.0f}" if codec in each else "-" for each in estimate.sweep_codec_cpu_s]
+        lines.append(f"| {codec} | " + " | ".join(cells) + f" | {total:.0f} |")
+    return "\n".join(lines)
 
 
 def codec_times(folders: Sequence[Path]) -> list[dict[str, Any]]:

@@ -11,7 +11,8 @@
     its data folder exists, else one line says so), then the LSDT claim sweeps (``sweep=lsdt_sparsity``, ``sweep=lsdt_clip_length``) when the LSDT codecs exist.
 
 Before the sweeps, ``make bench`` prints how long they will take (:mod:`mocapbench.experiments.bench_time`: the
-jobs it is about to run priced with the per-frame costs measured on this machine; ``--no-estimate`` skips it).
+jobs it is about to run priced with the per-frame costs measured on this machine; ``--no-estimate`` skips it;
+``--estimate-only`` prints it per sweep and per codec, in seconds, and runs nothing).
 Each sweep runs as its own ``python -m mocapbench.experiments.run -m ...`` process (Hydra owns its process), which
 prints its estimate, a line per finished job with its time beside its estimate and an ETA, and a summary at the
 end; at the end of the run a table gives each codec's wall and CPU time; ``--resume DIR`` re-runs into an existing
@@ -118,6 +119,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--allow-failures", action="store_true",
                         help="exit 0 even if some job failed (the summary and the report still list them)")
     parser.add_argument("--no-estimate", action="store_true", help="do not price the run before it starts")
+    parser.add_argument("--estimate-only", action="store_true",
+                        help="print the estimate (per sweep and per codec) and exit without running anything")
     parser.add_argument("extra", nargs="*", help="more Hydra overrides for every sweep")
     args = parser.parse_args(argv)
     from mocapbench.experiments.headline import bounds_with
@@ -144,6 +147,14 @@ def main(argv: list[str] | None = None) -> int:
             print(f"make bench needs the CMU clips: {where}", file=sys.stderr)
             return 2
         plans = _bench_plans()
+        if args.estimate_only:
+            estimate = _print_estimate(plans, common)
+            if estimate is None:
+                return 1
+            from mocapbench.experiments.bench_time import format_estimate_table
+
+            print(format_estimate_table(estimate))
+            return 0
         estimate = None if args.no_estimate else _print_estimate(plans, common)
         sweeps_start = time.perf_counter()
         from mocapbench.experiments.bench_time import format_progress

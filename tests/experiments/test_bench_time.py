@@ -49,3 +49,17 @@ def test_progress_line_scales_the_time_left_by_the_sweeps_so_far():
     assert line == "make bench: 1 sweep(s) done, 10.0 min elapsed (estimated 5.0 min); 1/3 sweeps, about 10.0 min left"
     assert format_progress(3, 500.0, estimate).endswith("3/3 sweeps, about 0 s left")
     assert format_progress(2, 10.0, None) == "make bench: 2 sweep(s) done, 10 s elapsed"
+
+
+def test_estimate_table_lists_each_sweep_and_each_codecs_cpu_per_sweep():
+    from mocapbench.experiments.bench_time import format_estimate_table
+
+    estimate = BenchEstimate(wall_s=450.0, cpu_s=900.0, jobs=7, codec_cpu_s={"a": 120.0, "b": 780.0},
+                             measured="here", sweep_wall_s=(400.0, 50.0), sweep_cpu_s=(800.0, 100.0),
+                             sweep_jobs=(5, 2), labels=("s1", "s2"),
+                             sweep_codec_cpu_s=({"a": 20.0, "b": 780.0}, {"a": 100.0}))
+    lines = format_estimate_table(estimate).splitlines()
+    assert lines[2:5] == ["| s1 | 5 | 800 | 400 |", "| s2 | 2 | 100 | 50 |", "| all | 7 | 900 | 450 |"]
+    assert lines[6] == "| codec CPU s | s1 | s2 | all |"
+    # costliest codec first; a codec a sweep does not run reads "-"
+    assert lines[8:] == ["| b | 780 | - | 780 |", "| a | 20 | 100 | 120 |"]
