@@ -14,7 +14,7 @@ Design (two layers, in the spirit of near-lossless image coding such as JPEG-LS)
          ``"bone"`` (child − parent vectors) and ``"absolute"`` need no basis.
       └─ base layer: orthonormal DCT-II along time on clips of L frames (the LSDT paper's clip scheme, eq. 4; L =
          480 frames by default, 4 s at 120 fps: 3-5 % smaller than 240 on cmu_test, 960 gains 1-2 % more),
-         dead-zone quantization (rounding offset 0.45) with a step that grows with frequency,
+         quantization with a step that grows with frequency,
          Δ_k = Δ (1 + 2 k / L) (a quantization matrix, as in JPEG), and a finer step on the root's channels
          (``root_step_rel``, 0.2): a root error moves all J joints, so in mean squared error it weighs J times a
          single joint's (the MSE-optimal root step is Δ / sqrt(J), 0.18 Δ for 31 joints).
@@ -22,10 +22,16 @@ Design (two layers, in the spirit of near-lossless image coding such as JPEG-LS)
          wins; below 60 fps the search also tries the flatter slope ``low_fps_slope``, 0.25, since a frame at
          30 fps carries more of the motion's high frequencies); with ``mean_cm`` > 0, as the coarsest step whose
          decoded mean error is <= ``mean_cm``.
+         Rounding: with the trained entropy coder, rate-distortion rounding (``rd_lambda``): each coefficient
+         starts at its nearest integer and moves towards zero where its squared error plus ``rd_lambda`` times
+         its bits under its class falls (a lone ±1 where a zero is near-certain goes); without it (``"bands"``, or
+         ``rd_lambda`` 0), dead-zone rounding (offset ``rounding``, 0.45).
       └─ refinement layer: r = P − P̂_base on absolute positions; joints with ||r|| <= ε are left alone, the others
          get r quantized to the nearest point of a body-centred cubic (BCC) lattice whose covering radius is ε,
          so every joint ends within ε. BCC is the best lattice covering of 3-D space: its cells hold 1.86× the
          volume of the cube inscribed in the same ε-ball (0.9 bit per corrected joint saved over a cubic grid).
+         The balls overlap (covering density 1.46): with the trained coder the encoder takes, among the nearest
+         point and its 14 neighbours, the one within ε whose index costs the fewest bits.
       └─ entropy coding of the DCT coefficients (``entropy``):
          ``"trained"`` (default): each coefficient's distribution is known from training: the learned model holds
          the mean magnitude of every (frequency band, channel) on the training motions; a coefficient's class is
@@ -389,6 +395,58 @@ def _read_lattice(reader: ByteReader, payload: memoryview, count: int, model: Tr
     return 2 * halves + parity[:, None]
 
 
+def _rate_distortion_round(scaled: np.ndarray, classes: np.ndarray, tables: ClassTables, rd_lambda: float) -> np.ndarray:
+    """Quantized coefficients (int64) of ``scaled`` (values over their steps, (N,)) rounded for rate and distortion.
+
+    Each value starts at its nearest integer and moves one step towards zero (twice at most) where that lowers
+    ``squared error + rd_lambda * bits``, in squared steps: the bits are the value's ideal code length under its
+    class (token, sign bit, raw low bits; before the per-stream class shifts). A ±1 where its class expects a 0
+    costs several bits for a quarter of a squared step, so it goes; the refinement layer keeps the bound, and the
+    rate search picks the step. The decoder is unchanged: it reads whatever integers the encoder chose.
+    """
+    magnitude = np.abs(scaled)
+    chosen = np.floor(magnitude + 0.5).astype(np.int64)
+    log2_probabilities = tables.log2_probabilities
+
+    def bits(values):
+        tokens, _, widths = tokenize(values)
+        return widths + (values != 0) - log2_probabilities[classes, tokens]
+
+    for _ in range(2):
+        lower = np.maximum(chosen - 1, 0)
+        gain = (magnitude - lower) ** 2 - (magnitude - chosen) ** 2 + rd_lambda * (bits(lower) - bits(chosen))
+        chosen = np.where((chosen > 0) & (gain < 0), lower, chosen)
+    return np.where(scaled < 0, -chosen, chosen)
+
+
+# The 14 nearest neighbours of a BCC point (half-cell units): the 8 (±1, ±1, ±1) and the 6 (±2, 0, 0).
+_BCC_NEIGHBOURS = np.array(
+    [[a, b, c] for a in (-1, 1) for b in (-1, 1) for c in (-1, 1)]
+    + [[2, 0, 0], [-2, 0, 0], [0, 2, 0], [0, -2, 0], [0, 0, 2], [0, 0, -2]],
+    dtype=np.int64,
+)
+
+
+def _cheapest_lattice_points(residual, nearest, half_cell: float, radius: float, model: TrainedModel) -> np.ndarray:
+    """For each residual (N, 3) cm, the lattice point (half-cell units) of fewest bits within ``radius`` of it.
+
+    BCC balls of the covering radius overlap (the covering density is 1.46): a residual is often within
+    ``radius`` of a neighbour of its nearest point too, and a neighbour nearer the origin has a likelier index.
+    Candidates are the nearest point (always valid) and its 14 neighbours; the cost is the index's ideal code
+    length under the trained index distribution. The decoder is unchanged.
+    """
+    if not len(nearest):
+        return nearest
+    candidates = nearest[:, None, :] + np.concatenate([np.zeros((1, 3), dtype=np.int64), _BCC_NEIGHBOURS])[None]
+    valid = np.sum((residual[:, None, :] - candidates * half_cell) ** 2, axis=-1) <= radius**2
+    valid[:, 0] = True
+    symbols, _ = lattice_symbols(candidates.reshape(-1, 3))
+    tokens, _, widths = tokenize(symbols)
+    cost = (widths - model.lattice_tables.log2_probabilities[0, tokens]).reshape(valid.shape)
+    best = np.argmin(np.where(valid, cost, np.inf), axis=1)
+    return candidates[np.arange(len(candidates)), best]
+
+
 @dataclass(frozen=True, eq=False)
 class _Stream:
     """What one encode codes with: the effective representation and entropy coder, the model, the cuts (N,)."""
@@ -449,6 +507,10 @@ class McbLinfCodec(Codec):
         root_step_rel: float = param(0.2, low=0.01, high=1.0, unit="x step", doc="step of the root's channels")
         rounding: float = param(
             0.45, low=0.0, high=0.5, doc="rounding offset of the base quantizer (0.5: nearest; less: a dead zone)"
+        )
+        rd_lambda: float = param(
+            0.1, low=0.0, high=10.0, unit="squared steps per bit",
+            doc="trained entropy: round each coefficient for squared error + rd_lambda * bits (0: dead-zone rounding)",
         )
         zstd_level: int = param(19, low=1, high=22, doc="zstd level of the bands coded with zstd")
         cut_detection: bool = param(
@@ -662,8 +724,13 @@ class McbLinfCodec(Codec):
         steps = quantization_steps(
             layout.frequencies, layout.channels, step, slope, config.root_step_rel, config.clip_frames
         )
-        # Dead-zone rounding (offset < 1/2) zeroes more small coefficients; the refinement layer keeps the bound.
-        coefficients = dead_zone_quantize(spectrum, steps, config.rounding)
+        if stream.entropy == "trained" and config.rd_lambda > 0:
+            # Rounding that weighs each coefficient's bits under its class against its squared error.
+            classes = base_classes(model, layout.frequencies, layout.channels, steps)
+            coefficients = _rate_distortion_round(spectrum / steps, classes, model.tables, config.rd_lambda)
+        else:
+            # Dead-zone rounding (offset < 1/2) zeroes more small coefficients; the refinement keeps the bound.
+            coefficients = dead_zone_quantize(spectrum, steps, config.rounding)
         base = base_positions(
             coefficients, steps, num_frames, parents, config.clip_frames, stream.representation, model, cuts
         ).reshape(-1, 3)
@@ -671,6 +738,8 @@ class McbLinfCodec(Codec):
         radius = config.eps_cm * (1.0 - _SAFETY_MARGIN)
         corrected = np.flatnonzero(np.sum(residual**2, axis=-1) > radius**2)
         lattice, half_cell = bcc_quantize(residual[corrected], radius)
+        if stream.entropy == "trained":
+            lattice = _cheapest_lattice_points(residual[corrected], lattice, half_cell, radius, model)
         residual[corrected] -= lattice * half_cell
         mean_error = float(np.linalg.norm(residual, axis=-1).mean()) if residual.size else 0.0
 

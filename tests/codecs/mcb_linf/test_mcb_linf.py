@@ -279,3 +279,53 @@ def test_the_encoder_codes_corrected_joints_the_smaller_way_and_keeps_the_bound(
     data = codec.encode(motion)
     assert _stream_settings(codec, motion)[1]
     assert metrics.max_joint_error(motion.positions(), create("mcb-linf").decode(data).positions) <= 0.05
+
+
+def test_rate_distortion_rounding_only_moves_values_towards_zero():
+    """Each value is its nearest integer or one or two steps nearer zero, never farther; with rd_lambda 0 it is
+    plain rounding; a lone 0.6 where the class expects zeros goes to 0, a 40.4 stays 40."""
+    from mocapbench.codecs.mcb_linf.codec import _rate_distortion_round
+    from mocapbench.codecs.mcb_linf.model import load_default_model
+
+    tables = load_default_model().tables
+    rng = np.random.default_rng(0)
+    scaled = rng.laplace(0.0, 3.0, 5000)
+    classes = rng.integers(0, tables.num_classes, scaled.size)
+    nearest = np.sign(scaled) * np.floor(np.abs(scaled) + 0.5)
+    assert np.array_equal(_rate_distortion_round(scaled, classes, tables, 0.0), nearest)
+    rounded = _rate_distortion_round(scaled, classes, tables, 0.3)
+    assert np.all(np.abs(rounded) <= np.abs(nearest)) and np.all(np.abs(nearest) - np.abs(rounded) <= 2)
+    assert np.all(rounded * np.sign(scaled) >= 0) and np.any(rounded != nearest)
+    zero_class = int(np.argmax(tables.log2_probabilities[:, 0]))  # the class most sure of a zero
+    assert _rate_distortion_round(np.array([0.6, -0.6, 40.4]), np.full(3, zero_class), tables, 0.3).tolist() == [0, 0, 40]
+
+
+def test_the_cheapest_lattice_point_is_within_the_radius_and_never_costlier():
+    from mocapbench.codecs.mcb_linf.codec import _cheapest_lattice_points
+    from mocapbench.codecs.mcb_linf.layers import lattice_symbols
+    from mocapbench.codecs.mcb_linf.model import load_default_model
+    from mocapbench.entropy.ans import tokenize
+
+    model = load_default_model()
+    radius = 0.1
+    residual = np.random.default_rng(1).uniform(-0.4, 0.4, (4000, 3))
+    nearest, half_cell = bcc_quantize(residual, radius)
+    chosen = _cheapest_lattice_points(residual, nearest, half_cell, radius, model)
+    assert np.all(np.linalg.norm(residual - chosen * half_cell, axis=1) <= radius)
+    assert np.all((chosen % 2 == chosen[:, :1] % 2).all(axis=1))  # lattice points: all even or all odd
+
+    def cost(points):
+        tokens, _, widths = tokenize(lattice_symbols(points)[0])
+        return widths - model.lattice_tables.log2_probabilities[0, tokens]
+
+    assert np.all(cost(chosen) <= cost(nearest)) and np.any(cost(chosen) < cost(nearest))
+
+
+@pytest.mark.parametrize("eps", [0.05, 0.5])
+def test_rate_distortion_rounding_keeps_the_bound_and_shrinks_a_30_fps_stream(eps):
+    motion = sinusoidal_motion(num_frames=200, fps=30.0, seed=7, max_frequency_hz=6.0, amplitude_deg=30.0)
+    plain = create("mcb-linf", eps_cm=eps, rd_lambda=0.0).encode(motion)
+    rounded = create("mcb-linf", eps_cm=eps).encode(motion)
+    for data in (plain, rounded):
+        assert metrics.max_joint_error(motion.positions(), create("mcb-linf").decode(data).positions) <= eps
+    assert len(rounded) < len(plain)
