@@ -171,6 +171,10 @@ _PREFETCH = ((6, 7, 8), (7, 8, 9))
 # smaller depends on the clip and on eps (the README has the figures). At 120 fps (1.1 s segments) it is not tried.
 _HALF_SEGMENTS_BELOW_FPS = 60.0
 _MIN_SEARCHED_SEGMENT = 16
+# A short clip (up to this many times ``segment_frames``) also tries even splits (:func:`_segment_lengths`): a game
+# clip of 130 frames on the grid of 128 ends in a segment of 2 frames, whose means and significance counts cost as
+# much as a full segment's.
+_EVEN_SPLIT_CLIPS = 4
 
 
 @register_codec
@@ -232,7 +236,8 @@ class McbRotCodec(Codec):
             True, doc="a still root joint 0 is kept apart and its moving child coded as the root (game rigs)"
         )
         segment_search: bool = param(
-            True, doc="below 60 fps, also try segments of half segment_frames and keep the smaller stream"
+            True, doc="below 60 fps, also try segments of half segment_frames (and a short clip even splits of it): "
+                      "the smallest stream is kept"
         )
 
     # The prior (:mod:`.prior`) a fit or a model file gave this codec, and whether the last encode named one of its rigs.
@@ -298,21 +303,20 @@ class McbRotCodec(Codec):
 
     def _encode_window(self, motion: Motion) -> bytes:
         """The one-window payload of ``motion`` (a whole clip, or one window of a long capture), checked; below
-        :data:`_HALF_SEGMENTS_BELOW_FPS` with ``segment_search``, the smaller of the streams with segments of
-        ``segment_frames`` and of half that many frames (each coded and checked in full)."""
+        :data:`_HALF_SEGMENTS_BELOW_FPS` with ``segment_search``, the smallest of the streams with the segment
+        lengths of :func:`_segment_lengths` (each coded and checked in full)."""
         payload = self._encode_segments(motion)
-        half = self.config.segment_frames // 2
-        if self.config.segment_search and motion.fps < _HALF_SEGMENTS_BELOW_FPS and half >= _MIN_SEARCHED_SEGMENT:
-            stats = self.last_encode_stats
-            other = McbRotCodec(dataclasses.replace(self.config, segment_frames=half, segment_search=False))
-            other._prior, used = self._prior, self._used_prior
-            shorter = other._encode_segments(motion)
-            if len(shorter) < len(payload):
-                self.last_encode_stats = {**other.last_encode_stats, "segment_frames": half}
-                self._used_prior = other._used_prior
-                return shorter
-            self._used_prior = used
-            self.last_encode_stats = {**stats, "segment_frames": self.config.segment_frames}
+        if not (self.config.segment_search and motion.fps < _HALF_SEGMENTS_BELOW_FPS):
+            return payload
+        stats, used = {**self.last_encode_stats, "segment_frames": self.config.segment_frames}, self._used_prior
+        for frames in _segment_lengths(motion.num_frames, self.config.segment_frames)[1:]:
+            other = McbRotCodec(dataclasses.replace(self.config, segment_frames=frames, segment_search=False))
+            other._prior = self._prior
+            candidate = other._encode_segments(motion)
+            if len(candidate) < len(payload):  # ties keep the earlier length (the config's first)
+                payload, used = candidate, other._used_prior
+                stats = {**other.last_encode_stats, "segment_frames": frames}
+        self.last_encode_stats, self._used_prior = stats, used
         return payload
 
     def _encode_segments(self, full: Motion) -> bytes:
@@ -536,6 +540,27 @@ class McbRotCodec(Codec):
                 "segments": info.layout.num_segments, "cuts": len(info.cuts),
                 "re-referenced joint segments": len(info.overrides),
                 "joints on principal axes": int((info.axis_codes != 0).any(axis=1).sum())}
+
+
+def _segment_lengths(num_frames: int, segment_frames: int) -> list[int]:
+    """The segment lengths the search below :data:`_HALF_SEGMENTS_BELOW_FPS` tries, in order (the first is
+    ``segment_frames``; the smallest stream wins, ties to the earlier): ``segment_frames``, half of it, and for a
+    clip of up to :data:`_EVEN_SPLIT_CLIPS` x ``segment_frames`` frames the even splits ``ceil(F / k)`` of its frames
+    into k segments of half to all of ``segment_frames`` (and one split finer, down to a quarter): no segment is
+    ever longer than ``segment_frames``, so the latency stays the config's. Each length is any varint of the
+    settings (the decoder reads the grid from the stream); the split is even when the clip has no cut."""
+    lengths = [segment_frames]
+    if segment_frames // 2 >= _MIN_SEARCHED_SEGMENT:
+        lengths.append(segment_frames // 2)
+    if num_frames <= _EVEN_SPLIT_CLIPS * segment_frames:
+        first = -(-num_frames // segment_frames)
+        for count in range(first, -(-2 * num_frames // segment_frames) + 2):
+            frames = -(-num_frames // count)
+            if frames < max(segment_frames // 4, _MIN_SEARCHED_SEGMENT):
+                break
+            if frames not in lengths:
+                lengths.append(frames)
+    return lengths
 
 
 def _skeleton_of(info: StreamInfo):

@@ -164,15 +164,35 @@ def test_most_helpful_picks_the_candidate_a_direct_count_picks(seed):
         assert gains[list(candidates).index(picked)] == pytest.approx(max(gains), abs=1e-12)
 
 
-def test_below_60_fps_the_smaller_of_two_segment_lengths_is_kept():
-    """At 30 fps the encoder codes the clip with segments of 128 and of 64 frames and keeps the smaller stream (each
-    checked against eps); at 120 fps it writes the stream it writes without the search."""
+def test_segment_lengths_searched_are_the_grid_its_half_and_even_splits_of_a_short_clip():
+    """The lengths tried below 60 fps: the config's first, its half, then (a clip of up to 4 x segment_frames) the
+    even splits ceil(F / k) from the fewest segments of at most segment_frames, never longer (the latency) nor
+    shorter than a quarter of it; a long clip tries the two grids only."""
+    from mocapbench.codecs.mcb_rot.codec import _segment_lengths
+
+    assert _segment_lengths(130, 128) == [128, 64, 65, 44, 33]
+    assert _segment_lengths(220, 128) == [128, 64, 110, 74, 55, 44]
+    assert _segment_lengths(513, 128) == [128, 64]
+    for frames in range(1, 600):
+        lengths = _segment_lengths(frames, 128)
+        assert lengths[:2] == [128, 64] and len(set(lengths)) == len(lengths)
+        assert all(32 <= length <= 128 for length in lengths)
+        for length in lengths[2:]:  # an even split: every segment but the last full, the last at most one shorter
+            count = -(-frames // length)
+            assert length * (count - 1) < frames and frames - length * (count - 1) >= length - count + 1
+
+
+def test_below_60_fps_the_smallest_of_the_segment_lengths_is_kept():
+    """At 30 fps the encoder codes the clip with each length of the search (128 and 64 frames, even splits of a
+    short clip) and keeps the smallest stream (each checked against eps); at 120 fps it writes the stream it writes
+    without the search."""
     from mocapbench.codecs import container
+    from mocapbench.codecs.mcb_rot.codec import _segment_lengths
     from mocapbench.codecs.mcb_rot.stream import read_info
 
     slow = sinusoidal_motion(num_frames=300, seed=9).every(4)  # 30 fps
     sizes = {}
-    for frames in (128, 64):
+    for frames in _segment_lengths(slow.num_frames, 128):
         codec = create("mcb-rot", eps_cm=0.2, segment_frames=frames, segment_search=False)
         sizes[frames] = len(codec.encode(slow))
     searched = create("mcb-rot", eps_cm=0.2)
