@@ -20,7 +20,8 @@ Design::
          the step of channel ``c`` is ``m β_c (1 + slope k / n)``: ``β_c`` is the channel's error budget from its lever
          arm (:mod:`.budgets`: an error at the hips moves every joint, one at the wrist only the fingers) and ``m`` a
          multiplier chosen per stream by a rate search (the smallest stream wins; it also tries slope 0, a
-         flat step over frequency, which wins at small ε: +1-2 % at 24 fps). Each attempt is quantized and
+         flat step over frequency, which wins at small ε: +1-2 % at 24 fps), then at the step it chose wider dead
+         zones (``rounding_search``: fewer small coefficients, more corrections; kept where smaller). Each attempt is quantized and
          refined (below) but not entropy coded: attempts are ranked by their estimated size (:mod:`.rate`, ideal
          code lengths; on cmu_test its pick is at most 0.03 % larger than the real sizes' pick) and only the winner is
          written. An attempt gives up as soon as its estimate exceeds the best so far (its base layer alone, or
@@ -175,6 +176,11 @@ _MIN_SEARCHED_SEGMENT = 16
 # clip of 130 frames on the grid of 128 ends in a segment of 2 frames, whose means and significance counts cost as
 # much as a full segment's.
 _EVEN_SPLIT_CLIPS = 4
+# Wider dead zones the rate search tries at the step it chose (``rounding_search``), and what a rounding other than
+# the default costs in the settings (an f32).
+_WIDER_ROUNDINGS = (0.40, 0.35)
+_DEFAULT_ROUNDING = _f32(0.45)  # the settings' default (stream.py), written in no stream
+_ROUNDING_BYTES = 4.0
 
 
 @register_codec
@@ -234,6 +240,9 @@ class McbRotCodec(Codec):
         )
         static_root: bool = param(
             True, doc="a still root joint 0 is kept apart and its moving child coded as the root (game rigs)"
+        )
+        rounding_search: bool = param(
+            True, doc="the rate search also tries a wider dead zone (rounding 0.40, 0.35) at the step it chose"
         )
         segment_search: bool = param(
             True, doc="below 60 fps, also try segments of half segment_frames (and a short clip even splits of it): "
@@ -393,6 +402,8 @@ class McbRotCodec(Codec):
             prefetch = _PREFETCH if motion.num_frames <= _PREFETCH_FRAMES else ((), ())
             chosen = _search(encoder.attempt, config.slope_search and config.frequency_slope > 0, encoder.attempts_of,
                              prefetch)
+            if config.rounding_search:
+                chosen = _search_rounding(encoder, chosen, config.rounding)
         payload = encoder.write(chosen)
         # The guarantee: decode what we are about to return and check it (the whole rig, a still root included).
         if still is not None:
@@ -656,6 +667,26 @@ def _walk(get, flat_too: bool):
     return chosen
 
 
+def _search_rounding(encoder: "_Encoder", chosen: "_Attempt", rounding: float) -> "_Attempt":
+    """``chosen`` (the rate search's pick) or, where smaller, the attempt at its step multiplier and slope with a
+    wider dead zone (:data:`_WIDER_ROUNDINGS`, tried in order while each wins): fewer small coefficients, more of
+    the closed loop's corrections; which is smaller depends on the clip. A rounding other than the default costs
+    :data:`_ROUNDING_BYTES` in the settings, added to its estimate (both are estimated on the format's tables)."""
+    def cost(attempt: "_Attempt") -> float:
+        return attempt.size + (_ROUNDING_BYTES if attempt.info.settings.rounding != _DEFAULT_ROUNDING else 0.0)
+
+    for wider in _WIDER_ROUNDINGS:
+        if not wider < rounding:
+            continue
+        extra = _ROUNDING_BYTES if _f32(wider) != _DEFAULT_ROUNDING else 0.0
+        other = encoder.attempt(chosen.multiplier, chosen.info.settings.slope, budget=cost(chosen) - extra,
+                                rounding=wider)
+        if not cost(other) < cost(chosen):
+            break
+        chosen = other
+    return chosen
+
+
 class _Blocked(Exception):
     """Raised by :func:`_walk_limit`'s ``get`` at the first attempt not known yet, with the budget it would get."""
 
@@ -744,14 +775,16 @@ class _Encoder:
         for name in _AXES_CACHE:  # into info's cache, for every attempt's copy (:meth:`_with_axes`)
             getattr(info, name.replace(" ", "_"), None)
 
-    def attempt(self, multiplier: float, slope: float | None = None, budget: float = np.inf) -> _Attempt:
-        """The stream at step multiplier ``multiplier`` and frequency slope ``slope`` (None: the config's).
+    def attempt(self, multiplier: float, slope: float | None = None, budget: float = np.inf,
+                rounding: float | None = None) -> _Attempt:
+        """The stream at step multiplier ``multiplier``, frequency slope ``slope`` (None: the config's) and
+        quantizer rounding ``rounding`` (None: the config's).
 
         An attempt whose estimated size exceeds ``budget`` (bytes, the best attempt so far) is given up as soon as
         that is known (before the closed loop when its base layer alone exceeds it, else after a round of
         corrections): it is returned with size inf and nothing else.
         """
-        return self.attempts_of([(multiplier, slope)], budget)[0]
+        return self.attempts_of([(multiplier, slope) + (() if rounding is None else (rounding,))], budget)[0]
 
     def attempts_of(self, requests: list, budget: float = np.inf, limit=None) -> list[_Attempt]:
         """:meth:`attempt` of every ``(multiplier, slope)`` of ``requests``, side by side: one compensated
@@ -762,11 +795,13 @@ class _Encoder:
         attempt with ``size`` and ``base``; :func:`_walk_limit`) once it exceeds that instead."""
         config, layout = self.config, self.layout
         infos = []
-        for multiplier, slope in requests:
+        for multiplier, slope, *rounding in requests:
             self.attempts += 1
             settings = dataclasses.replace(self.info.settings, multiplier=_f32(multiplier))
             if slope is not None:
                 settings = dataclasses.replace(settings, slope=_f32(slope))
+            if rounding:  # (one rounding per call: the compensated quantization takes the first attempt's)
+                settings = dataclasses.replace(settings, rounding=_f32(rounding[0]))
             infos.append(self._with_axes(self.info.replace(settings=settings)))
         if self.compensator is not None:
             quantized = self.compensator.quantize_many(infos)

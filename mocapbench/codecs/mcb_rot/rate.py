@@ -25,7 +25,7 @@ from __future__ import annotations
 import numpy as np
 
 from mocapbench.codecs.mcb_rot import classes as model
-from mocapbench.codecs.mcb_rot.stream import StreamInfo
+from mocapbench.codecs.mcb_rot.stream import RUNTIME_ROUNDING, StreamInfo
 from mocapbench.entropy.ans import TOKEN_COUNT, tokenize
 
 __all__ = ["base_bytes", "base_bytes_many", "corrections_bytes", "estimate_bytes"]
@@ -68,7 +68,7 @@ def base_bytes_many(infos: list[StreamInfo], quantized: np.ndarray) -> list[floa
     first = infos[0]
     layout, settings = first.layout, first.settings
     count, channels = len(infos), first.channels
-    log2p = model.tables(settings.rounding).log2_probabilities  # (K, T)
+    log2p = model.tables(RUNTIME_ROUNDING).log2_probabilities  # (K, T): the format's tables, whatever the rounding
     histogram = np.zeros((count, channels * model.NUM_BANDS, TOKEN_COUNT))
     raw = np.zeros(count)
     counts = np.zeros((layout.num_segments, count, channels), dtype=np.int64)

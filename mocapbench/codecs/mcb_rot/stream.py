@@ -563,8 +563,9 @@ def write_payload(info: StreamInfo, skeleton_blob: bytes, coefficients: dict, co
         band = np.broadcast_to(model.band_of(np.arange(1, length), length, settings.segment_frames), mask.shape)
         bands.append(band[mask])
         channel_of.append(np.broadcast_to(np.arange(channels)[:, None], mask.shape)[mask])
+    # (fitted on the tables the units code with: format 6's, whatever rounding the quantizer used)
     scale, tilt = model.fit_offsets(np.concatenate(list(coded.values())), np.concatenate(channel_of),
-                                    np.concatenate(bands), channels, settings.rounding)
+                                    np.concatenate(bands), channels, RUNTIME_ROUNDING)
     all_channels = np.tile(np.arange(channels), layout.num_segments)
     predicted = _first_means(info)
     dc_diff = np.diff(info.dc, axis=0, prepend=0 if predicted is None else predicted[None]).ravel()

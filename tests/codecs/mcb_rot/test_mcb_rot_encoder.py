@@ -205,3 +205,23 @@ def test_below_60_fps_the_smallest_of_the_segment_lengths_is_kept():
     fast = sinusoidal_motion(num_frames=300, seed=9)
     assert fast.fps >= 60
     assert create("mcb-rot", eps_cm=0.2).encode(fast) == create("mcb-rot", eps_cm=0.2, segment_search=False).encode(fast)
+
+
+def test_rounding_search_keeps_the_smaller_stream_within_the_bound():
+    """The rate search also tries wider dead zones at the step it chose: the stream is never larger than without
+    that search, its rounding is one of those tried, and it decodes within eps (the closed loop ran on it)."""
+    from mocapbench.codecs import container
+    from mocapbench.codecs.mcb_rot.stream import read_info
+
+    for seed in range(4):
+        motion = sinusoidal_motion(num_frames=150, seed=seed).every(4)
+        plain = create("mcb-rot", eps_cm=0.1, rounding_search=False).encode(motion)
+        searched = create("mcb-rot", eps_cm=0.1)
+        data = searched.encode(motion)
+        assert len(data) <= len(plain)
+        header, payload = container.unpack(data, "mcb-rot")
+        rounding = read_info(header, payload).settings.rounding
+        assert any(rounding == np.float32(r) for r in (0.45, 0.40, 0.35))
+        if rounding == np.float32(0.45):
+            assert data == plain
+        assert metrics.max_joint_error(motion.positions(), searched.decode(data).positions) <= 0.1
