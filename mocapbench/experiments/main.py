@@ -141,6 +141,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.allow_failures:
         common.append("hydra.sweeper.allow_failures=true")
     folders, failures = [], 0
+    estimate = None
     if args.cmu:
         ok, where = cmu_available(args.data_dir)
         if not ok:
@@ -177,8 +178,7 @@ def main(argv: list[str] | None = None) -> int:
         folders.append(folder)
         failures += code != 0
     sweep_s = time.perf_counter() - start
-    from mocapbench.experiments.aggregate import aggregate, curve_points, read_errors
-    from mocapbench.experiments.report import build_report, headline_text
+    from mocapbench.experiments.report import headline_text, write_report
 
     present = [f for f in folders if any(f.rglob("results.jsonl"))]
     if not present:
@@ -186,18 +186,23 @@ def main(argv: list[str] | None = None) -> int:
         return 1
     command = "make bench" if args.cmu else "make run"
     arguments = " ".join(argv if argv is not None else sys.argv[1:])
-    report = build_report(present, name=kind, reports_root=args.reports_root, bounds=bounds,
-                          command=f"{command}  # = python -m mocapbench.experiments.main {arguments}".rstrip())
-    rows = aggregate(present)
+    report_start = time.perf_counter()
+    data = write_report(present, name=kind, reports_root=args.reports_root, bounds=bounds,
+                        command=f"{command}  # = python -m mocapbench.experiments.main {arguments}".rstrip())
+    report, report_s = data.out, time.perf_counter() - report_start
     print()
-    print(headline_text(rows, curve_points(rows), read_errors(present), bounds))
+    print(headline_text(data.rows, data.points, data.errors, data.bounds, table=data.headline))
     print()
     total = time.perf_counter() - start
     from mocapbench.experiments.bench_time import codec_times, format_codec_times
 
     print("time per codec (its jobs' wall and CPU seconds, summed; two jobs run at once):")
     print(format_codec_times(codec_times(folders)))
-    print(f"sweeps {sweep_s:.0f} s, total {total:.0f} s on {os.cpu_count()} cores; results in {root}")
+    print(f"sweeps {sweep_s:.0f} s, report {report_s:.0f} s, total {total:.0f} s on {os.cpu_count()} cores; "
+          f"results in {root}")
+    if args.cmu and estimate is not None and estimate.wall_s > 0:
+        print(f"make bench: estimated {estimate.wall_s:.0f} s, took {total:.0f} s "
+              f"({100 * (total / estimate.wall_s - 1):+.0f} %)")
     print(f"report: {report / 'index.html'} (and {report / 'report.md'}); machine-readable results in "
           f"{report / 'results'}")
     if failures and not args.allow_failures:

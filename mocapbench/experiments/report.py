@@ -37,7 +37,7 @@ from mocapbench.experiments.reproduction import reproduction_sections
 from mocapbench.experiments.run import EXAMPLE_FILE
 from mocapbench.io.safe_output import check_name, write_text
 
-__all__ = ["ReportData", "build_report", "headline_table", "headline_tables", "headline_text", "QUOTED_REFERENCES",
+__all__ = ["ReportData", "build_report", "write_report", "headline_table", "headline_tables", "headline_text", "QUOTED_REFERENCES",
            "CMU_ACKNOWLEDGEMENT", "unique_report_folder"]
 
 BOUNDS_CM = DEFAULT_BOUNDS_CM
@@ -117,9 +117,13 @@ def headline_tables(points: pd.DataFrame, errors: pd.DataFrame | None = None,
 
 
 def headline_text(rows: pd.DataFrame, points: pd.DataFrame, errors: pd.DataFrame | None = None,
-                  bounds: Sequence[float] = BOUNDS_CM) -> str:
-    """The headline as a user sees it in the terminal: synthetic-only note, winners, one ranked table per bound."""
-    table = headline_tables(points, errors, bounds)
+                  bounds: Sequence[float] = BOUNDS_CM, table: pd.DataFrame | None = None) -> str:
+    """The headline as a user sees it in the terminal: synthetic-only note, winners, one ranked table per bound.
+
+    ``table``: the :func:`headline_tables` of ``points`` if already computed (a report's ``headline``).
+    """
+    if table is None:
+        table = headline_tables(points, errors, bounds)
     lines = []
     note = synthetic_only_note(rows)
     if note:
@@ -312,7 +316,22 @@ def build_report(
     command: str | None = None,
     bounds: Sequence[float] | None = None,
 ) -> Path:
-    """Aggregate the sweep folders and write the report; returns the new report folder.
+    """Aggregate the sweep folders and write the report; returns the new report folder (:func:`write_report`)."""
+    return write_report(folders, name=name, reports_root=reports_root, anchor=anchor, command=command,
+                        bounds=bounds).out
+
+
+def write_report(
+    folders: Iterable[str | Path],
+    *,
+    name: str | None = None,
+    reports_root: str | Path = "reports",
+    anchor: str = DEFAULT_ANCHOR,
+    command: str | None = None,
+    bounds: Sequence[float] | None = None,
+) -> ReportData:
+    """Aggregate the sweep folders and write the report; returns what it read (rows, points, headline, folder),
+    so that a caller printing the headline does not read and pool the sweeps a second time.
 
     Each section is one function of the document and :class:`ReportData`, called here in the report's order (a
     new section is a function, in its own module if it is long, and one line here).
@@ -350,7 +369,7 @@ def build_report(
     write_results(data.out, data.rows, data.points)
     write_text(data.out / "report.md", doc.markdown())
     write_text(data.out / "index.html", doc.html())
-    return data.out
+    return data
 
 
 def _config_labels(points: pd.DataFrame):
@@ -468,14 +487,18 @@ def _distributions_section(doc: Document, data: ReportData) -> None:
 
 
 def _bd_rate_section(doc: Document, data: ReportData) -> None:
-    """The BD-rate of every codec against the anchor, for L∞ and for the mean error."""
+    """Per dataset, the BD-rate of every codec against the anchor, for L∞ and for the mean error."""
     points, anchor = data.points, data.anchor
     doc.heading(f"BD-rate against {anchor}")
     doc.paragraph("Bjontegaard-delta rate (bjontegaard package, pchip): average extra rate (%) a codec needs for the "
                   "same quality as the anchor; negative = fewer bits. Quality = -log(error cm), rate = bits per joint "
-                  "per frame; each curve reduced to its Pareto front; lossless points left out.")
-    for error in ("max_err_cm", "mean_err_cm"):
-        doc.table(bd_rate_table(points, anchor=anchor, error=error), caption=f"quality = -log({error})")
+                  "per frame; each curve reduced to its Pareto front; lossless points left out. One section per "
+                  "dataset: curves of different datasets are never compared.")
+    tables = {error: bd_rate_table(points, anchor=anchor, error=error) for error in ("max_err_cm", "mean_err_cm")}
+    for dataset in data.datasets:
+        doc.heading(f"{dataset}: BD-rate against {anchor}", 3)
+        for error, table in tables.items():
+            doc.table(table[table["dataset"] == dataset].drop(columns="dataset"), caption=f"quality = -log({error})")
 
 
 def _pictures_section(doc: Document, data: ReportData) -> None:
