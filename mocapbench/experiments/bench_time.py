@@ -71,7 +71,7 @@ def estimate_run(plans: Sequence[SweepPlan], workers: int, common: Sequence[str]
             sweep_jobs.append(0)
             sweep_codecs.append({})
             continue
-        result = cost.estimate(costs, folders, frames, workers)
+        result = cost.estimate(cost.for_dataset(costs, plan.dataset), folders, frames, workers)
         sweep_walls.append(result.wall_h * 3600 + start_s)
         wall += sweep_walls[-1]
         cpu += result.cpu_h * 3600

@@ -43,7 +43,7 @@ from importlib import resources
 from pathlib import Path
 from typing import Any, Sequence
 
-__all__ = ["COSTS_FILE", "load_costs", "cpu_cost", "job_costs", "makespan", "Estimate", "estimate", "main"]
+__all__ = ["COSTS_FILE", "load_costs", "for_dataset", "cpu_cost", "job_costs", "makespan", "Estimate", "estimate", "main"]
 
 COSTS_FILE = "configs/costs.json"
 # Used for a codec the costs file does not know (a codec added after the last calibration): 1 ms per frame.
@@ -61,6 +61,21 @@ def load_costs(path: str | Path | None = None) -> dict[str, Any]:
     except (FileNotFoundError, OSError):
         return {}
     return json.loads(text)
+
+
+def for_dataset(costs: dict[str, Any], dataset: str | None) -> dict[str, Any]:
+    """The costs of a sweep over the dataset config ``dataset``: its own measurements over the general ones.
+
+    ``costs["datasets"][dataset]`` (written by ``--calibrate-from ... --per-dataset``) holds ``configs`` and
+    ``job`` entries measured on that dataset's clips; they replace the general entries of the same config. A rig
+    other than CMU's costs another amount per frame (the game rig's moving pelvis, its end sites; a codec that
+    refuses the rig costs only the refusal), so its sweeps are priced from its own rows where they exist.
+    """
+    own = costs.get("datasets", {}).get(dataset or "", {})
+    if not own:
+        return costs
+    return {**costs, "configs": {**costs.get("configs", {}), **own.get("configs", {})},
+            "job": {**costs.get("job", {}), **own.get("job", {})}}
 
 
 def cpu_cost(costs: dict[str, Any], folder: str) -> tuple[float, float]:
@@ -339,13 +354,16 @@ def _config_folder(job_dir: str) -> str:
     return "/".join(parts[-2:])
 
 
-def calibrate_from(sweeps: Sequence[str | Path], out: Path | None = None) -> dict[str, Any]:
+def calibrate_from(sweeps: Sequence[str | Path], out: Path | None = None, per_dataset: bool = False) -> dict[str, Any]:
     """Update the per-frame costs of the configs that finished sweeps ran, from their rows (no new run).
 
     Each config's cost is its rows' encode and decode CPU seconds (times the calls the timing made) over their
     frames, as :func:`calibrate` measures it, but on the clips the sweeps ran: for codecs whose cost per frame
     depends on the clips (the neural Fourier codecs train a network per clip, side by side), the benchmark's own
-    jobs are the calibration that fits. The other entries of the costs file are kept.
+    jobs are the calibration that fits. The other entries of the costs file are kept. ``per_dataset``: the
+    sweeps (of one dataset) write the entries of their dataset only (``costs["datasets"][name]``, read by
+    :func:`for_dataset`), the general entries are kept; a config that refused every clip (a rig it cannot carry)
+    costs what its job spent on the refusals.
     """
     from mocapbench.experiments.aggregate import aggregate
 
@@ -354,7 +372,15 @@ def calibrate_from(sweeps: Sequence[str | Path], out: Path | None = None) -> dic
         raise RuntimeError(f"no results in {', '.join(str(s) for s in sweeps)}")
     data["folder"] = [_config_folder(d) for d in data["job_dir"]]
     costs = load_costs(out)
-    configs = costs.setdefault("configs", {})
+    if per_dataset:
+        names = sorted(map(str, data["dataset"].unique()))
+        if len(names) != 1:
+            raise RuntimeError(f"--per-dataset takes sweeps of one dataset, these hold {', '.join(names)}")
+        own = costs.setdefault("datasets", {}).setdefault(names[0], {})
+        configs = own.setdefault("configs", {})
+        configs.update(_refused_configs(sweeps, set(data["folder"])))
+    else:
+        configs = costs.setdefault("configs", {})
     import numpy as np
 
     for folder_name, group in data.groupby("folder"):
@@ -373,10 +399,26 @@ def calibrate_from(sweeps: Sequence[str | Path], out: Path | None = None) -> dic
                                                f"{', '.join(sorted(map(str, group['dataset'].unique())))}"}
     overhead = job_overhead(sweeps, data, float(costs.get("job", {}).get("cpu_s_per_frame", 0.0)))
     if overhead is not None:
-        costs.setdefault("job", {}).update(overhead)
+        (own if per_dataset else costs).setdefault("job", {}).update(overhead)
     target = out or Path(__file__).resolve().parents[1] / COSTS_FILE
     Path(target).write_text(json.dumps(costs, indent=1, sort_keys=True) + "\n")
     return costs
+
+
+def _refused_configs(sweeps: Sequence[str | Path], measured: set[str]) -> dict[str, Any]:
+    """Configs of ``sweeps`` with no row, whose jobs finished (every clip refused): their job's CPU per frame."""
+    spent: dict[str, list[float]] = {}
+    for sweep in sweeps:
+        for job in Path(sweep).rglob("job.json"):
+            folder = _config_folder(str(job.parent))
+            record = json.loads(job.read_text())
+            if folder in measured or record.get("status") != "done" or record.get("rows", 0) or "cpu_s" not in record:
+                continue
+            spent.setdefault(folder, []).append(float(record["cpu_s"]))
+    return {folder: {"codec": folder.split("/", 1)[0], "cpu_s_per_frame": 0.0, "cpu_s_per_clip": 0.0,
+                     "refused": True, "job_cpu_s": sum(cpu) / len(cpu),
+                     "measured_on": f"{time.strftime('%Y-%m-%d')}, every clip refused"}
+            for folder, cpu in spent.items()}
 
 
 def job_overhead(sweeps: Sequence[str | Path], data: Any, per_frame: float = 0.0) -> dict[str, Any] | None:
@@ -521,10 +563,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--calibration-frames", type=int, default=300)
     parser.add_argument("--calibrate-from", nargs="+", metavar="SWEEP_DIR",
                         help="update the costs of the configs these finished sweeps ran, from their rows")
+    parser.add_argument("--per-dataset", action="store_true",
+                        help="with --calibrate-from: write the costs of the sweeps' dataset only (a rig of its own)")
     parser.add_argument("overrides", nargs="*", help="Hydra overrides for the dataset, e.g. data_dir=/data/cmu")
     args = parser.parse_args(argv)
     if args.calibrate_from:
-        costs = calibrate_from(args.calibrate_from, out=Path(args.costs) if args.costs else None)
+        costs = calibrate_from(args.calibrate_from, out=Path(args.costs) if args.costs else None,
+                               per_dataset=args.per_dataset)
         print(f"updated the costs of the configs in {' '.join(args.calibrate_from)}; wrote {args.costs or COSTS_FILE}")
         return 0
     if args.calibrate:
@@ -550,6 +595,7 @@ def main(argv: list[str] | None = None) -> int:
     else:
         parser.error("give --dataset NAME or --frames N --clips C")
     folders = sweep_folders(args.sweep)
+    costs = for_dataset(costs, args.dataset)
     result = estimate(costs, folders, frames, args.workers, args.max_cpu_s, args.layout, args.packing, args.mem_gb)
     layout = args.layout if args.layout == "config" else f"shards ({args.packing})"
     _print(result, f"sweep={args.sweep} ({len(folders)} configs) over {what}", args.workers, layout, args.mem_gb)

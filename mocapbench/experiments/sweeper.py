@@ -309,8 +309,9 @@ class RdSweeper(Sweeper):
         out: list[tuple[str, list[str]]] = []
         self.estimates = {}
         for folder, overrides in jobs:
-            refs, shard_cfg = self._job_catalogue(catalogues, folder, overrides)
-            per_frame, per_clip = cost.cpu_cost(costs, folder)
+            refs, shard_cfg, dataset = self._job_catalogue(catalogues, folder, overrides)
+            own = cost.for_dataset(costs, dataset)  # a dataset's own measured costs, where it has them
+            per_frame, per_clip = cost.cpu_cost(own, folder)
             if folder not in plan:
                 fixed = [o for o in overrides if o.split("=", 1)[0] == "shard.count"]
                 if fixed:
@@ -319,13 +320,14 @@ class RdSweeper(Sweeper):
                     plan[folder] = shards.shard_count([r.frames for r in refs], per_frame, shard_cfg.max_cpu_s,
                                                       per_clip, packing)
             count = plan[folder]
-            job_costs = cost.job_costs(costs, folder, [r.frames for r in refs], count, packing)
+            job_costs = cost.job_costs(own, folder, [r.frames for r in refs], count, packing)
             out.extend(self._shards_of(folder, overrides, count, packing, job_costs))
         plan_path.write_text(json.dumps({"packing": packing, "counts": plan}, indent=1, sort_keys=True))
         return out
 
-    def _job_catalogue(self, catalogues: dict, folder: str, overrides: Sequence[str]) -> tuple[list, Any]:
-        """``(clip refs, shard config)`` of a job's dataset, composed once per dataset and shard overrides."""
+    def _job_catalogue(self, catalogues: dict, folder: str, overrides: Sequence[str]) -> tuple[list, Any, str]:
+        """``(clip refs, shard config, dataset name)`` of a job's dataset, composed once per dataset and shard
+        overrides."""
         from mocapbench.experiments import datasets
 
         key = tuple(o for o in overrides if o.split("=", 1)[0].split(".", 1)[0] in self._DATASET_KEYS)
@@ -337,7 +339,7 @@ class RdSweeper(Sweeper):
             except Exception as error:  # noqa: BLE001 - the job itself reports a bad dataset
                 log.warning("dataset of %s: %s (one shard; the job will say why)", folder, error)
                 refs = []
-            catalogues[key] = (refs, cfg.shard)
+            catalogues[key] = (refs, cfg.shard, str(spec.get("name", "")))
         return catalogues[key]
 
     def _shards_of(self, folder: str, overrides: list[str], count: int, packing: str,

@@ -87,3 +87,50 @@ def test_job_overhead_is_a_workers_cpu_between_jobs_less_the_codecs_share(tmp_pa
     only_b = pd.DataFrame([r for r in rows if r["job_dir"].endswith("/b")] + [rows[0]])
     fit = job_overhead([tmp_path / "sweep"], only_b, per_frame=0.001)
     assert fit["overhead_jobs"] == 1 and abs(fit["cpu_s_per_job"] - 2.0) < 1e-6 and fit["cpu_s_per_frame"] == 0.001
+
+
+def test_a_datasets_own_costs_replace_the_general_ones_for_its_sweeps_only():
+    from mocapbench.experiments.cost import for_dataset
+
+    costs = {**COSTS, "datasets": {"game": {"configs": {"slow/b": {"codec": "slow", "cpu_s_per_frame": 0.5}},
+                                            "job": {"cpu_s_per_job": 3.0}}}}
+    game = for_dataset(costs, "game")
+    assert cpu_cost(game, "slow/b") == (0.5, 0.0) and cpu_cost(game, "cheap/a") == (1e-5, 0.0)
+    assert game["job"]["cpu_s_per_job"] == 3.0 and game["job"]["baseline_rss_bytes"] == 1e8
+    assert for_dataset(costs, "cmu_test") is costs and cpu_cost(costs, "slow/b") == (1e-2, 0.0)
+    # priced per dataset: 1,000 frames of the slow config cost 500 s on the game rig, 10 s elsewhere
+    assert estimate(game, ["slow/b"], [1000], 1, max_cpu_s=None).cpu_h * 3600 == pytest.approx(503.0)
+    assert estimate(costs, ["slow/b"], [1000], 1, max_cpu_s=None).cpu_h * 3600 == pytest.approx(10.0)
+
+
+def test_calibrating_per_dataset_keeps_the_general_costs_and_prices_refusals(tmp_path, monkeypatch):
+    import pandas as pd
+
+    from mocapbench.experiments import aggregate as aggregate_module
+    from mocapbench.experiments.cost import calibrate_from, load_costs
+
+    sweep = tmp_path / "sweep"
+    rows = []
+    for codec, cpu in (("slow/b", 2.0), ("cheap/a", 0.01)):
+        folder = sweep / codec
+        folder.mkdir(parents=True)
+        (folder / "job.json").write_text(json.dumps({"status": "done", "rows": 1, "cpu_s": cpu}))
+        rows.append({"job_dir": str(folder), "dataset": "game", "codec": codec.split("/")[0], "frames": 100,
+                     "encode_cpu_s": cpu / 2, "decode_cpu_s": cpu / 2})
+    refused = sweep / "rot" / "c"
+    refused.mkdir(parents=True)
+    (refused / "job.json").write_text(json.dumps({"status": "done", "rows": 0, "cpu_s": 0.25}))
+    monkeypatch.setattr(aggregate_module, "aggregate", lambda folders: pd.DataFrame(rows))
+    path = tmp_path / "costs.json"
+    path.write_text(json.dumps(COSTS))
+    calibrate_from([sweep], out=path, per_dataset=True)
+    written = load_costs(path)
+    assert written["configs"] == COSTS["configs"]  # the general (CMU) entries are untouched
+    own = written["datasets"]["game"]["configs"]
+    assert own["slow/b"]["cpu_s_per_frame"] == pytest.approx(0.02)
+    assert own["cheap/a"]["cpu_s_per_frame"] == pytest.approx(1e-4)
+    assert own["rot/c"]["refused"] and own["rot/c"]["cpu_s_per_frame"] == 0.0
+    # sweeps of two datasets cannot write one dataset's entries
+    rows.append({**rows[0], "dataset": "other"})
+    with pytest.raises(RuntimeError, match="one dataset"):
+        calibrate_from([sweep], out=path, per_dataset=True)
