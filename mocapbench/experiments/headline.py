@@ -21,6 +21,7 @@ import pandas as pd
 from mocapbench.experiments.animator_report import FLAG_COLUMN, HEADLINE_COLUMNS, animator_flag, headline_values
 
 __all__ = ["DEFAULT_BOUNDS_CM", "TRAIT_COLUMNS", "EQUAL_CR", "EQUAL_FACTOR", "EQUAL_AT", "headline_table", "winner_sentences", "synthetic_only_note",
+           "datasets_side_by_side",
            "is_synthetic", "failure_reasons"]
 
 DEFAULT_BOUNDS_CM = (1.0, 3.0)
@@ -247,6 +248,41 @@ def _rows_without_results(dataset: str, measured: list[str], failed_only: list[s
         if codec not in measured and codec not in failed_only:
             rows.append({"codec": codec, **_traits(codec, None), "config": f"unavailable here: {reason}"})
     return rows
+
+
+def datasets_side_by_side(table: pd.DataFrame) -> pd.DataFrame:
+    """The headline of every dataset in one table: per codec, its ratio and L∞ under each bound, dataset by dataset.
+
+    ``table`` is :func:`headline_table`'s. A row per codec ranked anywhere (ordered by its best rank), then
+    ``rotations (BVH/glTF)``, then for each dataset and bound ``<dataset> CR < b cm`` and ``<dataset> L∞ cm < b cm``
+    (the codec's headline config there; ``–`` where it has none). A bound whose rows say "the same codecs and
+    configs as under" the smaller one repeats that bound's values.
+    """
+    if table.empty:
+        return pd.DataFrame(columns=["codec", "rotations (BVH/glTF)"])
+    cells: dict[str, dict[str, str]] = {}
+    rotations: dict[str, str] = {}
+    best: dict[str, tuple[int, int]] = {}
+    columns = []
+    for dataset in dict.fromkeys(table["dataset"]):
+        previous: dict[str, tuple[str, str]] = {}
+        for position, (bound, group) in enumerate(table[table["dataset"] == dataset].groupby("L∞ bound", sort=False)):
+            ranked = group[group["rank"] != "–"]
+            same = ranked.empty and group["config"].astype(str).str.startswith("the same codecs").any()
+            values = previous if same else {str(r["codec"]): (_ratio(r["CR"]), f"{float(r['L∞ cm']):.3g}")
+                                            for _, r in ranked.iterrows()}
+            cr, linf = f"{dataset} CR {bound}", f"{dataset} L∞ cm {bound}"
+            columns += [cr, linf]
+            for codec, (ratio, error) in values.items():
+                cells.setdefault(codec, {}).update({cr: ratio, linf: error})
+            for order, (_, r) in enumerate(ranked.iterrows()):
+                rotations.setdefault(str(r["codec"]), str(r["rotations (BVH/glTF)"]))
+                best[str(r["codec"])] = min(best.get(str(r["codec"]), (order, position)), (order, position))
+            previous = values
+    codecs = sorted(cells, key=lambda codec: best.get(codec, (len(cells), 0)))
+    return pd.DataFrame([{"codec": codec, "rotations (BVH/glTF)": rotations.get(codec, ""),
+                          **{column: cells[codec].get(column, "–") for column in columns}} for codec in codecs],
+                        columns=["codec", "rotations (BVH/glTF)", *columns])
 
 
 def _as_table(out: list[dict]) -> pd.DataFrame:

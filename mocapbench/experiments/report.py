@@ -32,6 +32,7 @@ from mocapbench.experiments.animator_report import method_bullets as animator_me
 from mocapbench.experiments.bdrate import DEFAULT_ANCHOR, bd_rate_table
 from mocapbench.experiments.document import Document, markdown_table
 from mocapbench.experiments.headline import (DEFAULT_BOUNDS_CM, EQUAL_AT, EQUAL_CR, EQUAL_FACTOR, bounds_with,
+                                             datasets_side_by_side,
                                              headline_table, is_synthetic, synthetic_only_note, winner_sentences)
 from mocapbench.experiments.reproduction import reproduction_sections
 from mocapbench.experiments.run import EXAMPLE_FILE
@@ -134,6 +135,9 @@ def headline_text(rows: pd.DataFrame, points: pd.DataFrame, errors: pd.DataFrame
     for (dataset, bound), group in table.groupby(["dataset", "L∞ bound"], sort=False):
         notes = [c for c in (FLAG_COLUMN, "note") if group[c].fillna("").astype(str).str.len().gt(0).any()]
         lines += ["", f"{dataset}, L∞ {bound}:", "", markdown_table(group[shown + notes])]
+    if table["dataset"].nunique() > 1:
+        lines += ["", "Every dataset side by side (ratio and L∞ cm of each codec's headline config):", "",
+                  markdown_table(datasets_side_by_side(table))]
     return "\n".join(lines)
 
 
@@ -419,6 +423,12 @@ def _headline_section(doc: Document, data: ReportData) -> None:
                   f"is taken at one L∞, read off each codec's curve (log-log on its Pareto front): '{EQUAL_CR}' is "
                   f"a codec's ratio at exactly the bound, '{EQUAL_FACTOR}' rank 1's ratio over this codec's at the "
                   f"L∞ of '{EQUAL_AT}' (the bound, or the largest L∞ below it that both curves reach).")
+    if headline["dataset"].nunique() > 1:
+        doc.heading("Every dataset side by side", 3)
+        doc.paragraph("Each codec's headline config per dataset and bound: its ratio and its L∞ (cm) over every "
+                      "clip of the dataset; – where no config of the codec stays under the bound (or it did not "
+                      "run there: the tables below say why).")
+        doc.table(datasets_side_by_side(headline))
     shown = [c for c in headline.columns if c not in ("dataset", "L∞ bound")]
     for (dataset, bound), group in headline.groupby(["dataset", "L∞ bound"], sort=False):
         doc.heading(f"{dataset}, L∞ {bound}", 3)
@@ -646,15 +656,14 @@ def _main(argv: list[str] | None = None) -> None:
     from mocapbench.experiments.results import CorruptResultsError
 
     try:
-        folder = build_report(args.folders, name=args.name, reports_root=args.reports_root, anchor=args.anchor,
-                              command=args.command, bounds=args.bounds)
+        data = write_report(args.folders, name=args.name, reports_root=args.reports_root, anchor=args.anchor,
+                            command=args.command, bounds=args.bounds)
     except CorruptResultsError as error:  # a dropped row would change the headline silently
         print(f"report: {error}", file=sys.stderr)
         raise SystemExit(2) from None
     if not args.quiet:
-        rows = aggregate(args.folders)
-        print(headline_text(rows, curve_points(rows), read_errors(args.folders), bounds_with(args.bounds)))
-    print(f"report: {folder / 'index.html'}")
+        print(headline_text(data.rows, data.points, data.errors, data.bounds, table=data.headline))
+    print(f"report: {data.out / 'index.html'}")
     sys.stdout.flush()
 
 

@@ -150,3 +150,33 @@ def test_a_codec_that_refuses_a_rigs_tracks_shows_its_reason_not_a_failure():
     reasons = failure_reasons(errors)
     assert reasons[("bandai_test", "svd")] == f"refused 3x: {message}"
     assert reasons[("bandai_test", "pga-ik")] == "failed 1x: boom"
+
+
+def test_datasets_side_by_side_puts_each_codecs_ratio_and_linf_per_dataset_and_bound():
+    import pandas as pd
+
+    from mocapbench.experiments.headline import datasets_side_by_side
+
+    def row(dataset, bound, rank, codec, cr=None, linf=None, config="c", rotations="yes"):
+        return {"dataset": dataset, "L∞ bound": bound, "rank": rank, "codec": codec, "config": config, "CR": cr,
+                "L∞ cm": linf, "rotations (BVH/glTF)": rotations}
+
+    table = pd.DataFrame([
+        row("cmu", "< 1 cm", 1, "b", 20.0, 0.9), row("cmu", "< 1 cm", 2, "a", 10.0, 0.5, rotations="no"),
+        row("cmu", "< 3 cm", 1, "b", 40.0, 2.5), row("cmu", "< 3 cm", 2, "a", 12.0, 2.9, rotations="no"),
+        row("game", "< 1 cm", 1, "a", 8.0, 0.7, rotations="no"),
+        row("game", "< 1 cm", "–", "b", config="refused: a pelvis that moves"),
+        row("game", "< 3 cm", "–", "", config="the same codecs and configs as under 1 cm (no config between)"),
+    ])
+    side = datasets_side_by_side(table)
+    assert list(side.columns) == ["codec", "rotations (BVH/glTF)", "cmu CR < 1 cm", "cmu L∞ cm < 1 cm",
+                                  "cmu CR < 3 cm", "cmu L∞ cm < 3 cm", "game CR < 1 cm", "game L∞ cm < 1 cm",
+                                  "game CR < 3 cm", "game L∞ cm < 3 cm"]
+    by_codec = side.set_index("codec")
+    assert list(side["codec"]) == ["b", "a"]  # by best rank anywhere (a tie keeps the first seen)
+    assert by_codec.loc["b", "cmu CR < 3 cm"] == "40:1" and by_codec.loc["b", "cmu L∞ cm < 1 cm"] == "0.9"
+    assert by_codec.loc["b", "game CR < 1 cm"] == "–" and by_codec.loc["b", "rotations (BVH/glTF)"] == "yes"
+    # "the same as under 1 cm" repeats the 1 cm values
+    assert by_codec.loc["a", "game CR < 3 cm"] == "8:1" and by_codec.loc["a", "game L∞ cm < 3 cm"] == "0.7"
+    assert by_codec.loc["a", "rotations (BVH/glTF)"] == "no"
+    assert datasets_side_by_side(table[table["dataset"] == "cmu"]).shape == (2, 6)
