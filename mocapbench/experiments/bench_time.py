@@ -2,21 +2,24 @@
 
 Before: every sweep of the run is listed by a dry run of the sweeper (its job folders, one per codec config) and
 priced by :func:`mocapbench.experiments.cost.estimate` from the per-frame costs measured on this machine
-(``configs/costs.json``) and the clips' frames; the sweeps run one after another, so the run's wall time is the sum
-of their schedules on the workers. After: every job's ``job.json`` holds its wall and CPU seconds; they are summed
+(``configs/costs.json``, a dataset's own entries first: :func:`mocapbench.experiments.cost.for_dataset`) and the
+clips' frames; the sweeps run one after another, so the run's wall time is the sum of their schedules on the
+workers, each with a sweep's start-up (``costs["sweep"]["wall_s"]``: its process composing the jobs, the workers'
+imports), plus the report (:func:`report_cost`) and the time the dry runs of the estimate itself took. After: every job's ``job.json`` holds its wall and CPU seconds; they are summed
 per codec.
 """
 
 from __future__ import annotations
 
 import json
+import time
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Sequence
 
 from mocapbench.experiments.sweep_progress import format_duration
 
-__all__ = ["SweepPlan", "BenchEstimate", "estimate_run", "format_estimate", "format_estimate_table",
+__all__ = ["SweepPlan", "BenchEstimate", "estimate_run", "report_cost", "format_estimate", "format_estimate_table",
            "format_progress", "codec_times",
            "format_codec_times"]
 
@@ -46,12 +49,15 @@ class BenchEstimate:
     sweep_jobs: tuple[int, ...] = ()  # per sweep of the plans, in order
     labels: tuple[str, ...] = ()  # the plans' labels, in order
     sweep_codec_cpu_s: tuple[dict[str, float], ...] = ()  # per sweep: CPU seconds per codec
+    report_s: float = 0.0  # writing the report after the sweeps (in wall_s)
+    prepare_s: float = 0.0  # the estimate's own dry runs, measured as they ran (in wall_s)
 
 
 def estimate_run(plans: Sequence[SweepPlan], workers: int, common: Sequence[str] = ()) -> BenchEstimate:
     """Price every sweep of ``plans`` (each a dry run of the sweeper, a few seconds) on ``workers`` workers."""
     from mocapbench.experiments import cost
 
+    started = time.perf_counter()
     costs = cost.load_costs()
     wall = cpu = 0.0
     jobs = 0
@@ -81,9 +87,23 @@ def estimate_run(plans: Sequence[SweepPlan], workers: int, common: Sequence[str]
         sweep_codecs.append({row["codec"]: row["cpu_h"] * 3600 for row in result.rows})
         for row in result.rows:
             per_codec[row["codec"]] = per_codec.get(row["codec"], 0.0) + row["cpu_h"] * 3600
+    report_s = report_cost(costs, len({plan.dataset for plan in plans}), jobs)
     measured = f"{costs.get('measured', '?')} on {costs.get('machine', '?')}"
-    return BenchEstimate(wall, cpu, jobs, per_codec, measured, tuple(unpriced), tuple(sweep_walls),
-                         tuple(sweep_cpus), tuple(sweep_jobs), tuple(p.label for p in plans), tuple(sweep_codecs))
+    prepare_s = time.perf_counter() - started
+    return BenchEstimate(wall + report_s + prepare_s, cpu, jobs, per_codec, measured, tuple(unpriced),
+                         tuple(sweep_walls), tuple(sweep_cpus), tuple(sweep_jobs), tuple(p.label for p in plans),
+                         tuple(sweep_codecs), report_s, prepare_s)
+
+
+def report_cost(costs: dict[str, Any], datasets: int, jobs: int) -> float:
+    """Seconds to write the report of ``jobs`` jobs over ``datasets`` datasets (one process: wall = CPU).
+
+    ``costs["report"]``: ``cpu_s`` (reading, pooling, the tables) plus ``cpu_s_per_dataset`` (its figures) plus
+    ``cpu_s_per_job`` (reading each job's rows and pictures), measured by timing the report of finished sweeps.
+    """
+    entry = costs.get("report", {})
+    return (float(entry.get("cpu_s", 0.0)) + datasets * float(entry.get("cpu_s_per_dataset", 0.0))
+            + jobs * float(entry.get("cpu_s_per_job", 0.0)))
 
 
 def format_progress(done: int, elapsed_s: float, estimate: BenchEstimate | None) -> str:
@@ -105,6 +125,8 @@ def format_estimate(estimate: BenchEstimate, workers: int, top: int = 4) -> str:
     heavy = sorted(estimate.codec_cpu_s.items(), key=lambda item: -item[1])[:top]
     share = ", ".join(f"{codec} {format_duration(seconds)}" for codec, seconds in heavy)
     return (f"estimated {format_duration(estimate.wall_s)} wall on {workers} workers "
+            f"(sweeps {format_duration(sum(estimate.sweep_wall_s))}, report {format_duration(estimate.report_s)}, "
+            f"this estimate {format_duration(estimate.prepare_s)}) "
             f"({format_duration(estimate.cpu_s)} CPU, {estimate.jobs} jobs; most CPU: {share}); "
             f"per-frame costs measured {estimate.measured}"
             + (f"; not priced: {', '.join(estimate.unpriced)}" if estimate.unpriced else ""))
@@ -117,7 +139,9 @@ def format_estimate_table(estimate: BenchEstimate) -> str:
     for label, jobs, cpu, wall in zip(estimate.labels, estimate.sweep_jobs, estimate.sweep_cpu_s,
                                       estimate.sweep_wall_s):
         lines.append(f"| {label} | {jobs} | {cpu:.0f} | {wall:.0f} |")
-    lines.append(f"| all | {estimate.jobs} | {estimate.cpu_s:.0f} | {estimate.wall_s:.0f} |")
+    lines.append(f"| report | | {estimate.report_s:.0f} | {estimate.report_s:.0f} |")
+    lines.append(f"| the estimate's dry runs (measured) | | | {estimate.prepare_s:.0f} |")
+    lines.append(f"| all | {estimate.jobs} | {estimate.cpu_s + estimate.report_s:.0f} | {estimate.wall_s:.0f} |")
     lines += ["", "| codec CPU s | " + " | ".join(estimate.labels) + " | all |",
               "|---|" + "---:|" * (len(estimate.labels) + 1)]
     for codec, total in sorted(estimate.codec_cpu_s.items(), key=lambda item: -item[1]):

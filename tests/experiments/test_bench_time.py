@@ -35,7 +35,8 @@ def test_estimate_line_names_the_time_and_the_costliest_codecs():
     estimate = BenchEstimate(wall_s=600.0, cpu_s=1100.0, jobs=90,
                              codec_cpu_s={"a": 500.0, "b": 400.0, "c": 1.0}, measured="2026-12-02 on here")
     line = format_estimate(estimate, workers=2, top=2)
-    assert line.startswith("estimated 10.0 min wall on 2 workers (18.3 min CPU, 90 jobs; most CPU: a 8.3 min, b 6.7 min)")
+    assert line.startswith("estimated 10.0 min wall on 2 workers (sweeps 0 s, report 0 s, this estimate 0 s) "
+                           "(18.3 min CPU, 90 jobs; most CPU: a 8.3 min, b 6.7 min)")
     assert "c " not in line and line.endswith("measured 2026-12-02 on here")
 
 
@@ -57,9 +58,19 @@ def test_estimate_table_lists_each_sweep_and_each_codecs_cpu_per_sweep():
     estimate = BenchEstimate(wall_s=450.0, cpu_s=900.0, jobs=7, codec_cpu_s={"a": 120.0, "b": 780.0},
                              measured="here", sweep_wall_s=(400.0, 50.0), sweep_cpu_s=(800.0, 100.0),
                              sweep_jobs=(5, 2), labels=("s1", "s2"),
-                             sweep_codec_cpu_s=({"a": 20.0, "b": 780.0}, {"a": 100.0}))
+                             sweep_codec_cpu_s=({"a": 20.0, "b": 780.0}, {"a": 100.0}), report_s=30.0,
+                             prepare_s=12.0)
     lines = format_estimate_table(estimate).splitlines()
-    assert lines[2:5] == ["| s1 | 5 | 800 | 400 |", "| s2 | 2 | 100 | 50 |", "| all | 7 | 900 | 450 |"]
-    assert lines[6] == "| codec CPU s | s1 | s2 | all |"
+    assert lines[2:7] == ["| s1 | 5 | 800 | 400 |", "| s2 | 2 | 100 | 50 |", "| report | | 30 | 30 |",
+                          "| the estimate's dry runs (measured) | | | 12 |", "| all | 7 | 930 | 450 |"]
+    assert lines[8] == "| codec CPU s | s1 | s2 | all |"
     # costliest codec first; a codec a sweep does not run reads "-"
-    assert lines[8:] == ["| b | 780 | - | 780 |", "| a | 20 | 100 | 120 |"]
+    assert lines[10:] == ["| b | 780 | - | 780 |", "| a | 20 | 100 | 120 |"]
+
+
+def test_the_report_costs_a_constant_a_share_per_dataset_and_per_job():
+    from mocapbench.experiments.bench_time import report_cost
+
+    costs = {"report": {"cpu_s": 5.0, "cpu_s_per_dataset": 10.0, "cpu_s_per_job": 0.1}}
+    assert report_cost(costs, datasets=3, jobs=200) == 55.0
+    assert report_cost({}, datasets=3, jobs=200) == 0.0
