@@ -253,36 +253,46 @@ def _rows_without_results(dataset: str, measured: list[str], failed_only: list[s
 def datasets_side_by_side(table: pd.DataFrame) -> pd.DataFrame:
     """The headline of every dataset in one table: per codec, its ratio and L∞ under each bound, dataset by dataset.
 
-    ``table`` is :func:`headline_table`'s. A row per codec ranked anywhere (ordered by its best rank), then
-    ``rotations (BVH/glTF)``, then for each dataset and bound ``<dataset> CR < b cm`` and ``<dataset> L∞ cm < b cm``
-    (the codec's headline config there; ``–`` where it has none). A bound whose rows say "the same codecs and
-    configs as under" the smaller one repeats that bound's values.
+    ``table`` is :func:`headline_table`'s. A row per codec ranked anywhere, in the order of the first dataset's
+    first bound (codecs not ranked there after, by the next dataset and bound), then ``rotations (BVH/glTF)``,
+    then for each dataset and bound ``<dataset> CR < b cm`` and ``<dataset> L∞ cm < b cm`` (the codec's headline
+    config there, L∞ cut to 3 significant digits, never rounded up to the bound; ``–`` where it has none). A bound
+    whose rows say "the same codecs and configs as under" the smaller one repeats that bound's values.
     """
     if table.empty:
         return pd.DataFrame(columns=["codec", "rotations (BVH/glTF)"])
     cells: dict[str, dict[str, str]] = {}
     rotations: dict[str, str] = {}
-    best: dict[str, tuple[int, int]] = {}
+    orders: list[dict[str, int]] = []
     columns = []
     for dataset in dict.fromkeys(table["dataset"]):
         previous: dict[str, tuple[str, str]] = {}
-        for position, (bound, group) in enumerate(table[table["dataset"] == dataset].groupby("L∞ bound", sort=False)):
+        for bound, group in table[table["dataset"] == dataset].groupby("L∞ bound", sort=False):
             ranked = group[group["rank"] != "–"]
             same = ranked.empty and group["config"].astype(str).str.startswith("the same codecs").any()
-            values = previous if same else {str(r["codec"]): (_ratio(r["CR"]), f"{float(r['L∞ cm']):.3g}")
+            values = previous if same else {str(r["codec"]): (_ratio(r["CR"]), _cut(float(r["L∞ cm"])))
                                             for _, r in ranked.iterrows()}
             cr, linf = f"{dataset} CR {bound}", f"{dataset} L∞ cm {bound}"
             columns += [cr, linf]
             for codec, (ratio, error) in values.items():
                 cells.setdefault(codec, {}).update({cr: ratio, linf: error})
-            for order, (_, r) in enumerate(ranked.iterrows()):
+            for _, r in ranked.iterrows():
                 rotations.setdefault(str(r["codec"]), str(r["rotations (BVH/glTF)"]))
-                best[str(r["codec"])] = min(best.get(str(r["codec"]), (order, position)), (order, position))
+            orders.append({codec: order for order, codec in enumerate(values)})
             previous = values
-    codecs = sorted(cells, key=lambda codec: best.get(codec, (len(cells), 0)))
+    codecs = sorted(cells, key=lambda codec: [order.get(codec, len(cells)) for order in orders])
     return pd.DataFrame([{"codec": codec, "rotations (BVH/glTF)": rotations.get(codec, ""),
                           **{column: cells[codec].get(column, "–") for column in columns}} for codec in codecs],
                         columns=["codec", "rotations (BVH/glTF)", *columns])
+
+
+def _cut(value: float, digits: int = 3) -> str:
+    """``value`` cut (not rounded) to ``digits`` significant digits: an L∞ under a bound never reads as the bound."""
+    if not np.isfinite(value) or value <= 0:
+        return f"{value:g}"
+    decimals = digits - 1 - int(np.floor(np.log10(value)))
+    cut = np.floor(value * 10.0**decimals) / 10.0**decimals
+    return f"{cut:.{max(decimals, 0)}f}"
 
 
 def _as_table(out: list[dict]) -> pd.DataFrame:

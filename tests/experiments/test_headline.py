@@ -173,10 +173,13 @@ def test_datasets_side_by_side_puts_each_codecs_ratio_and_linf_per_dataset_and_b
                                   "cmu CR < 3 cm", "cmu L∞ cm < 3 cm", "game CR < 1 cm", "game L∞ cm < 1 cm",
                                   "game CR < 3 cm", "game L∞ cm < 3 cm"]
     by_codec = side.set_index("codec")
-    assert list(side["codec"]) == ["b", "a"]  # by best rank anywhere (a tie keeps the first seen)
-    assert by_codec.loc["b", "cmu CR < 3 cm"] == "40:1" and by_codec.loc["b", "cmu L∞ cm < 1 cm"] == "0.9"
+    assert list(side["codec"]) == ["b", "a"]  # in the order of the first dataset's first bound
+    assert by_codec.loc["b", "cmu CR < 3 cm"] == "40:1" and by_codec.loc["b", "cmu L∞ cm < 1 cm"] == "0.900"
     assert by_codec.loc["b", "game CR < 1 cm"] == "–" and by_codec.loc["b", "rotations (BVH/glTF)"] == "yes"
     # "the same as under 1 cm" repeats the 1 cm values
-    assert by_codec.loc["a", "game CR < 3 cm"] == "8:1" and by_codec.loc["a", "game L∞ cm < 3 cm"] == "0.7"
+    assert by_codec.loc["a", "game CR < 3 cm"] == "8:1" and by_codec.loc["a", "game L∞ cm < 3 cm"] == "0.700"
     assert by_codec.loc["a", "rotations (BVH/glTF)"] == "no"
     assert datasets_side_by_side(table[table["dataset"] == "cmu"]).shape == (2, 6)
+    # an L∞ just under the bound is cut, never rounded up to it
+    close = pd.DataFrame([row("cmu", "< 1 cm", 1, "a", 5.0, 0.99996), row("cmu", "< 1 cm", 2, "b", 4.0, 3.08e-5)])
+    assert list(datasets_side_by_side(close)["cmu L∞ cm < 1 cm"]) == ["0.999", "0.0000308"]
