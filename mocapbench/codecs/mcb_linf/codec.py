@@ -41,6 +41,13 @@ Design (two layers, in the spirit of near-lossless image coding such as JPEG-LS)
          (:mod:`mocapbench.entropy.ans`), so the near-certain zeros of high frequencies cost a fraction of a bit.
          ``"bands"``: no training; each frequency band is coded with its own canonical Huffman table or with zstd,
          whichever is smaller (tables travel in the stream).
+         Fixed-length bones (``bone_spheres``): a joint whose bone to its parent keeps its length over the
+         window lies on a sphere of that length around its parent. Joint by joint, parents first, the decoder
+         moves such a joint's base position radially onto the sphere around its parent's final decoded position
+         (the length: the bone's mean length in the base layer, which both sides know) before the refinement;
+         this removes the radial part of the base error (a fifth fewer corrections on a game rig at ε 0.1 cm).
+         A translated joint (its length varies) is left alone; the stream lists each held joint's parent, and the
+         encoder keeps this only where the stream is smaller.
          The refinement positions are coded as Huffman-coded gaps between corrected joints, or, where smaller,
          joint by joint: each joint's count of corrected frames, then its per-frame flags by ANS with that
          joint's frequency (corrections gather on the hands and feet); each lattice point
@@ -120,6 +127,17 @@ _CUTS_FLAG = 0x80
 # Set on the entropy-coder byte when the refinement's corrected joints are coded joint by joint
 # (:func:`_write_joint_flags`) instead of as gaps; the encoder sets it only where that is smaller.
 _JOINT_FLAGS_FLAG = 0x40
+
+
+# Set on the entropy-coder byte when the stream lists bones of fixed length (:func:`_write_sphere_joints`): the
+# decoder moves each such joint's base position onto the sphere of that length around its decoded parent before
+# the refinement; the encoder sets it only where the stream is smaller.
+_SPHERE_FLAG = 0x20
+
+
+# A bone is held to a sphere when its length varies by at most this fraction of eps over the window and is
+# longer than eps (a joint on its parent gains nothing).
+_RIGID_BONE_SPREAD = 0.25
 
 
 # What to do when the settings need a model and none is held for the motion's skeleton.
@@ -447,6 +465,111 @@ def _cheapest_lattice_points(residual, nearest, half_cell: float, radius: float,
     return candidates[np.arange(len(candidates)), best]
 
 
+def _rigid_bones(positions: np.ndarray, parents: np.ndarray, eps: float) -> np.ndarray:
+    """The sphere code of every joint (J,) int64: ``j - parent`` where the bone to the parent keeps its length
+    over the window (spread <= ``_RIGID_BONE_SPREAD`` eps, length > eps), else 0 (the root, a translated joint)."""
+    codes = np.zeros(len(parents), dtype=np.int64)
+    if positions.shape[1] < 2 or not len(positions):
+        return codes
+    child = np.arange(1, len(parents))
+    lengths = np.linalg.norm(positions[:, child] - positions[:, parents[child]], axis=-1)  # (F, J - 1)
+    rigid = (np.ptp(lengths, axis=0) <= _RIGID_BONE_SPREAD * eps) & (lengths.min(axis=0) > eps) & (parents[child] >= 0)
+    codes[child[rigid]] = child[rigid] - parents[child[rigid]]
+    return codes
+
+
+def _bone_lengths(base: np.ndarray, codes: np.ndarray) -> np.ndarray:
+    """Each held bone's length as the decoder knows it (J,): its mean length over the base layer's frames (F, J, 3).
+
+    Encoder and decoder compute it from the same base layer; a rounding difference between machines moves a
+    joint by ~1e-14 cm, far inside the refinement's safety margin.
+    """
+    lengths = np.zeros(len(codes))
+    for joint in np.flatnonzero(codes).tolist() if len(base) else []:  # one bone at a time: (F, 3) temporaries
+        lengths[joint] = np.linalg.norm(base[:, joint] - base[:, joint - codes[joint]], axis=-1).mean()
+    return lengths
+
+
+def _onto_sphere(points: np.ndarray, centres: np.ndarray, length: float) -> np.ndarray:
+    """``points`` (F, 3) moved radially onto the sphere of radius ``length`` around ``centres`` (F, 3); a point on
+    its centre stays."""
+    offset = points - centres
+    norm = np.linalg.norm(offset, axis=-1, keepdims=True)
+    return np.where(norm > 0, centres + offset * (length / np.where(norm > 0, norm, 1.0)), points)
+
+
+def _refine(positions, base, radius: float, model: TrainedModel | None, codes: np.ndarray | None):
+    """The refinement of a base layer (F, J, 3) cm: (corrected joints' flattened frame-major indices ascending,
+    their lattice points (N, 3) half cells, the final residual (F·J, 3) cm).
+
+    With sphere ``codes`` (:func:`_rigid_bones`), joint by joint, parents first, as the decoder does it: the held
+    joint's base position moves onto the sphere of its bone's length around its parent's final position, which
+    removes the radial part of its error; then its residual is corrected. Without, every joint at once.
+    """
+    num_frames, num_joints, _ = positions.shape
+    half_cell = 2.0 * radius / np.sqrt(5.0)
+    if codes is None:
+        residual = positions.reshape(-1, 3) - base.reshape(-1, 3)
+        corrected = np.flatnonzero(np.sum(residual**2, axis=-1) > radius**2)
+        lattice = _lattice_points_for(residual[corrected], radius, model)
+        residual[corrected] -= lattice * half_cell
+        return corrected, lattice, residual
+    lengths = _bone_lengths(base, codes)
+    final = base.copy()
+    residual = np.empty_like(base)
+    lattices = np.zeros((num_frames, num_joints, 3), dtype=np.int64)
+    flags = np.zeros((num_frames, num_joints), dtype=bool)
+    for joint in range(num_joints):
+        if codes[joint]:
+            final[:, joint] = _onto_sphere(final[:, joint], final[:, joint - codes[joint]], lengths[joint])
+        error = positions[:, joint] - final[:, joint]
+        mine = np.sum(error**2, axis=-1) > radius**2
+        lattice = _lattice_points_for(error[mine], radius, model)
+        final[mine, joint] += lattice * half_cell
+        error[mine] -= lattice * half_cell
+        residual[:, joint], lattices[mine, joint], flags[:, joint] = error, lattice, mine
+    corrected = np.flatnonzero(flags.ravel())
+    return corrected, lattices.reshape(-1, 3)[corrected], residual.reshape(-1, 3)
+
+
+def _lattice_points_for(residual: np.ndarray, radius: float, model: TrainedModel | None) -> np.ndarray:
+    """The lattice point (half cells) coding each residual (N, 3): the nearest, or with a trained model the
+    cheapest within ``radius`` (:func:`_cheapest_lattice_points`)."""
+    lattice, half_cell = bcc_quantize(residual, radius)
+    return lattice if model is None else _cheapest_lattice_points(residual, lattice, half_cell, radius, model)
+
+
+def _write_sphere_joints(writer: ByteWriter, codes: np.ndarray) -> None:
+    """The bones held to a sphere, ``codes`` (J,) as :func:`_rigid_bones` gives them (``j - parent``, 0: not held).
+
+    The decoder needs no skeleton for this (``"pca"`` streams carry none): the codes name the parents. Layout:
+    one bit per joint but the root (held?), packed; one bit per held joint (its parent is the joint just
+    before it, as along a limb), packed; then a varint ``j - parent`` (>= 2) for each other held joint.
+    """
+    held = codes[1:] > 0
+    chained = codes[1:][held] == 1
+    writer.write_bytes(np.packbits(held).tobytes())
+    writer.write_bytes(np.packbits(chained).tobytes())
+    writer.write_varints(codes[1:][held][~chained])
+
+
+def _read_sphere_joints(reader: ByteReader, num_joints: int) -> np.ndarray:
+    """Inverse of :func:`_write_sphere_joints`: the codes (J,) int64, each held joint's parent an earlier joint."""
+    codes = np.zeros(num_joints, dtype=np.int64)
+    if num_joints < 2:
+        return codes
+    held_bits = reader.read_bytes((num_joints + 6) // 8, "bones held to spheres")
+    held = np.flatnonzero(np.unpackbits(np.frombuffer(held_bits, dtype=np.uint8))[: num_joints - 1]) + 1
+    chained_bits = reader.read_bytes((len(held) + 7) // 8, "held bones along a chain")
+    chained = np.unpackbits(np.frombuffer(chained_bits, dtype=np.uint8))[: len(held)].astype(bool)
+    codes[held[chained]] = 1
+    others = held[~chained]
+    codes[others] = reader.read_varints(len(others), "held bones' parents").astype(np.int64)
+    if np.any(codes[others] < 2) or np.any(codes[others] > others):
+        raise BitstreamError("mcb-linf: a bone held to a sphere names a parent that is not an earlier joint.")
+    return codes
+
+
 @dataclass(frozen=True, eq=False)
 class _Stream:
     """What one encode codes with: the effective representation and entropy coder, the model, the cuts (N,)."""
@@ -511,6 +634,10 @@ class McbLinfCodec(Codec):
         rd_lambda: float = param(
             0.1, low=0.0, high=10.0, unit="squared steps per bit",
             doc="trained entropy: round each coefficient for squared error + rd_lambda * bits (0: dead-zone rounding)",
+        )
+        bone_spheres: bool = param(
+            True, doc="where smaller, move each fixed-length bone's joint onto its sphere around the decoded parent "
+                      "before the refinement",
         )
         zstd_level: int = param(19, low=1, high=22, doc="zstd level of the bands coded with zstd")
         cut_detection: bool = param(
@@ -734,13 +861,23 @@ class McbLinfCodec(Codec):
         base = base_positions(
             coefficients, steps, num_frames, parents, config.clip_frames, stream.representation, model, cuts
         ).reshape(-1, 3)
-        residual = positions.reshape(-1, 3) - base
         radius = config.eps_cm * (1.0 - _SAFETY_MARGIN)
-        corrected = np.flatnonzero(np.sum(residual**2, axis=-1) > radius**2)
-        lattice, half_cell = bcc_quantize(residual[corrected], radius)
-        if stream.entropy == "trained":
-            lattice = _cheapest_lattice_points(residual[corrected], lattice, half_cell, radius, model)
-        residual[corrected] -= lattice * half_cell
+        lattice_model = model if stream.entropy == "trained" else None
+        sphere_codes = _rigid_bones(positions, parents, config.eps_cm) if config.bone_spheres else np.zeros(1, int)
+        best_refinement = None
+        for codes in ([None, sphere_codes] if sphere_codes.any() else [None]):
+            corrected, lattice, residual = _refine(positions, base.reshape(positions.shape), radius, lattice_model, codes)
+            positions_bytes = _write_refinement_positions(corrected, num_frames, num_joints, config.zstd_level)
+            lattice_writer = ByteWriter()
+            _write_lattice(lattice_writer, lattice, lattice_model, config.zstd_level)
+            coded = positions_bytes + lattice_writer.getvalue()
+            if codes is not None:
+                sphere_writer = ByteWriter()
+                _write_sphere_joints(sphere_writer, codes)
+                coded = positions_bytes[:1] + sphere_writer.getvalue() + coded[1:]
+            if best_refinement is None or len(coded) < len(best_refinement[0]):
+                best_refinement = (coded, codes, len(corrected), residual)
+        refinement, codes, num_corrected, residual = best_refinement
         mean_error = float(np.linalg.norm(residual, axis=-1).mean()) if residual.size else 0.0
 
         writer = ByteWriter()
@@ -750,10 +887,10 @@ class McbLinfCodec(Codec):
         writer.write_f64(config.root_step_rel)
         writer.write_varint(config.clip_frames)
         writer.write_u8(REPRESENTATIONS.index(stream.representation))
-        refinement = _write_refinement_positions(corrected, num_frames, num_joints, config.zstd_level)
         joint_flags = refinement[0] == _JOINT_FLAGS_FLAG
         writer.write_u8(
             _ENTROPY_CODERS.index(stream.entropy) | (_CUTS_FLAG if len(cuts) else 0) | (_JOINT_FLAGS_FLAG if joint_flags else 0)
+            | (_SPHERE_FLAG if codes is not None else 0)
         )
         # F again: the ANS coder can code a long run of near-certain zeros in almost no bytes, so the payload
         # alone does not pin F; a header F edited to 1e6 would otherwise build a 1e6-frame layout.
@@ -768,9 +905,8 @@ class McbLinfCodec(Codec):
             _write_trained(writer, coefficients, layout, steps, model)
         else:
             _write_bands(writer, coefficients, layout, config.zstd_level)
-        writer.write_bytes(refinement[1:])
-        _write_lattice(writer, lattice, model if stream.entropy == "trained" else None, config.zstd_level)
-        return _Candidate(writer.getvalue(), step, mean_error, len(corrected))
+        writer.write_bytes(refinement[1:])  # [sphere joints,] corrected joints, lattice points
+        return _Candidate(writer.getvalue(), step, mean_error, num_corrected)
 
     # -- decoding --------------------------------------------------------------------------------------
     def _decoding_model(self, representation: str, tag: int, num_joints: int) -> TrainedModel:
@@ -808,8 +944,8 @@ class McbLinfCodec(Codec):
         temporaries of one layout slice or one DCT window; the layout's F·C arrays are never built.
         """
         reader = ByteReader(payload)
-        eps, step, slope, root_step_rel, clip_frames, representation, entropy, has_cuts, joint_flags = _read_settings(
-            reader
+        eps, step, slope, root_step_rel, clip_frames, representation, entropy, has_cuts, sphere, joint_flags = (
+            _read_settings(reader)
         )
         num_frames, num_joints = header.num_frames, header.num_joints
         if reader.read_varint("frame count") != num_frames:
@@ -833,7 +969,7 @@ class McbLinfCodec(Codec):
         positions = np.empty((num_frames, num_joints, 3)) if out is None else out
         base_positions_into(positions, coefficients, layout, step, slope, root_step_rel, parents, representation, model)
         del coefficients
-        positions = positions.reshape(-1, 3)
+        codes = _read_sphere_joints(reader, num_joints) if sphere else None
         if joint_flags:
             corrected = _read_joint_flags(reader, num_frames, num_joints)
         else:
@@ -841,8 +977,17 @@ class McbLinfCodec(Codec):
         lattice = _read_lattice(reader, payload, len(corrected), model if entropy == "trained" else None)
         reader.expect_end()
         half_cell = 2.0 * eps * (1.0 - _SAFETY_MARGIN) / np.sqrt(5.0)
-        positions[corrected] += lattice * half_cell
-        return positions.reshape(num_frames, num_joints, 3)
+        if codes is None:
+            positions.reshape(-1, 3)[corrected] += lattice * half_cell
+            return positions
+        lengths = _bone_lengths(positions, codes)
+        frames, joints = np.divmod(corrected, num_joints)
+        for joint in range(num_joints):  # parents first: a parent is final before its children move onto it
+            if codes[joint]:
+                positions[:, joint] = _onto_sphere(positions[:, joint], positions[:, joint - codes[joint]], lengths[joint])
+            mine = joints == joint
+            positions[frames[mine], joint] += lattice[mine] * half_cell
+        return positions
 
     def describe_payload(self, header: Header, payload: memoryview):
         reader = ByteReader(payload)
@@ -850,7 +995,7 @@ class McbLinfCodec(Codec):
         if header.num_frames > WINDOW_FRAMES:  # a sequence of windows: describe the first
             reader.read_varint("window length")
             windows = {"windows of frames": f"{-(-header.num_frames // WINDOW_FRAMES)} x {WINDOW_FRAMES} (first shown)"}
-        eps, step, slope, root_step_rel, clip_frames, representation, entropy, has_cuts, _ = _read_settings(reader)
+        eps, step, slope, root_step_rel, clip_frames, representation, entropy, has_cuts, _, _ = _read_settings(reader)
         frames = min(header.num_frames, WINDOW_FRAMES)
         reader.read_varint("frame count")  # F again (written before the cuts)
         cuts = read_cuts(reader, frames, "mcb-linf") if has_cuts else []
@@ -879,9 +1024,9 @@ def _needs_model(representation: str, entropy: str) -> bool:
     return representation == "pca" or entropy == "trained"
 
 
-def _read_settings(reader: ByteReader) -> tuple[float, float, float, float, int, str, str, bool, bool]:
+def _read_settings(reader: ByteReader) -> tuple[float, float, float, float, int, str, str, bool, bool, bool]:
     """The stream's leading fields, checked: (eps, step, slope, root step, L, representation, entropy coder, cuts?,
-    corrected joints coded joint by joint?)."""
+    bones held to spheres?, corrected joints coded joint by joint?)."""
     eps = reader.read_f64("eps")
     step = reader.read_f64("base step")
     slope = reader.read_f64("frequency slope")
@@ -889,8 +1034,8 @@ def _read_settings(reader: ByteReader) -> tuple[float, float, float, float, int,
     clip_frames = reader.read_varint("clip length")
     representation = reader.read_u8("representation")
     entropy = reader.read_u8("entropy coder")
-    has_cuts, joint_flags = bool(entropy & _CUTS_FLAG), bool(entropy & _JOINT_FLAGS_FLAG)
-    entropy &= ~(_CUTS_FLAG | _JOINT_FLAGS_FLAG)
+    has_cuts, joint_flags, sphere = bool(entropy & _CUTS_FLAG), bool(entropy & _JOINT_FLAGS_FLAG), bool(entropy & _SPHERE_FLAG)
+    entropy &= ~(_CUTS_FLAG | _JOINT_FLAGS_FLAG | _SPHERE_FLAG)
     if (
         not (0 < eps < np.inf and 0 < step < np.inf and 0 <= slope <= 64 and 0 < root_step_rel <= 1)
         or not 4 <= clip_frames <= 4096
@@ -904,7 +1049,7 @@ def _read_settings(reader: ByteReader) -> tuple[float, float, float, float, int,
         )
     return (
         eps, step, slope, root_step_rel, clip_frames, REPRESENTATIONS[representation], _ENTROPY_CODERS[entropy],
-        has_cuts, joint_flags,
+        has_cuts, sphere, joint_flags,
     )
 
 

@@ -329,3 +329,106 @@ def test_rate_distortion_rounding_keeps_the_bound_and_shrinks_a_30_fps_stream(ep
     for data in (plain, rounded):
         assert metrics.max_joint_error(motion.positions(), create("mcb-linf").decode(data).positions) <= eps
     assert len(rounded) < len(plain)
+
+
+def _sphere_flag(codec, motion) -> bool:
+    from mocapbench.codecs.mcb_linf.codec import _read_settings
+    from mocapbench.entropy.bitio import ByteReader
+
+    return _read_settings(ByteReader(codec.encode_payload(motion)))[-2]
+
+
+@pytest.mark.parametrize("eps", [0.05, 0.1, 0.5])
+def test_bones_held_to_spheres_keep_the_bound_and_shrink_the_stream(eps):
+    """Rigid bones (a rotation-driven motion): the sphere is used at a fine bound, the stream is smaller than
+    without it, and a fresh decoder keeps every joint within eps."""
+    motion = sinusoidal_motion(num_frames=240, fps=30.0, seed=9, max_frequency_hz=6.0, amplitude_deg=35.0)
+    held = create("mcb-linf", eps_cm=eps)
+    plain = create("mcb-linf", eps_cm=eps, bone_spheres=False)
+    data, plain_data = held.encode(motion), plain.encode(motion)
+    assert not _sphere_flag(plain, motion)
+    if eps < 0.5:
+        assert _sphere_flag(held, motion) and len(data) < len(plain_data)
+    assert len(data) <= len(plain_data)
+    for stream in (data, plain_data):
+        assert metrics.max_joint_error(motion.positions(), create("mcb-linf").decode(stream).positions) <= eps
+
+
+def test_a_translated_joint_is_not_held_to_a_sphere():
+    """A joint whose local translation moves (a game rig's pelvis) gets no sphere; the rigid bones do; the bound
+    holds on the decoded motion."""
+    import dataclasses
+
+    from mocapbench.codecs.mcb_linf.codec import _rigid_bones
+
+    motion = sinusoidal_motion(num_frames=100, fps=30.0, seed=4, max_frequency_hz=6.0, amplitude_deg=30.0)
+    stretched = 5
+    translations = np.broadcast_to(motion.skeleton.offsets, (motion.num_frames, motion.num_joints, 3)).copy()
+    translations[:, 0] = motion.root_positions
+    translations[:, stretched] += np.linspace(0.0, 2.0, motion.num_frames)[:, None] * np.array([0.0, 1.0, 0.0])
+    moved = dataclasses.replace(motion, translations=translations)
+    positions, parents = moved.positions(), moved.skeleton.parents
+    codes = _rigid_bones(positions, parents, 0.1)
+    assert codes[0] == 0 and codes[stretched] == 0
+    rigid = [j for j in range(1, moved.num_joints)
+             if _bone_spread(positions, parents, j) < 1e-6 and np.linalg.norm(positions[0, j] - positions[0, parents[j]]) > 0.1]
+    assert len(rigid) > moved.num_joints // 2 and all(codes[j] == j - parents[j] for j in rigid)
+    decoded = create("mcb-linf").decode(create("mcb-linf", eps_cm=0.1).encode(moved))
+    assert metrics.max_joint_error(positions, decoded.positions) <= 0.1
+
+
+def _is_below(parents, joint, ancestor) -> bool:
+    while joint >= 0:
+        if joint == ancestor:
+            return True
+        joint = parents[joint]
+    return False
+
+
+def _bone_spread(positions, parents, joint) -> float:
+    return float(np.ptp(np.linalg.norm(positions[:, joint] - positions[:, parents[joint]], axis=-1)))
+
+
+def test_sphere_codes_read_back_and_codes_naming_a_later_joint_or_cut_short_are_refused():
+    from mocapbench.codecs.mcb_linf.codec import _read_sphere_joints, _write_sphere_joints
+    from mocapbench.entropy.bitio import ByteReader, ByteWriter
+
+    for codes in ([0, 1, 0, 3, 1, 2, 6, 1, 1, 9], [0], [0, 0, 0], [0] + [1] * 20):
+        writer = ByteWriter()
+        _write_sphere_joints(writer, np.array(codes))
+        reader = ByteReader(writer.getvalue())
+        assert _read_sphere_joints(reader, len(codes)).tolist() == codes and reader.remaining == 0
+    for bad in ([0, 1, 3, 0], [0, 0, 3, 0]):  # a code of 1 off the chain bits; joint 2 would hang from joint -1
+        writer = ByteWriter()
+        writer.write_bytes(np.packbits(np.array(bad[1:]) > 0).tobytes())
+        writer.write_bytes(np.packbits(np.zeros(1, bool)).tobytes())
+        writer.write_varints(np.array([b for b in bad[1:] if b]))
+        with pytest.raises(BitstreamError, match="earlier joint"):
+            _read_sphere_joints(ByteReader(writer.getvalue()), 4)
+    writer = ByteWriter()
+    writer.write_bytes(np.packbits(np.array([0, 1, 0, 0, 0, 0, 0, 0, 0, 0], bool)).tobytes())
+    writer.write_bytes(b"\x00")
+    writer.write_varints(np.array([1]))  # a code of 1 outside the chain bits
+    with pytest.raises(BitstreamError, match="earlier joint"):
+        _read_sphere_joints(ByteReader(writer.getvalue()), 11)
+    with pytest.raises(BitstreamError):
+        _read_sphere_joints(ByteReader(b"\xff"), 8)  # the chain bits and parents missing
+
+
+def test_a_stream_with_spheres_refuses_a_corrupt_sphere_section(monkeypatch):
+    """A stream whose sphere section names a later joint (a hostile writer): the decoder (here the encoder's own
+    check of its stream) raises BitstreamError, never a wrong decode."""
+    import mocapbench.codecs.mcb_linf.codec as codec_module
+
+    motion = sinusoidal_motion(num_frames=120, fps=30.0, seed=9, max_frequency_hz=6.0, amplitude_deg=35.0)
+    write = codec_module._write_sphere_joints
+
+    def hostile(writer, codes):
+        codes = codes.copy()
+        held = np.flatnonzero(codes)
+        codes[held[0]] = held[0] + 5  # a parent before the first joint
+        write(writer, codes)
+
+    monkeypatch.setattr(codec_module, "_write_sphere_joints", hostile)
+    with pytest.raises(BitstreamError, match="earlier joint"):
+        create("mcb-linf", eps_cm=0.1).encode_payload(motion)
