@@ -18,8 +18,9 @@ Design (two layers, in the spirit of near-lossless image coding such as JPEG-LS)
          Δ_k = Δ (1 + 2 k / L) (a quantization matrix, as in JPEG), and a finer step on the root's channels
          (``root_step_rel``, 0.2): a root error moves all J joints, so in mean squared error it weighs J times a
          single joint's (the MSE-optimal root step is Δ / sqrt(J), 0.18 Δ for 31 joints).
-         Δ is chosen per stream: with ``mean_cm`` = 0, by a rate search over multiples of ε (the smallest stream
-         wins; below 60 fps the search also tries the flatter slope ``low_fps_slope``, 0.25, since a frame at
+         Δ is chosen per stream: with ``mean_cm`` = 0, by a rate search over multiples of ε (quarter octaves, then
+         the eighth octaves beside the best; the smallest stream wins; a step of this grid and the default slopes
+         are written as two indices, not three float64; below 60 fps the search also tries the flatter slope ``low_fps_slope``, 0.25, since a frame at
          30 fps carries more of the motion's high frequencies); with ``mean_cm`` > 0, as the coarsest step whose
          decoded mean error is <= ``mean_cm``.
          Rounding: with the trained entropy coder, rate-distortion rounding (``rd_lambda``): each coefficient
@@ -148,9 +149,22 @@ _ON_MISSING_MODEL = ("untrained", "error")
 _UNTRAINED_REPRESENTATION, _UNTRAINED_ENTROPY = "bone", "bands"
 
 
-# Base-layer steps tried by the rate search, as multiples of eps: 0.5 to 4 in quarter octaves (on cmu_test the
-# chosen step is 1-3 eps; the quarter-octave grid gains about 1 % over a half-octave one).
-_RDO_STEPS = tuple(2.0 ** (i / 4) for i in range(-4, 9))
+# Base-layer steps of the rate search, as multiples of eps: 0.5 to 4 in eighth octaves. The search tries the
+# quarter octaves (the even entries; on cmu_test the chosen step is 1-3 eps, and a quarter-octave grid gains about
+# 1 % over a half-octave one), then the two eighth octaves beside the best. Each is a power of two times one of eight
+# float literals (2^(k/8)): exact on every machine, so that a stream may name its step by its index
+# (:func:`_write_settings`).
+_EIGHTH_OCTAVES = tuple(float.fromhex(text) for text in (
+    "0x1.0000000000000p+0", "0x1.172b83c7d517bp+0", "0x1.306fe0a31b715p+0", "0x1.4bfdad5362a27p+0",
+    "0x1.6a09e667f3bcdp+0", "0x1.8ace5422aa0dbp+0", "0x1.ae89f995ad3adp+0", "0x1.d5818dcfba487p+0",
+))
+_RDO_STEPS = tuple(2.0 ** (i // 8) * _EIGHTH_OCTAVES[i % 8] for i in range(-8, 17))
+
+
+# A stream whose eps is written negated names its base step by its index in :data:`_RDO_STEPS` (step = eps times
+# it) and its frequency slope and root step by their index here (one byte each instead of three float64): the
+# settings a default encode writes. Append only.
+_COMPACT_SHAPES = ((2.0, 0.2), (0.25, 0.2))
 
 
 # Base-layer steps searched for a mean-error target, as multiples of mean_cm: 1 to 1024 in quarter octaves (on
@@ -588,6 +602,7 @@ class _Candidate:
     step: float
     mean_error: float
     corrected_joints: int
+    slope: float = 0.0
 
 
 @register_codec
@@ -816,13 +831,17 @@ class McbLinfCodec(Codec):
             steps = [config.mean_cm * rel for rel in _MEAN_TARGET_STEPS]
             best = _coarsest_meeting_target(attempt, steps, config.mean_cm)
         else:
-            steps = [config.eps_cm * rel for rel in (_RDO_STEPS if config.rdo else (config.base_step_rel,))]
+            steps = [config.eps_cm * rel for rel in (_RDO_STEPS[::2] if config.rdo else (config.base_step_rel,))]
             slopes = [config.frequency_slope]
             if config.rdo and config.low_fps_slope > 0 and motion.fps < _LOW_FPS and config.low_fps_slope not in slopes:
                 slopes.append(config.low_fps_slope)
-            best = min(
-                (attempt(step, slope) for slope in slopes for step in steps), key=lambda candidate: len(candidate.payload)
-            )
+            candidates = [attempt(step, slope) for slope in slopes for step in steps]
+            best = min(candidates, key=lambda candidate: len(candidate.payload))
+            if config.rdo:  # the eighth octaves beside the best quarter octave, at its slope
+                index = 2 * (candidates.index(best) % len(steps))
+                finer = [attempt(config.eps_cm * _RDO_STEPS[i], best.slope) for i in (index - 1, index + 1)
+                         if 0 <= i < len(_RDO_STEPS)]
+                best = min([best, *finer], key=lambda candidate: len(candidate.payload))
         # The guarantee: decode what we are about to return and check it.
         header = Header(self.name, motion.num_frames, motion.num_joints, motion.fps)
         decoded = self._decode_window(header, memoryview(best.payload))
@@ -881,10 +900,7 @@ class McbLinfCodec(Codec):
         mean_error = float(np.linalg.norm(residual, axis=-1).mean()) if residual.size else 0.0
 
         writer = ByteWriter()
-        writer.write_f64(config.eps_cm)
-        writer.write_f64(step)
-        writer.write_f64(slope)
-        writer.write_f64(config.root_step_rel)
+        _write_settings(writer, config.eps_cm, step, slope, config.root_step_rel)
         writer.write_varint(config.clip_frames)
         writer.write_u8(REPRESENTATIONS.index(stream.representation))
         joint_flags = refinement[0] == _JOINT_FLAGS_FLAG
@@ -906,7 +922,7 @@ class McbLinfCodec(Codec):
         else:
             _write_bands(writer, coefficients, layout, config.zstd_level)
         writer.write_bytes(refinement[1:])  # [sphere joints,] corrected joints, lattice points
-        return _Candidate(writer.getvalue(), step, mean_error, num_corrected)
+        return _Candidate(writer.getvalue(), step, mean_error, num_corrected, slope)
 
     # -- decoding --------------------------------------------------------------------------------------
     def _decoding_model(self, representation: str, tag: int, num_joints: int) -> TrainedModel:
@@ -1024,13 +1040,37 @@ def _needs_model(representation: str, entropy: str) -> bool:
     return representation == "pca" or entropy == "trained"
 
 
+def _write_settings(writer: ByteWriter, eps: float, step: float, slope: float, root_step_rel: float) -> None:
+    """eps, base step, frequency slope and root step: compact where the step is eps times one of :data:`_RDO_STEPS`
+    and (slope, root step) is one of :data:`_COMPACT_SHAPES` (``-eps`` as float64, then the two indices as bytes),
+    else the four float64 as they are."""
+    indices = [i for i, rel in enumerate(_RDO_STEPS) if eps * rel == step]
+    if indices and (slope, root_step_rel) in _COMPACT_SHAPES:
+        writer.write_f64(-eps)
+        writer.write_u8(indices[0])
+        writer.write_u8(_COMPACT_SHAPES.index((slope, root_step_rel)))
+        return
+    for value in (eps, step, slope, root_step_rel):
+        writer.write_f64(value)
+
+
 def _read_settings(reader: ByteReader) -> tuple[float, float, float, float, int, str, str, bool, bool, bool]:
     """The stream's leading fields, checked: (eps, step, slope, root step, L, representation, entropy coder, cuts?,
     bones held to spheres?, corrected joints coded joint by joint?)."""
     eps = reader.read_f64("eps")
-    step = reader.read_f64("base step")
-    slope = reader.read_f64("frequency slope")
-    root_step_rel = reader.read_f64("root step")
+    if eps < 0:  # compact settings (:func:`_write_settings`)
+        eps, step_index, shape = -eps, reader.read_u8("base step index"), reader.read_u8("slope and root step")
+        if step_index >= len(_RDO_STEPS) or shape >= len(_COMPACT_SHAPES):
+            raise BitstreamError(
+                f"mcb-linf: expected a base step index < {len(_RDO_STEPS)} and a slope code < {len(_COMPACT_SHAPES)}, "
+                f"found {step_index} and {shape}."
+            )
+        step = eps * _RDO_STEPS[step_index]
+        slope, root_step_rel = _COMPACT_SHAPES[shape]
+    else:
+        step = reader.read_f64("base step")
+        slope = reader.read_f64("frequency slope")
+        root_step_rel = reader.read_f64("root step")
     clip_frames = reader.read_varint("clip length")
     representation = reader.read_u8("representation")
     entropy = reader.read_u8("entropy coder")

@@ -432,3 +432,45 @@ def test_a_stream_with_spheres_refuses_a_corrupt_sphere_section(monkeypatch):
     monkeypatch.setattr(codec_module, "_write_sphere_joints", hostile)
     with pytest.raises(BitstreamError, match="earlier joint"):
         create("mcb-linf", eps_cm=0.1).encode_payload(motion)
+
+
+def test_default_settings_are_written_compact_and_others_in_full(synthetic_motion):
+    """A default encode names its step and slope by index (eps written negated); a root step off the table is
+    written as float64 as before; both decode within the bound."""
+    from mocapbench.codecs.mcb_linf.codec import _COMPACT_SHAPES, _RDO_STEPS, _read_settings
+    from mocapbench.entropy.bitio import ByteReader
+
+    motion = synthetic_motion.slice(0, 200)
+    for settings, compact in (({}, True), ({"root_step_rel": 0.3}, False), ({"rdo": False, "base_step_rel": 1.7}, False)):
+        codec = create("mcb-linf", eps_cm=0.25, **settings)
+        payload = codec.encode_payload(motion)
+        assert (np.frombuffer(payload[:8], "<f8")[0] < 0) == compact
+        eps, step, slope, root_step_rel = _read_settings(ByteReader(payload))[:4]
+        assert eps == 0.25 and step == codec.last_encode_stats["base_step_cm"]
+        if compact:
+            assert any(step == 0.25 * rel for rel in _RDO_STEPS) and (slope, root_step_rel) in _COMPACT_SHAPES
+        decoded = create("mcb-linf").decode(codec.encode(motion))
+        assert metrics.max_joint_error(motion.positions(), decoded.positions) <= 0.25
+
+
+@pytest.mark.parametrize("step_index, shape", [(25, 0), (255, 0), (3, 2), (3, 255)])
+def test_compact_settings_off_the_tables_are_refused(step_index, shape):
+    from mocapbench.codecs.mcb_linf.codec import _read_settings
+    from mocapbench.entropy.bitio import ByteReader, ByteWriter
+
+    writer = ByteWriter()
+    writer.write_f64(-0.5)
+    writer.write_u8(step_index)
+    writer.write_u8(shape)
+    writer.write_bytes(bytes(16))
+    with pytest.raises(BitstreamError, match="base step index"):
+        _read_settings(ByteReader(writer.getvalue()))
+
+
+def test_the_rate_search_steps_are_exact_eighth_octaves():
+    """The table a compact stream indexes: powers of two times float literals, equal to 2^(i/8) here and the
+    quarter octaves of the earlier grid at the even entries."""
+    from mocapbench.codecs.mcb_linf.codec import _RDO_STEPS
+
+    assert len(_RDO_STEPS) == 25 and _RDO_STEPS[8] == 1.0 and _RDO_STEPS[0] == 0.5 and _RDO_STEPS[-1] == 4.0
+    assert np.allclose(_RDO_STEPS, 2.0 ** (np.arange(-8, 17) / 8), rtol=1e-15, atol=0)
