@@ -20,8 +20,8 @@ Design (two layers, in the spirit of near-lossless image coding such as JPEG-LS)
          single joint's (the MSE-optimal root step is Δ / sqrt(J), 0.18 Δ for 31 joints).
          Δ is chosen per stream: with ``mean_cm`` = 0, by a rate search over multiples of ε (quarter octaves, then
          the eighth octaves beside the best; the smallest stream wins; a step of this grid and the default slopes
-         are written as two indices, not three float64; below 60 fps the search also tries the flatter slope ``low_fps_slope``, 0.25, since a frame at
-         30 fps carries more of the motion's high frequencies); with ``mean_cm`` > 0, as the coarsest step whose
+         are written as two indices, not three float64; below 60 fps the search also tries the flatter slope
+         ``low_fps_slope``, 0.25, since a frame at 30 fps carries more of the motion's high frequencies); with ``mean_cm`` > 0, as the coarsest step whose
          decoded mean error is <= ``mean_cm``.
          Rounding: with the trained entropy coder, rate-distortion rounding (``rd_lambda``): each coefficient
          starts at its nearest integer and moves towards zero where its squared error plus ``rd_lambda`` times
