@@ -116,10 +116,14 @@ def codec_style(codec: str, family: str | None = None) -> dict:
     return {"color": color, "marker": marker, "linestyle": linestyle, "linewidth": linewidth}
 
 
-def smallest_text_px(fig, page_px: float = PAGE_PX) -> float:
+def smallest_text_px(fig, page_px: float = PAGE_PX, draw: bool = True) -> float:
     """Height in CSS px of the smallest font of ``fig`` when its saved image (tight bounding box, as
-    :func:`_save` writes it) is shown ``page_px`` wide or at its natural size if that is narrower."""
-    fig.canvas.draw()
+    :func:`_save` writes it) is shown ``page_px`` wide or at its natural size if that is narrower.
+
+    ``draw=False`` when the figure was just drawn (saved): its layout is done, and a draw costs as much as a save.
+    """
+    if draw:
+        fig.canvas.draw()
     width_in = fig.get_tightbbox(fig.canvas.get_renderer()).width
     scale = min(1.0, page_px / (width_in * DPI)) * DPI / 72.0  # px per pt on the page
     sizes = [t.get_fontsize() for t in fig.findobj(matplotlib.text.Text) if t.get_text().strip() and t.get_visible()]
@@ -131,12 +135,14 @@ def _save(fig, path: Path) -> Path:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     try:
-        smallest = smallest_text_px(fig)
-        if smallest < 10.0:  # e.g. a legend of very long labels widened the figure; the browser check fails on it
-            log.warning("%s: smallest text %.1f px at a %d px page (under 10 px)", path.name, smallest, PAGE_PX)
         for target, kind in ((path, "png"), (path.with_suffix(".svg"), "svg")):
             with open_output(target, "wb") as handle:
                 fig.savefig(handle, format=kind, dpi=DPI, bbox_inches="tight")
+            if kind == "png":  # measured on the layout the PNG was drawn with, without a draw of its own
+                smallest = smallest_text_px(fig, draw=False)
+                if smallest < 10.0:  # e.g. a legend of very long labels widened the figure; the browser check fails
+                    log.warning("%s: smallest text %.1f px at a %d px page (under 10 px)", path.name, smallest,
+                                PAGE_PX)
     finally:
         plt.close(fig)
     return path

@@ -35,3 +35,20 @@ def test_rd_figure_keeps_lossless_points_off_the_axis_and_text_readable(tmp_path
     ax.set_title("tiny", fontsize=8)
     assert plots.smallest_text_px(fig) < 10  # the check that _save applies can fail
     plt.close(fig)
+
+
+def test_the_text_check_after_a_save_reads_what_a_draw_of_its_own_reads(tmp_path, caplog):
+    import io
+    import logging
+
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(30, 4), layout="constrained")
+    ax.set_title("tiny", fontsize=8)
+    ax.legend(handles=ax.plot([0, 1], label="a long label " * 8), loc="upper left")
+    fig.savefig(io.BytesIO(), format="png", dpi=plots.DPI, bbox_inches="tight")
+    after_save = plots.smallest_text_px(fig, draw=False)
+    assert abs(after_save - plots.smallest_text_px(fig)) < 1e-6 * after_save and after_save < 10
+    with caplog.at_level(logging.WARNING, logger=plots.__name__):
+        plots._save(fig, tmp_path / "tiny.png")  # warns from the layout of the save, without its own draw
+    assert "smallest text" in caplog.text and (tmp_path / "tiny.svg").exists()
