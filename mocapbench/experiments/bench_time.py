@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import json
 import time
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Sequence
@@ -65,10 +66,21 @@ def estimate_run(plans: Sequence[SweepPlan], workers: int, common: Sequence[str]
     unpriced = []
     sweep_walls, sweep_cpus, sweep_jobs, sweep_codecs = [], [], [], []
     start_s = float(costs.get("sweep", {}).get("wall_s", 0.0))  # a sweep's process, set-up and workers
-    for plan in plans:
-        overrides = [f"dataset={plan.dataset}", *plan.overrides, *common]
+
+    def dry_run(plan: SweepPlan):
         try:
-            folders = cost.sweep_folders(plan.sweep, overrides)
+            return cost.sweep_folders(plan.sweep, [f"dataset={plan.dataset}", *plan.overrides, *common])
+        except Exception as error:  # noqa: BLE001 - raised again below, in the plan's turn
+            return error
+
+    # The dry runs are processes of their own: ``workers`` of them at once (the dataset catalogues are composed
+    # here, one at a time: Hydra's global state is this process's).
+    with ThreadPoolExecutor(max(1, workers)) as pool:
+        dry_runs = list(pool.map(dry_run, plans))
+    for plan, folders in zip(plans, dry_runs):
+        try:
+            if isinstance(folders, Exception):
+                raise folders
             frames = cost.dataset_frames(plan.dataset, [o for o in common if not o.startswith("hydra.")])
         except Exception as error:  # noqa: BLE001 - the sweep itself will say what is wrong
             unpriced.append(f"{plan.label} ({str(error).splitlines()[0][:120] if str(error) else type(error).__name__})")

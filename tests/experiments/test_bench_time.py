@@ -74,3 +74,14 @@ def test_the_report_costs_a_constant_a_share_per_dataset_and_per_job():
     costs = {"report": {"cpu_s": 5.0, "cpu_s_per_dataset": 10.0, "cpu_s_per_job": 0.1}}
     assert report_cost(costs, datasets=3, jobs=200) == 55.0
     assert report_cost({}, datasets=3, jobs=200) == 0.0
+
+
+def test_a_sweep_that_cannot_be_priced_is_named_and_the_others_are_priced():
+    from mocapbench.experiments.bench_time import SweepPlan, estimate_run
+
+    plans = [SweepPlan("bad", "no_such_sweep", "synthetic"), SweepPlan("raw", "rd_raw-zstd", "synthetic")]
+    estimate = estimate_run(plans, workers=2)
+    assert len(estimate.unpriced) == 1 and estimate.unpriced[0].startswith("bad (")
+    assert estimate.sweep_jobs[0] == 0 and estimate.sweep_jobs[1] >= 1 and estimate.sweep_cpu_s[1] > 0
+    assert estimate.labels == ("bad", "raw") and estimate.prepare_s > 0
+    assert estimate.wall_s >= estimate.sweep_wall_s[1] + estimate.report_s
