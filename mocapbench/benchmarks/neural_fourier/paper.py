@@ -312,16 +312,20 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--data-dir", default=None, help="folder of the CMU clips (default ../shared/data/cmu)")
     parser.add_argument("--clips", nargs="*", default=None, help="clip names (default: the cmu_test split)")
     parser.add_argument("--iterations", type=int, default=None, help="iterations per round (default: the codec's)")
-    parser.add_argument("--optimizer", choices=["adam", "lbfgs"], default="adam",
-                        help="adam (the codecs' default, 2000 steps per round) or lbfgs (output layer solved, 100 "
-                             "iterations per round), unless --iterations says otherwise")
+    parser.add_argument("--optimizer", choices=["adam", "lbfgs"], default=None,
+                        help="adam (2000 steps per round) or lbfgs (output layer solved, 100 iterations per round) "
+                             "for both codecs, unless --iterations says otherwise (default: each codec's own)")
     parser.add_argument("--threshold", type=float, default=1.0, help="adaptive run's threshold, %% of height")
     parser.add_argument("--k-max", type=int, default=14, help="adaptive run's K_max")
     parser.add_argument("--k", type=int, default=7, help="ablation's K")
     args = parser.parse_args(argv)
     OUT.mkdir(parents=True, exist_ok=True)
-    training = {"optimizer": args.optimizer, "solve_output": args.optimizer == "lbfgs"}
-    training["iterations_per_round"] = args.iterations or (2000 if args.optimizer == "adam" else 100)
+    training: dict[str, Any] = {}
+    if args.optimizer:
+        training = {"optimizer": args.optimizer, "solve_output": args.optimizer == "lbfgs",
+                    "iterations_per_round": 2000 if args.optimizer == "adam" else 100}
+    if args.iterations:
+        training["iterations_per_round"] = args.iterations
     if args.command == "speed":
         run_speed(args.data_dir, training)
     elif args.command == "adaptive":

@@ -17,7 +17,8 @@ the overhead is most of the time. Here every network of a call is trained side b
   more batched products, the bias gradients inside the weight gradients), so no autograd graph is built. ELU is
   computed as ``max(z, e − 1)`` with ``e = exp(min(z, 0))``, and ``e`` is also ELU's derivative (1 where
   ``z > 0``), so one exponential serves both.
-* **The optimizer** (the paper names none). ``optimizer="lbfgs"`` with ``solve_output=True`` (opt-in):
+* **The optimizer** (the paper names none). ``optimizer="lbfgs"`` with ``solve_output=True`` (the default of
+  ``fourier-mlp-int``):
 
   - *Output layer solved* (variable projection). The network is linear in ``[W2 | b2]``, so at every evaluation
     ``[W2 | b2]`` is set to the least-squares fit of eq. (3) on the current hidden activations ``[a2; 1]`` (per
@@ -28,7 +29,7 @@ the overhead is most of the time. Here every network of a call is trained side b
     Armijo backtracking, one loss-and-gradient evaluation per iteration; accepted losses never rise.
 
   Together they reach in a few hundred iterations the loss that Adam reaches in tens of thousands of steps (the
-  README has the measurement). ``optimizer="adam"`` (the default) is the update of
+  README has the measurement). ``optimizer="adam"`` (the default of ``fourier-mlp-dct``) is the update of
   ``torch.optim.Adam`` (β = 0.9, 0.999, ε = 1e-8, bias corrections), each network with its own moments, all
   networks of a group at the same step number and rate (:func:`_adam`).
 * **Padding that changes nothing.** Clips of different lengths are padded with frames whose loss weight is 0, and
@@ -142,6 +143,8 @@ class Network:
     loss_weights: np.ndarray
     seed: int
     weights: list[np.ndarray] | None = None  # [W0, b0, W1, b1, W2, b2], float32
+    # Per frame, a weight of eq. (3)'s term (N,), mean 1; None: every frame 1 (the paper's loss).
+    frame_weights: np.ndarray | None = None
     rounds: int = 0
     # Per round, the loss before each step and after the last one (steps + 1 values).
     loss_history: list[np.ndarray] = field(default_factory=list)
@@ -196,6 +199,22 @@ class Network:
             fresh[5][:] = b2
         self.weights = fresh
 
+    def reweight_frames(self, frame_errors: np.ndarray, power: float) -> None:
+        """Multiply each frame's loss weight by ``(error / mean error) ** power`` and rescale them to mean 1.
+
+        The frames with the largest L∞ error weigh more in the next pass (iteratively reweighted least squares
+        toward the minimax fit: the codec's stopping test is on L∞, eq. (3) is an L2 loss). Successive passes
+        multiply; ``frame_weights = None`` goes back to eq. (3). All-zero errors leave the weights as they are.
+        """
+        errors = np.asarray(frame_errors, dtype=np.float64)
+        mean = float(errors.mean())
+        if not mean > 0:
+            return
+        weights = (errors / mean) ** power
+        if self.frame_weights is not None:
+            weights = weights * self.frame_weights
+        self.frame_weights = weights / weights.mean()
+
     def weights64(self) -> list[np.ndarray]:
         """The current network ``[W0, b0, W1, b1, W2, b2]`` as float64 arrays."""
         return [w.astype(np.float64) for w in self.weights]
@@ -247,8 +266,8 @@ def frame_groups(frames: Sequence[int], overhead_frames: int = _STEP_OVERHEAD_FR
 
 
 def train_round(networks: Sequence[Network], omegas: Sequence[Sequence[float]], iterations: int,
-                settings: TrainingSettings) -> None:
-    """Grow every network to ``len(omegas[i])`` frequencies (warm start) and run one round of Adam on each.
+                settings: TrainingSettings, same_round: bool = False) -> None:
+    """Grow every network to ``len(omegas[i])`` frequencies (warm start) and run one optimizer round on each.
 
     Parameters
     ----------
@@ -257,11 +276,15 @@ def train_round(networks: Sequence[Network], omegas: Sequence[Sequence[float]], 
         Each network's Ω (cycles per clip); networks with the same number of frequencies and rounds so far are
         trained together.
     iterations : int
-        Adam steps of the round.
+        Optimizer iterations of the round.
     settings : TrainingSettings
+    same_round : bool
+        Another pass of the round the networks are in (their frame weights changed): no growth, the round count
+        (Adam's per-round rate) unchanged; the pass's losses are one more entry of ``loss_history``.
     """
-    for network, frequencies in zip(networks, omegas):
-        network.grow(len(frequencies))
+    if not same_round:
+        for network, frequencies in zip(networks, omegas):
+            network.grow(len(frequencies))
     by_shape: dict[tuple[int, int], list[int]] = {}
     for index, (network, frequencies) in enumerate(zip(networks, omegas)):
         by_shape.setdefault((len(frequencies), network.rounds), []).append(index)
@@ -269,6 +292,9 @@ def train_round(networks: Sequence[Network], omegas: Sequence[Sequence[float]], 
         for group in frame_groups([networks[i].num_frames for i in members]):
             chosen = [members[i] for i in group]
             _train_group([networks[i] for i in chosen], [omegas[i] for i in chosen], iterations, settings)
+    if same_round:
+        for network in networks:
+            network.rounds -= 1  # _train_group counted the pass as a round
 
 
 def _features(torch, t, omegas: Sequence[float]):
@@ -343,6 +369,10 @@ def _train_group(networks: Sequence[Network], omegas: Sequence[Sequence[float]],
     # [s ∘ W2 | s ∘ b2] [a2; 1] − y ∘ s, and padded frames give 0 in it (their [a2; 1] column is 0).
     scale = torch.zeros(count, outputs, 1, dtype=dtype)
     frame_mask = torch.zeros(count, 1, frames, dtype=dtype)
+    # sqrt of each frame's loss weight (0 on padded frames): it scales a frame's column of [a2; 1] and of y ∘ s,
+    # so the residual's column i is sqrt(v_i) (F(x_i) − y_i) ∘ s.
+    frame_root = torch.zeros(count, 1, frames, dtype=dtype)
+    weighted = any(network.frame_weights is not None for network in networks)
     for b, (network, frequencies) in enumerate(zip(networks, omegas)):
         n, m = network.targets.shape
         params[b] = torch.from_numpy(_pack(network.weights, layers))
@@ -351,12 +381,17 @@ def _train_group(networks: Sequence[Network], omegas: Sequence[Sequence[float]],
         scale[b, :m, 0] = torch.from_numpy(np.asarray(network.loss_weights, dtype=np.float32)) * math.sqrt(2.0 / (n * m))
         targets[b, :m, :n] = torch.from_numpy(np.asarray(network.targets, dtype=np.float32)).T * scale[b, :m]
         frame_mask[b, :, :n] = 1.0
+        frame_root[b, :, :n] = 1.0
+        if network.frame_weights is not None:
+            frame_root[b, 0, :n] = torch.from_numpy(np.sqrt(np.asarray(network.frame_weights, dtype=np.float32)))
+            targets[b, :m, :n] *= frame_root[b, :, :n]
     padded_frames = bool((frame_mask == 0).any())
-    params, features, targets, scale, frame_mask = (
-        x.to(device) for x in (params, features, targets, scale, frame_mask))
-    # [a1; 1] and [a2; 1] of every frame (the ones row is 0 on padded frames): the second and third layers' inputs.
+    params, features, targets, scale, frame_mask, frame_root = (
+        x.to(device) for x in (params, features, targets, scale, frame_mask, frame_root))
+    # [a1; 1] and [a2; 1] of every frame (the ones row is 0 on padded frames): the second and third layers' inputs;
+    # [a2; 1] scaled by the frame's sqrt weight.
     a1_ones = frame_mask.expand(count, 1, frames).repeat(1, hidden + 1, 1)
-    a2_ones = a1_ones.clone()
+    a2_ones = frame_root.expand(count, 1, frames).repeat(1, hidden + 1, 1)
     a1, a2 = a1_ones[:, :hidden], a2_ones[:, :hidden]
     w0, w1, w2 = (params[:, offsets[i]:offsets[i + 1]].unflatten(1, layers[i]) for i in range(3))
     gradient = torch.empty_like(params)
@@ -374,7 +409,9 @@ def _train_group(networks: Sequence[Network], omegas: Sequence[Sequence[float]],
         z2 = torch.bmm(w1, a1_ones)
         e2 = torch.clamp_max(z2, 0.0).exp_()
         torch.maximum(z2, torch.sub(e2, 1.0, out=a2), out=a2)  # in place: no temporary
-        if padded_frames:
+        if weighted:
+            a2.mul_(frame_root)
+        elif padded_frames:
             a2.mul_(frame_mask)
         if settings.solve_output:
             # [W2 | b2] that minimizes eq. (3) for these hidden layers: per output row, linear least squares on
@@ -397,6 +434,8 @@ def _train_group(networks: Sequence[Network], omegas: Sequence[Sequence[float]],
         else:
             gradient_w2.copy_(torch.bmm(a2_ones, residual.transpose(1, 2)).transpose(1, 2)).mul_(scale)
         d2 = torch.bmm(scaled_out[:, :, :hidden].transpose(1, 2), residual).mul_(e2)
+        if weighted:
+            d2.mul_(frame_root)  # a2's column i entered the residual times sqrt(v_i)
         gradient_w1.copy_(torch.bmm(d2, a1_ones.transpose(1, 2)))
         d1 = torch.bmm(w1[:, :, :hidden].transpose(1, 2), d2).mul_(e1)
         gradient_w0.copy_(torch.bmm(d1, features.transpose(1, 2)))
