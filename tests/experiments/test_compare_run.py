@@ -133,7 +133,8 @@ def test_the_default_set_leaves_the_neural_codecs_on_request():
     names = default_codecs()
     assert "fourier-mlp-int" not in names and "fourier-mlp-dct" not in names and "mcb-rot" in names
     clips = _clips()
-    assert estimate_cpu_s("fourier-mlp-int", clips) > 100 * estimate_cpu_s("quant-delta-zstd", clips)
+    # A network trained per rate-search try: still an order of magnitude above a quantizer's search (costs.json).
+    assert estimate_cpu_s("fourier-mlp-int", clips) > 10 * estimate_cpu_s("quant-delta-zstd", clips)
 
 
 def test_settings_print_rounded():
