@@ -514,11 +514,13 @@ def _onto_sphere(points: np.ndarray, centres: np.ndarray, length: float) -> np.n
 
 def _refine(positions, base, radius: float, model: TrainedModel | None, codes: np.ndarray | None):
     """The refinement of a base layer (F, J, 3) cm: (corrected joints' flattened frame-major indices ascending,
-    their lattice points (N, 3) half cells, the final residual (F·J, 3) cm).
+    their lattice points (N, 3) half cells, the final residual (F·J, 3) cm, the sphere codes used).
 
     With sphere ``codes`` (:func:`_rigid_bones`), joint by joint, parents first, as the decoder does it: the held
     joint's base position moves onto the sphere of its bone's length around its parent's final position, which
-    removes the radial part of its error; then its residual is corrected. Without, every joint at once.
+    removes the radial part of its error; then its residual is corrected. A joint is held only where that leaves
+    no more of its frames to correct (a bone whose parent decodes worse than the child can lose by it); the codes
+    actually used come back as the fourth item (None without). Without codes, every joint at once.
     """
     num_frames, num_joints, _ = positions.shape
     half_cell = 2.0 * radius / np.sqrt(5.0)
@@ -527,15 +529,22 @@ def _refine(positions, base, radius: float, model: TrainedModel | None, codes: n
         corrected = np.flatnonzero(np.sum(residual**2, axis=-1) > radius**2)
         lattice = _lattice_points_for(residual[corrected], radius, model)
         residual[corrected] -= lattice * half_cell
-        return corrected, lattice, residual
+        return corrected, lattice, residual, None
     lengths = _bone_lengths(base, codes)
     final = base.copy()
     residual = np.empty_like(base)
     lattices = np.zeros((num_frames, num_joints, 3), dtype=np.int64)
     flags = np.zeros((num_frames, num_joints), dtype=bool)
+    codes = codes.copy()
     for joint in range(num_joints):
-        if codes[joint]:
-            final[:, joint] = _onto_sphere(final[:, joint], final[:, joint - codes[joint]], lengths[joint])
+        if codes[joint]:  # held only where that corrects fewer frames of this joint
+            held = _onto_sphere(final[:, joint], final[:, joint - codes[joint]], lengths[joint])
+            if np.count_nonzero(np.sum((positions[:, joint] - held) ** 2, axis=-1) > radius**2) <= np.count_nonzero(
+                np.sum((positions[:, joint] - final[:, joint]) ** 2, axis=-1) > radius**2
+            ):
+                final[:, joint] = held
+            else:
+                codes[joint] = 0
         error = positions[:, joint] - final[:, joint]
         mine = np.sum(error**2, axis=-1) > radius**2
         lattice = _lattice_points_for(error[mine], radius, model)
@@ -543,7 +552,7 @@ def _refine(positions, base, radius: float, model: TrainedModel | None, codes: n
         error[mine] -= lattice * half_cell
         residual[:, joint], lattices[mine, joint], flags[:, joint] = error, lattice, mine
     corrected = np.flatnonzero(flags.ravel())
-    return corrected, lattices.reshape(-1, 3)[corrected], residual.reshape(-1, 3)
+    return corrected, lattices.reshape(-1, 3)[corrected], residual.reshape(-1, 3), codes
 
 
 def _lattice_points_for(residual: np.ndarray, radius: float, model: TrainedModel | None) -> np.ndarray:
@@ -885,7 +894,9 @@ class McbLinfCodec(Codec):
         sphere_codes = _rigid_bones(positions, parents, config.eps_cm) if config.bone_spheres else np.zeros(1, int)
         best_refinement = None
         for codes in ([None, sphere_codes] if sphere_codes.any() else [None]):
-            corrected, lattice, residual = _refine(positions, base.reshape(positions.shape), radius, lattice_model, codes)
+            corrected, lattice, residual, codes = _refine(
+                positions, base.reshape(positions.shape), radius, lattice_model, codes
+            )
             positions_bytes = _write_refinement_positions(corrected, num_frames, num_joints, config.zstd_level)
             lattice_writer = ByteWriter()
             _write_lattice(lattice_writer, lattice, lattice_model, config.zstd_level)

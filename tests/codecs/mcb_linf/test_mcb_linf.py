@@ -474,3 +474,23 @@ def test_the_rate_search_steps_are_exact_eighth_octaves():
 
     assert len(_RDO_STEPS) == 25 and _RDO_STEPS[8] == 1.0 and _RDO_STEPS[0] == 0.5 and _RDO_STEPS[-1] == 4.0
     assert np.allclose(_RDO_STEPS, 2.0 ** (np.arange(-8, 17) / 8), rtol=1e-15, atol=0)
+
+
+def test_the_encoder_holds_a_bone_only_where_that_corrects_no_more_frames():
+    """A joint with a purely radial base error stays held (the sphere removes it); the codes used are a subset of
+    those offered; every final residual is within the radius."""
+    from mocapbench.codecs.mcb_linf.codec import _refine, _rigid_bones
+
+    motion = sinusoidal_motion(num_frames=60, fps=30.0, seed=2, amplitude_deg=30.0)
+    positions, parents = motion.positions(), motion.skeleton.parents
+    codes = _rigid_bones(positions, parents, 0.1)
+    radial = int(np.flatnonzero(codes)[-1])
+    bone = positions[:, radial] - positions[:, parents[radial]]
+    base = positions + np.random.default_rng(3).normal(0.0, 0.04, positions.shape)
+    base[:, radial] = positions[:, radial] + 0.3 * bone / np.linalg.norm(bone, axis=-1, keepdims=True) * np.where(
+        np.arange(len(base)) % 2, 1.0, -1.0
+    )[:, None]  # 0.3 cm along the bone, alternating: the mean length stays, every frame needs a correction unheld
+    corrected, lattice, residual, used = _refine(positions, base, 0.1, None, codes)
+    assert used[radial] == codes[radial]
+    assert np.all((used == 0) | (used == codes)) and np.all(np.linalg.norm(residual, axis=-1) <= 0.1)
+    assert len(corrected) == len(lattice) < positions.shape[0] * positions.shape[1]
