@@ -39,7 +39,7 @@ def _check(summary: dict, array: np.ndarray, atol: float) -> None:
 
 
 def test_every_golden_case_is_there():
-    assert CASES == ["mcb-linf-bands", "mcb-linf-cut", "mcb-linf-trained", "mcb-rot-cut-shell", "mcb-rot-rig",
+    assert CASES == ["mcb-linf-bands", "mcb-linf-cut", "mcb-linf-sphere", "mcb-linf-trained", "mcb-rot-cut-shell", "mcb-rot-rig",
                      "mcb-rot-spin", "mcb-rot4-cut-shell", "mcb-rot4-spin", "mcb-rot5-cut-shell", "mcb-rot5-spin",
                      "mcb-rot6-cut-shell", "mcb-rot6-rig", "mcb-rot6-spin",
                      "pga-ik", "quant-rot-zstd", "svd"]
