@@ -311,18 +311,10 @@ class ReportData:
         return self.out / "figures"
 
 
-def build_report(
-    folders: Iterable[str | Path],
-    *,
-    name: str | None = None,
-    reports_root: str | Path = "reports",
-    anchor: str = DEFAULT_ANCHOR,
-    command: str | None = None,
-    bounds: Sequence[float] | None = None,
-) -> Path:
-    """Aggregate the sweep folders and write the report; returns the new report folder (:func:`write_report`)."""
-    return write_report(folders, name=name, reports_root=reports_root, anchor=anchor, command=command,
-                        bounds=bounds).out
+def build_report(folders: Iterable[str | Path], **options) -> Path:
+    """Aggregate the sweep folders and write the report; returns the new report folder (:func:`write_report`, with
+    its keyword options)."""
+    return write_report(folders, **options).out
 
 
 def write_report(
