@@ -142,17 +142,23 @@ def test_cuts_spins_and_parts_decode_alike(lib):
         np.testing.assert_allclose(part.positions, whole.positions[start:stop], rtol=0, atol=1e-9)
 
 
-def test_hostile_payloads_are_refused_with_one_line_never_a_crash(lib):
-    data = GOLDEN[0].read_bytes()
-    header, payload = container.unpack(data, "mcb-rot")
-    payload = bytes(payload)
-    rng = np.random.default_rng(7)
-    cases = [payload[:n] for n in range(0, len(payload), 7)]
+def _hostile_cases(payload: bytes, every: int, seed: int) -> list[bytes]:
+    """The payload cut after every ``every``-th byte, and 300 copies with 1-3 random bytes overwritten."""
+    rng = np.random.default_rng(seed)
+    cases = [payload[:n] for n in range(0, len(payload), every)]
     for _ in range(300):
         bad = bytearray(payload)
         for at in rng.integers(0, len(bad), rng.integers(1, 4)):
             bad[at] = int(rng.integers(0, 256))
         cases.append(bytes(bad))
+    return cases
+
+
+def test_hostile_payloads_are_refused_with_one_line_never_a_crash(lib):
+    data = GOLDEN[0].read_bytes()
+    header, payload = container.unpack(data, "mcb-rot")
+    payload = bytes(payload)
+    cases = _hostile_cases(payload, every=7, seed=7)
     refused = 0
     for case in cases:
         try:
@@ -294,13 +300,7 @@ def test_hostile_still_root_payloads_are_refused_with_one_line_never_a_crash(lib
     data = create("mcb-rot", eps_cm=0.5, segment_frames=16, chunk_frames=16).encode(still_root_rig(40))
     header, payload = container.unpack(data, "mcb-rot")
     payload = bytes(payload)
-    rng = np.random.default_rng(11)
-    cases = [payload[:n] for n in range(0, len(payload), 5)]
-    for _ in range(300):
-        bad = bytearray(payload)
-        for at in rng.integers(0, len(bad), rng.integers(1, 4)):
-            bad[at] = int(rng.integers(0, 256))
-        cases.append(bytes(bad))
+    cases = _hostile_cases(payload, every=5, seed=11)
     refused = 0
     for case in cases:
         try:

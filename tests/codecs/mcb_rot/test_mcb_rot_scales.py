@@ -20,6 +20,9 @@ from mocapbench.synthetic.game import game_rig_motion as synthetic_game_rig
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 from game_rig import game_rig_motion  # noqa: E402
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from test_mcb_rot_native import _full_both  # noqa: E402
+
 
 def _rescaled(motion: Motion, joint: int, scales) -> Motion:
     """``motion`` with joint ``joint``'s scale track set to ``scales`` (F, 3) (the others' kept)."""
@@ -178,22 +181,6 @@ def test_random_corruptions_of_a_scaled_stream_end_in_a_bitstream_error_or_a_fin
     assert refused >= 75
 
 
-def _decoded_both(data: bytes, start: int, stop: int):
-    """(runtime, numpy) positions and motion of frames start:stop of a one-window stream."""
-    from mocapbench.codecs.mcb_rot import codec as mcb_rot_codec
-
-    header, payload = container.unpack(data, "mcb-rot")
-    results = []
-    for use_native in (True, False):
-        info = stream.read_info(header, payload)
-        if not use_native:
-            info._cache["native"] = None
-        else:
-            assert decoder.native_clip(info, payload) is not None
-        results.append(mcb_rot_codec._decode_frames(info, payload, start, stop, header.fps))
-    return results
-
-
 @pytest.mark.parametrize("rig", sorted(RIGS))
 def test_the_runtime_decodes_scale_tracks_as_numpy_does(rig):
     if native.library() is None:
@@ -201,7 +188,7 @@ def test_the_runtime_decodes_scale_tracks_as_numpy_does(rig):
     motion = RIGS[rig]()
     data = create("mcb-rot", eps_cm=0.2, segment_frames=32, chunk_frames=32).encode(motion)
     for start, stop in ((0, motion.num_frames), (5, 6), (20, 59)):
-        (positions, decoded), (ref_positions, ref) = _decoded_both(data, start, stop)
+        (positions, decoded), (ref_positions, ref) = _full_both(data, start, stop)
         np.testing.assert_allclose(positions, ref_positions, rtol=0, atol=1e-6)
         np.testing.assert_allclose(decoded.rotations, ref.rotations, rtol=0, atol=1e-9)
         np.testing.assert_array_equal(decoded.scales, ref.scales)  # the same integers times the same steps
