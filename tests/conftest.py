@@ -101,6 +101,20 @@ def acl_codec():
     return lambda **params: create("acl", **params)
 
 
+@pytest.fixture(scope="session")
+def native_runtime():
+    """The native mcb-rot runtime's library (compiled on first use). Without a C compiler the test is skipped, except
+    under ``CI=true`` (CI installs clang), where it fails."""
+    from mocapbench.codecs.mcb_rot import native
+
+    found = native.library()
+    if found is None:
+        if running_in_ci():
+            pytest.fail("the native runtime did not build (CI has a C compiler)")
+        pytest.skip("the native runtime is not available (no C compiler?)")
+    return found
+
+
 @pytest.hookimpl(tryfirst=True)
 def pytest_runtest_setup(item):
     """Tests marked ``torch`` (the neural codecs) skip with the registry's one-line reason when PyTorch is missing.

@@ -32,11 +32,8 @@ EPS = 0.5
 
 
 @pytest.fixture(scope="module")
-def lib():
-    found = native.library()
-    if found is None:
-        pytest.skip("the native runtime is not available (no C compiler?)")
-    return found
+def lib(native_runtime):
+    return native_runtime
 
 
 @pytest.fixture(scope="module")

@@ -182,9 +182,7 @@ def test_random_corruptions_of_a_scaled_stream_end_in_a_bitstream_error_or_a_fin
 
 
 @pytest.mark.parametrize("rig", sorted(RIGS))
-def test_the_runtime_decodes_scale_tracks_as_numpy_does(rig):
-    if native.library() is None:
-        pytest.skip("the native runtime is not available (no C compiler?)")
+def test_the_runtime_decodes_scale_tracks_as_numpy_does(rig, native_runtime):
     motion = RIGS[rig]()
     data = create("mcb-rot", eps_cm=0.2, segment_frames=32, chunk_frames=32).encode(motion)
     for start, stop in ((0, motion.num_frames), (5, 6), (20, 59)):
