@@ -196,10 +196,8 @@ def test_the_runtime_decodes_scale_tracks_as_numpy_does(rig, native_runtime):
     assert metrics.max_joint_error(motion.positions(), decoded.positions) <= 0.2
 
 
-def test_hostile_scaled_payloads_are_refused_by_the_runtime_in_one_line():
-    lib = native.library()
-    if lib is None:
-        pytest.skip("the native runtime is not available (no C compiler?)")
+def test_hostile_scaled_payloads_are_refused_by_the_runtime_in_one_line(native_runtime):
+    lib = native_runtime
     header, payload, at, section = _scaled_stream()
     cases = [payload[:at] + HOSTILE[case](section) + payload[at + len(section):] for case in sorted(HOSTILE)]
     rng = np.random.default_rng(5)
