@@ -37,3 +37,21 @@ def test_bad_settings_are_refused():
         TimingSettings(repeats=0)
     seconds, value = time_call(lambda: 7, repeats=2)
     assert value == 7 and seconds >= 0
+
+
+def test_single_thread_limits_the_pools_and_restores_them(monkeypatch):
+    import sys
+    import types
+
+    from threadpoolctl import threadpool_info
+
+    from mocapbench.metrics import timing
+
+    before = [(pool["filepath"], pool["num_threads"]) for pool in threadpool_info()]
+    with timing.single_thread(1):
+        assert all(pool["num_threads"] == 1 for pool in threadpool_info())
+    assert [(pool["filepath"], pool["num_threads"]) for pool in threadpool_info()] == before
+    first = timing._controller()
+    assert timing._controller() is first  # the loaded libraries are listed once while no module is imported
+    monkeypatch.setitem(sys.modules, "_a_module_imported_later", types.ModuleType("_a_module_imported_later"))
+    assert timing._controller() is not first

@@ -79,17 +79,33 @@ def load_average() -> float:
         return float("nan")
 
 
+#: ``(modules loaded when it was made, ThreadpoolController)`` of this process (:func:`_controller`).
+_CONTROLLER: list[Any] = []
+
+
+def _controller() -> Any:
+    """The process's ``threadpoolctl.ThreadpoolController``, made again when a module was imported since.
+
+    Making one reads ``/proc/self/maps`` and inspects every loaded shared library (about 5 ms of CPU in a
+    benchmark job, which times two calls per clip); a BLAS or OpenMP library is loaded with the extension module
+    that links it, so while no module was imported the libraries it found are still all there are.
+    """
+    from threadpoolctl import ThreadpoolController
+
+    if not _CONTROLLER or _CONTROLLER[0] != len(sys.modules):
+        _CONTROLLER[:] = [len(sys.modules), ThreadpoolController()]
+    return _CONTROLLER[1]
+
+
 @contextmanager
 def single_thread(threads: int = 1) -> Iterator[None]:
     """Limit BLAS/OpenMP pools and, if it is loaded, torch to ``threads`` threads inside the block."""
-    from threadpoolctl import threadpool_limits
-
     torch = sys.modules.get("torch")
     before = torch.get_num_threads() if torch is not None else None
     try:
         if torch is not None:
             torch.set_num_threads(threads)
-        with threadpool_limits(threads):
+        with _controller().limit(limits=threads):
             yield
     finally:
         if torch is not None and before is not None:
