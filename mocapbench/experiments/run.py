@@ -82,15 +82,16 @@ def _shard_settings(cfg: Any) -> tuple[int, int, str]:
 
 
 def _evaluate_clip(codec: Any, motion: Any, encoded: Any, timing: Any, output_dir: Path, example_clip: str | None,
-                   worst: float | None) -> tuple[dict[str, Any], float | None]:
-    """One clip's result row, and the largest error so far.
+                   worst: float | None) -> tuple[dict[str, Any], tuple | None]:
+    """One clip's result row, and the clip as the job's new worst clip or None.
 
     ``encoded`` is the clip's stream when the codec encodes clips in batches (an exception if that failed), else
     None. The clip named ``example_clip`` is saved as the job's example; a clip whose largest error exceeds
-    ``worst`` is saved as the job's worst clip (``worst`` None: no worst clip is kept).
+    ``worst`` (``worst`` None: no worst clip is kept) comes back as ``(motion, reference, decoded positions,
+    row)``, which the job writes once at its end (:func:`_save_worst`): a compressed write for every new worst
+    clip cost a cheap job a tenth of its CPU.
     """
     from mocapbench.experiments.evaluate import evaluate_with_decoded
-    from mocapbench.experiments.worst_clip import save_worst
 
     if isinstance(encoded, Exception):
         raise encoded
@@ -99,9 +100,16 @@ def _evaluate_clip(codec: Any, motion: Any, encoded: Any, timing: Any, output_di
     if motion.name == example_clip:
         _save_example(output_dir, motion, reference, decoded.positions)
     if worst is not None and row["max_err_cm"] > worst:
-        save_worst(output_dir, motion, reference, decoded.positions, row)
-        worst = row["max_err_cm"]
-    return row, worst
+        return row, (motion, reference, decoded.positions, row)
+    return row, None
+
+
+def _save_worst(output_dir: Path, candidate: tuple | None) -> None:
+    """Write the job's worst clip (:func:`_evaluate_clip`'s candidate), if any."""
+    if candidate is not None:
+        from mocapbench.experiments.worst_clip import save_worst
+
+        save_worst(output_dir, *candidate)
 
 
 def run_job(cfg: Any, output_dir: Path, fitted_dir: Path | None = None) -> dict[str, Any]:
@@ -194,28 +202,35 @@ def run_job(cfg: Any, output_dir: Path, fitted_dir: Path | None = None) -> dict[
             example = cfg.get("save_example", True) and index == 0 and not (output_dir / EXAMPLE_FILE).exists()
             keep_worst = cfg.get("save_worst", True)
             worst = worst_error(output_dir)
+            candidate = None
             motions = datasets.iter_clips(dataset_cfg, todo)
             if not codec.encodes_many:
                 motions = _warm_up(codec, motions)
             batches = _encode_batches(codec, motions, timing) if codec.encodes_many else None
-            for motion in tqdm(batches or motions, total=len(todo), desc=f"{codec.name} clips", unit="clip",
-                               leave=False, disable=None):
-                encoded = None
-                if batches is not None:
-                    motion, encoded = motion
-                try:
-                    row, worst = _evaluate_clip(codec, motion, encoded, timing, output_dir,
-                                                clips[0] if example else None, worst if keep_worst else None)
-                except TrackRefusal as error:  # the codec cannot carry this rig's tracks: its reason, not a failure
-                    refuse(error, motion.name)
-                    continue
-                except Exception as error:  # noqa: BLE001 - every failure is recorded and the job goes on
-                    fail("evaluate", error, motion.name)
-                    continue
-                row.update(extra)
-                row["row_index"] = count
-                append_row(results_path, row)
-                count += 1
+            try:
+                for motion in tqdm(batches or motions, total=len(todo), desc=f"{codec.name} clips", unit="clip",
+                                   leave=False, disable=None):
+                    encoded = None
+                    if batches is not None:
+                        motion, encoded = motion
+                    try:
+                        row, new_worst = _evaluate_clip(codec, motion, encoded, timing, output_dir,
+                                                        clips[0] if example else None,
+                                                        worst if keep_worst else None)
+                    except TrackRefusal as error:  # the codec cannot carry this rig's tracks: its reason, not a failure
+                        refuse(error, motion.name)
+                        continue
+                    except Exception as error:  # noqa: BLE001 - every failure is recorded and the job goes on
+                        fail("evaluate", error, motion.name)
+                        continue
+                    row.update(extra)
+                    row["row_index"] = count
+                    append_row(results_path, row)
+                    count += 1
+                    if new_worst is not None:
+                        candidate, worst = new_worst, row["max_err_cm"]
+            finally:  # the worst clip of the clips measured, even when a later step failed
+                _save_worst(output_dir, candidate)
         status = "done" if errors == 0 else "failed"
     except Exception as error:  # noqa: BLE001
         fail("setup", error)

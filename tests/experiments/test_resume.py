@@ -129,3 +129,16 @@ def test_a_job_keeps_its_worst_clip_for_the_player(compose_benchmark, tmp_path):
     assert worst["names"][worst["worst_joint"]] == worst_row["worst_joint"]
     errors = np.linalg.norm(worst["original"] - worst["decoded"], axis=-1)
     assert errors[worst["worst_frame"], worst["worst_joint"]] == pytest.approx(worst_row["max_err_cm"], abs=1e-4)
+
+
+def test_the_worst_clip_is_written_once_per_job(compose_benchmark, tmp_path, monkeypatch):
+    from mocapbench.experiments import worst_clip
+
+    written = []
+    original = worst_clip.save_worst
+    monkeypatch.setattr(worst_clip, "save_worst", lambda folder, motion, *rest: (written.append(motion.name),
+                                                                                 original(folder, motion, *rest)))
+    cfg = compose_benchmark(["codec=quant-delta-zstd", "codec.step_cm=2.0", *FOUR_CLIPS])
+    assert run_job(cfg, tmp_path)["status"] == "done"
+    rows = read_rows(tmp_path / "results.jsonl")
+    assert written == [max(rows, key=lambda r: r["max_err_cm"])["clip"]]
