@@ -329,15 +329,19 @@ class McbRotCodec(Codec):
         return payload
 
     def _encode_segments(self, full: Motion) -> bytes:
-        """The one-window payload of ``full`` with the config's segments, checked.
+        """The one-window payload of ``full`` with the config's segments, checked."""
+        prepared = self._prepare(full, self.config)
+        return self._finish(prepared, self._search_of(prepared))
+
+    def _prepare(self, full: Motion, config) -> "_Prepared":
+        """Everything the rate search of ``full`` under ``config`` needs, up to its :class:`_Encoder`.
 
         A still root (:mod:`.static_root`) is kept apart: ``motion`` below is then the motion of the other joints,
-        and the check at the end decodes the whole rig against ``full``."""
+        and the check of :meth:`_finish` decodes the whole rig against ``full``."""
         if full.num_joints > container.MAX_JOINTS:
             raise ValueError(
                 f"mcb-rot: the stream holds at most {container.MAX_JOINTS} joints, the motion has {full.num_joints}."
             )
-        config = self.config
         if full.scales is not None and config.shell_cm > 0:
             joint = full.skeleton.names[int(full.scaled_joints()[0])]
             raise TrackRefusal(f"mcb-rot: joint {joint!r} is scaled (a scale track); the shell bound (shell_cm > 0) "
@@ -396,17 +400,33 @@ class McbRotCodec(Codec):
         points = PointTargets(target, motion.rotations, stored, settings.shell_cm, ends=ends, translations=steps,
                               scales=None if scales is None else scales_of(scales, motion.num_joints, scales.q))
         encoder = _Encoder(config, motion, info, skeleton_blob, spectra, points)
+        return _Prepared(encoder, full, still, target, ends, rig, cuts)
+
+    @staticmethod
+    def _search_of(prepared: "_Prepared") -> "_Attempt":
+        """The attempt the rate search (and the rounding search) of ``prepared`` picks, not yet written."""
+        encoder = prepared.encoder
+        config, motion = encoder.config, encoder.motion
         if config.step_rel > 0:
-            chosen = encoder.attempt(config.step_rel)
-        else:
-            prefetch = _PREFETCH if motion.num_frames <= _PREFETCH_FRAMES else ((), ())
-            chosen = _search(encoder.attempt, config.slope_search and config.frequency_slope > 0, encoder.attempts_of,
-                             prefetch)
-            if config.rounding_search:
-                chosen = _search_rounding(encoder, chosen, config.rounding)
-        payload = encoder.write(chosen)
+            return encoder.attempt(config.step_rel)
+        prefetch = _PREFETCH if motion.num_frames <= _PREFETCH_FRAMES else ((), ())
+        chosen = _search(encoder.attempt, config.slope_search and config.frequency_slope > 0, encoder.attempts_of,
+                         prefetch)
+        if config.rounding_search:
+            chosen = _search_rounding(encoder, chosen, config.rounding)
+        return chosen
+
+    def _finish(self, prepared: "_Prepared", chosen: "_Attempt", payload: bytes | None = None) -> bytes:
+        """The payload of ``chosen`` (``payload`` when already written), decoded and checked against the bound:
+        every joint and end site (and shell vertex) of the whole rig within eps, else RuntimeError."""
+        encoder, still, target, ends, rig = (prepared.encoder, prepared.still, prepared.target, prepared.ends,
+                                             prepared.rig)
+        config, motion, layout = encoder.config, encoder.motion, encoder.layout
+        if payload is None:
+            payload = encoder.write(chosen)
         # The guarantee: decode what we are about to return and check it (the whole rig, a still root included).
         if still is not None:
+            full = prepared.full
             target = full.positions()
             ends = full.end_site_positions() if ends is not None else None
             motion = full
@@ -433,7 +453,7 @@ class McbRotCodec(Codec):
                                   "attempts_given_up": encoder.given_up,
                                   "estimated_bytes": chosen.size,
                                   "bound_slack_cm": config.eps_cm - worst, "segments": layout.num_segments,
-                                  "cuts": len(cuts)}
+                                  "cuts": len(prepared.cuts)}
         return payload
 
     # -- decoding --------------------------------------------------------------------------------------
@@ -734,6 +754,22 @@ def _signal(quats: np.ndarray, roots: np.ndarray, layout: SegmentLayout) -> tupl
         rotvecs[frames, joint] = quat.log_map(relative)
         overrides[(int(segment), int(joint))] = reference
     return np.concatenate([roots, rotvecs.reshape(num_frames, 3 * num_joints)], axis=1), overrides
+
+
+@dataclass(frozen=True, eq=False)
+class _Prepared:
+    """One stream's encoder before its rate search, with what the check after it needs: ``full`` the whole motion
+    (a still root included), ``still`` the still root kept apart (or None), ``target`` (F, J, 3) cm and ``ends``
+    (F, E, 3) cm (or None) the positions the coded joints must reach, ``rig`` the prior's rig it names (or None),
+    ``cuts`` the cut frames."""
+
+    encoder: "_Encoder"
+    full: Motion
+    still: object
+    target: np.ndarray
+    ends: np.ndarray | None
+    rig: int | None
+    cuts: np.ndarray
 
 
 @dataclass(frozen=True, eq=False)
