@@ -172,6 +172,11 @@ _PREFETCH = ((6, 7, 8), (7, 8, 9))
 # smaller depends on the clip and on eps (the README has the figures). At 120 fps (1.1 s segments) it is not tried.
 _HALF_SEGMENTS_BELOW_FPS = 60.0
 _MIN_SEARCHED_SEGMENT = 16
+# The other segment lengths are screened by one attempt each at the config's length's pick; the rate search runs on
+# the two whose screens are smallest, where within 3 % of the best stream so far (a length whose screen is further
+# off rarely wins after its own search; the README has the bytes and CPU this screen saves and costs).
+_SCREENED_SEARCHES = 2
+_SCREEN_MARGIN = 0.03
 # A short clip (up to this many times ``segment_frames``) also tries even splits (:func:`_segment_lengths`): a game
 # clip of 130 frames on the grid of 128 ends in a segment of 2 frames, whose means and significance counts cost as
 # much as a full segment's.
@@ -312,20 +317,43 @@ class McbRotCodec(Codec):
 
     def _encode_window(self, motion: Motion) -> bytes:
         """The one-window payload of ``motion`` (a whole clip, or one window of a long capture), checked; below
-        :data:`_HALF_SEGMENTS_BELOW_FPS` with ``segment_search``, the smallest of the streams with the segment
-        lengths of :func:`_segment_lengths` (each coded and checked in full)."""
-        payload = self._encode_segments(motion)
+        :data:`_HALF_SEGMENTS_BELOW_FPS` with ``segment_search``, the smallest stream over the segment lengths of
+        :func:`_segment_lengths`.
+
+        The config's length gets the whole rate search; every other length is first screened by one attempt at the
+        step, slope and rounding the config's length chose, written (real bytes: the estimates of two segment
+        lengths differ by header and chunk costs they leave out); only the :data:`_SCREENED_SEARCHES` smallest
+        screens within :data:`_SCREEN_MARGIN` of the best stream so far get a rate search of their own. Every
+        stream written (the screens too: each is refined in closed loop) is a candidate; only the one returned is
+        decoded and checked (the check guards what leaves the encoder)."""
         if not (self.config.segment_search and motion.fps < _HALF_SEGMENTS_BELOW_FPS):
-            return payload
-        stats, used = {**self.last_encode_stats, "segment_frames": self.config.segment_frames}, self._used_prior
-        for frames in _segment_lengths(motion.num_frames, self.config.segment_frames)[1:]:
-            other = McbRotCodec(dataclasses.replace(self.config, segment_frames=frames, segment_search=False))
-            other._prior = self._prior
-            candidate = other._encode_segments(motion)
-            if len(candidate) < len(payload):  # ties keep the earlier length (the config's first)
-                payload, used = candidate, other._used_prior
-                stats = {**other.last_encode_stats, "segment_frames": frames}
-        self.last_encode_stats, self._used_prior = stats, used
+            return self._encode_segments(motion)
+        lengths = _segment_lengths(motion.num_frames, self.config.segment_frames)
+        common = self._common(motion, self.config)
+        prepared = self._prepare(motion, self.config, common)
+        chosen = self._search_of(prepared)
+        best = (prepared.encoder.write(chosen), prepared, chosen, lengths[0])  # payload, prepared, attempt, frames
+        screened = []
+        settings = chosen.info.settings
+        for order, frames in enumerate(lengths[1:]):
+            prepared = self._prepare(motion, dataclasses.replace(self.config, segment_frames=frames), common)
+            trial = prepared.encoder.attempt(chosen.multiplier, settings.slope, rounding=settings.rounding)
+            payload = prepared.encoder.write(trial)
+            if len(payload) < len(best[0]):  # ties keep the earlier length (the config's first)
+                best = (payload, prepared, trial, frames)
+            # Only the screens that may be searched keep their encoders (memory: at most that many at once).
+            screened = sorted(screened + [(len(payload), order, prepared, frames, trial)], key=lambda s: s[:2])
+            del screened[_SCREENED_SEARCHES:]
+        for size, _, prepared, frames, seed in screened:
+            if size > len(best[0]) * (1.0 + _SCREEN_MARGIN):
+                break
+            searched = self._search_of(prepared, seed)
+            payload = prepared.encoder.write(searched)
+            if len(payload) < len(best[0]):
+                best = (payload, prepared, searched, frames)
+        payload, prepared, chosen, frames = best
+        payload = self._finish(prepared, chosen, payload)
+        self.last_encode_stats["segment_frames"] = frames
         return payload
 
     def _encode_segments(self, full: Motion) -> bytes:
@@ -333,11 +361,11 @@ class McbRotCodec(Codec):
         prepared = self._prepare(full, self.config)
         return self._finish(prepared, self._search_of(prepared))
 
-    def _prepare(self, full: Motion, config) -> "_Prepared":
-        """Everything the rate search of ``full`` under ``config`` needs, up to its :class:`_Encoder`.
+    def _common(self, full: Motion, config) -> "_Common":
+        """What every segment length of ``full`` shares: the rig, its tracks, the bound left, targets and cuts.
 
-        A still root (:mod:`.static_root`) is kept apart: ``motion`` below is then the motion of the other joints,
-        and the check of :meth:`_finish` decodes the whole rig against ``full``."""
+        A still root (:mod:`.static_root`) is kept apart: ``motion`` is then the motion of the other joints, and the
+        check of :meth:`_finish` decodes the whole rig against ``full``."""
         if full.num_joints > container.MAX_JOINTS:
             raise ValueError(
                 f"mcb-rot: the stream holds at most {container.MAX_JOINTS} joints, the motion has {full.num_joints}."
@@ -377,15 +405,29 @@ class McbRotCodec(Codec):
         target = motion.positions()
         ends = motion.end_site_positions() if config.end_sites and len(motion.skeleton.end_site_parents) else None
         cuts = find_cuts(target, ratio=config.cut_ratio, min_jump_cm=config.cut_min_cm) if config.cut_ratio > 0 else np.zeros(0, np.int64)
+        quats = quat.sign_continuous(motion.rotations)
+        steps = None if tracks is None else tracks.steps_of(stored, tracks.q)
+        points = PointTargets(target, motion.rotations, stored, _f32(config.shell_cm), ends=ends, translations=steps,
+                              scales=None if scales is None else scales_of(scales, motion.num_joints, scales.q))
+        return _Common(full, motion, still, skeleton_blob, stored, rig, tracks, scales, bound, target, ends, cuts,
+                       quats, points)
+
+    def _prepare(self, full: Motion, config, common: "_Common | None" = None) -> "_Prepared":
+        """Everything the rate search of ``full`` under ``config`` needs, up to its :class:`_Encoder`; ``common``
+        (:meth:`_common` of ``full`` under a config that differs at most in ``segment_frames``) is not rebuilt."""
+        if common is None:
+            common = self._common(full, config)
+        c = common
+        motion, still, stored, tracks, scales, rig, cuts = (c.motion, c.still, c.stored, c.tracks, c.scales, c.rig,
+                                                            c.cuts)
         starts = segment_starts(motion.num_frames, cuts, config.segment_frames)
         layout = SegmentLayout(motion.num_frames, starts, config.chunk_frames)
-        quats = quat.sign_continuous(motion.rotations)
-        signal, overrides = _signal(quats, motion.root_positions, layout)
+        signal, overrides = _signal(c.quats, motion.root_positions, layout)
         rotvecs = signal[:, 3:].reshape(motion.num_frames, motion.num_joints, 3)
         axis_codes = principal_axes(rotvecs) if config.principal_axes else np.zeros((motion.num_joints, 3), np.int64)
         signal[:, 3:] = to_axes(rotvecs, axes_from_codes(axis_codes)).reshape(motion.num_frames, -1)
         spectra = forward(signal, layout)
-        settings = Settings.create(config.eps_cm, bound, 1.0, config.frequency_slope, config.rounding,
+        settings = Settings.create(config.eps_cm, c.bound, 1.0, config.frequency_slope, config.rounding,
                                    config.root_share, np.deg2rad(config.free_angle_deg), config.allocation_power,
                                    config.segment_frames, config.chunk_frames, config.shell_cm,
                                    tracks=tracks is not None, ends=config.end_sites, static_root=still is not None,
@@ -396,22 +438,27 @@ class McbRotCodec(Codec):
                           np.zeros(channels, np.int64), np.zeros(NUM_BANDS, np.int64), tracks=tracks,
                           static_root=still, scales=scales,
                           prior_mean=None if rig is None else self._prior.rigs[rig].mean)
-        steps = None if tracks is None else tracks.steps_of(stored, tracks.q)
-        points = PointTargets(target, motion.rotations, stored, settings.shell_cm, ends=ends, translations=steps,
-                              scales=None if scales is None else scales_of(scales, motion.num_joints, scales.q))
-        encoder = _Encoder(config, motion, info, skeleton_blob, spectra, points)
-        return _Prepared(encoder, full, still, target, ends, rig, cuts)
+        encoder = _Encoder(config, motion, info, c.skeleton_blob, spectra, c.points, c.quats)
+        return _Prepared(encoder, full, still, c.target, c.ends, rig, cuts)
 
     @staticmethod
-    def _search_of(prepared: "_Prepared") -> "_Attempt":
-        """The attempt the rate search (and the rounding search) of ``prepared`` picks, not yet written."""
+    def _search_of(prepared: "_Prepared", seed: "_Attempt | None" = None) -> "_Attempt":
+        """The attempt the rate search (and the rounding search) of ``prepared`` picks, not yet written; with
+        ``seed`` (an attempt of this stream at a grid multiplier) the walk starts at its multiplier and reads it."""
         encoder = prepared.encoder
         config, motion = encoder.config, encoder.motion
         if config.step_rel > 0:
             return encoder.attempt(config.step_rel)
-        prefetch = _PREFETCH if motion.num_frames <= _PREFETCH_FRAMES else ((), ())
-        chosen = _search(encoder.attempt, config.slope_search and config.frequency_slope > 0, encoder.attempts_of,
-                         prefetch)
+        flat_too = config.slope_search and config.frequency_slope > 0
+        if seed is not None:
+            start = int(np.argmin(np.abs(np.log(np.array(_SEARCH_GRID) / seed.multiplier))))
+            settings = seed.info.settings
+            key = (start, flat_too and settings.slope == 0.0)
+            known = {key: seed} if settings.rounding == _f32(config.rounding) and np.isfinite(seed.size) else {}
+            chosen = _search(encoder.attempt, flat_too, start=start, known=known)
+        else:
+            prefetch = _PREFETCH if motion.num_frames <= _PREFETCH_FRAMES else ((), ())
+            chosen = _search(encoder.attempt, flat_too, encoder.attempts_of, prefetch)
         if config.rounding_search:
             chosen = _search_rounding(encoder, chosen, config.rounding)
         return chosen
@@ -628,7 +675,8 @@ def _outputs(count: int, num_joints: int, info: StreamInfo) -> tuple:
     return out
 
 
-def _search(attempt, flat_too: bool = False, batch=None, prefetch: tuple = ((), ())) -> "_Attempt":
+def _search(attempt, flat_too: bool = False, batch=None, prefetch: tuple = ((), ()), start: int = _SEARCH_START,
+            known: dict | None = None) -> "_Attempt":
     """The attempt of smallest estimated size over :data:`_SEARCH_GRID`, by walking downhill from
     :data:`_SEARCH_START`; with ``flat_too``, also a flat step over frequency (slope 0) from the next multiplier up,
     walking up while it wins. ``attempt(multiplier, slope=None, budget=inf)`` returns an :class:`_Attempt`; every
@@ -637,9 +685,12 @@ def _search(attempt, flat_too: bool = False, batch=None, prefetch: tuple = ((), 
     ``prefetch`` (grid indices of the config's slope, of the flat slope) are evaluated first, side by side, by
     ``batch(requests)`` (a list of ``(multiplier, slope)``: their attempts, run to their end); the walk then reads
     them instead of trying them. A prefetched attempt has its exact size where the walk would have given it up
-    (larger than the budget: the walk's decisions are the same), so the walk ends where it would without them."""
-    tried: dict = {}  # (grid index, flat) -> attempt
-    if batch is not None and (prefetch[0] or prefetch[1]):
+    (larger than the budget: the walk's decisions are the same), so the walk ends where it would without them.
+
+    ``start`` (a grid index) starts the walk elsewhere (then without ``prefetch``), where another stream of the motion
+    found its minimum; ``known`` ((grid index, flat) -> attempt) are attempts the walk reads instead of trying."""
+    tried: dict = dict(known or {})  # (grid index, flat) -> attempt
+    if batch is not None and (prefetch[0] or prefetch[1]) and start == _SEARCH_START:
         # The start first: the batch gives up the others against its size (every later attempt of the walk has a
         # budget no larger than it), and tighter where the walk has gone further on the attempts finished so far.
         keys = [(_SEARCH_START, False)] + [(i, False) for i in prefetch[0] if i != _SEARCH_START]
@@ -659,13 +710,13 @@ def _search(attempt, flat_too: bool = False, batch=None, prefetch: tuple = ((), 
             tried[index, flat] = attempt(_SEARCH_GRID[index], 0.0 if flat else None, budget=budget)
         return tried[index, flat]
 
-    return _walk(get, flat_too)
+    return _walk(get, flat_too, start)
 
 
-def _walk(get, flat_too: bool):
+def _walk(get, flat_too: bool, start: int = _SEARCH_START):
     """The walk of :func:`_search` over ``get(grid index, flat, budget)`` (an attempt: ``size``, ``base``): the
     attempt chosen. Every budget it gives is the best size so far, so budgets never grow along the walk."""
-    best = _SEARCH_START
+    best = start
     start = get(best, False)
     # Walk first the way the start's correction share points (same minimum as any order, one attempt fewer where
     # it points right): corrections dearer than _FINER_FIRST_SHARE of the stream call for finer steps.
@@ -757,6 +808,29 @@ def _signal(quats: np.ndarray, roots: np.ndarray, layout: SegmentLayout) -> tupl
 
 
 @dataclass(frozen=True, eq=False)
+class _Common:
+    """What the streams of one motion with different segment lengths share (:meth:`McbRotCodec._common`): the
+    motion coded (``full`` less a still root ``still``), the skeleton as stored and its blob, the prior's ``rig``,
+    translation and scale tracks, the ``bound`` (cm) left to the rotations, the targets (``target`` (F, J, 3) cm,
+    ``ends`` (F, E, 3) cm or None, ``points``), the cut frames and the sign-continuous rotations (F, J, 4)."""
+
+    full: Motion
+    motion: Motion
+    still: object
+    skeleton_blob: bytes
+    stored: object
+    rig: int | None
+    tracks: object
+    scales: object
+    bound: float
+    target: np.ndarray
+    ends: np.ndarray | None
+    cuts: np.ndarray
+    quats: np.ndarray
+    points: PointTargets
+
+
+@dataclass(frozen=True, eq=False)
 class _Prepared:
     """One stream's encoder before its rate search, with what the check after it needs: ``full`` the whole motion
     (a still root included), ``still`` the still root kept apart (or None), ``target`` (F, J, 3) cm and ``ends``
@@ -794,7 +868,7 @@ class _Encoder:
     :meth:`write` entropy codes the chosen attempt."""
 
     def __init__(self, config, motion: Motion, info: StreamInfo, skeleton_blob: bytes, spectra,
-                 points: PointTargets) -> None:
+                 points: PointTargets, quats: np.ndarray | None = None) -> None:
         self.config = config
         self.motion = motion
         self.info = info
@@ -804,7 +878,8 @@ class _Encoder:
         self.points = points
         self.compensator = None
         if config.compensate:
-            self.compensator = Compensator(info, quat.sign_continuous(motion.rotations), motion.root_positions)
+            quats = quat.sign_continuous(motion.rotations) if quats is None else quats  # (F, J, 4)
+            self.compensator = Compensator(info, quats, motion.root_positions)
         self.attempts = 0
         self.given_up = 0
         self._tiles: dict = {}

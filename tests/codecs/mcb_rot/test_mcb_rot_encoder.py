@@ -182,10 +182,12 @@ def test_segment_lengths_searched_are_the_grid_its_half_and_even_splits_of_a_sho
             assert length * (count - 1) < frames and frames - length * (count - 1) >= length - count + 1
 
 
-def test_below_60_fps_the_smallest_of_the_segment_lengths_is_kept():
-    """At 30 fps the encoder codes the clip with each length of the search (128 and 64 frames, even splits of a
-    short clip) and keeps the smallest stream (each checked against eps); at 120 fps it writes the stream it writes
-    without the search."""
+def test_below_60_fps_the_smallest_of_the_segment_lengths_is_kept(monkeypatch):
+    """At 30 fps the encoder tries each length of the search (128 and 64 frames, even splits of a short clip): with
+    every length searched (no screen) its stream is no larger than the smallest of the streams coded with each length
+    alone (a screen's stream is a candidate too), with the screen (the default) no larger than the config's length
+    alone; either way its length is the one the stream says, and it decodes within eps. At 120 fps it writes the
+    stream it writes without the search."""
     from mocapbench.codecs import container
     from mocapbench.codecs.mcb_rot.codec import _segment_lengths
     from mocapbench.codecs.mcb_rot.stream import read_info
@@ -195,16 +197,48 @@ def test_below_60_fps_the_smallest_of_the_segment_lengths_is_kept():
     for frames in _segment_lengths(slow.num_frames, 128):
         codec = create("mcb-rot", eps_cm=0.2, segment_frames=frames, segment_search=False)
         sizes[frames] = len(codec.encode(slow))
+    assert len(set(sizes.values())) > 1  # the lengths code this clip differently: the choice matters
+    screened = create("mcb-rot", eps_cm=0.2).encode(slow)
+    assert len(screened) <= sizes[128]
+    monkeypatch.setattr(rot_codec, "_SCREENED_SEARCHES", len(sizes))
+    monkeypatch.setattr(rot_codec, "_SCREEN_MARGIN", np.inf)
     searched = create("mcb-rot", eps_cm=0.2)
     data = searched.encode(slow)
-    assert len(data) == min(sizes.values())
+    assert len(data) <= min(sizes.values()) and len(data) <= len(screened)
     header, payload = container.unpack(data, "mcb-rot")
-    assert read_info(header, payload).settings.segment_frames == min(sizes, key=sizes.get)
-    assert searched.last_encode_stats["segment_frames"] == min(sizes, key=sizes.get)
+    assert read_info(header, payload).settings.segment_frames == searched.last_encode_stats["segment_frames"]
+    assert searched.last_encode_stats["segment_frames"] in sizes
     assert metrics.max_joint_error(slow.positions(), searched.decode(data).positions) <= 0.2
     fast = sinusoidal_motion(num_frames=300, seed=9)
     assert fast.fps >= 60
     assert create("mcb-rot", eps_cm=0.2).encode(fast) == create("mcb-rot", eps_cm=0.2, segment_search=False).encode(fast)
+
+
+def test_segment_screen_searches_only_the_lengths_whose_screens_come_close(monkeypatch):
+    """The screen runs the rate search on the config's length and on at most _SCREENED_SEARCHES others, those whose
+    screens (one attempt each) are smallest and within _SCREEN_MARGIN of the best stream so far: with a margin of -1
+    (no screen ever close) only the config's length is searched, and each other length costs one attempt."""
+    from mocapbench.codecs.mcb_rot.codec import _segment_lengths
+
+    slow = sinusoidal_motion(num_frames=300, seed=9).every(4)
+    searches = []
+    original = rot_codec.McbRotCodec._search_of
+
+    def counted(prepared, seed=None):
+        searches.append(prepared.encoder.config.segment_frames)
+        return original(prepared, seed)
+
+    monkeypatch.setattr(rot_codec.McbRotCodec, "_search_of", staticmethod(counted))
+    lengths = _segment_lengths(slow.num_frames, 128)
+    create("mcb-rot", eps_cm=0.2).encode(slow)
+    assert searches[0] == 128 and 1 <= len(searches) <= 1 + rot_codec._SCREENED_SEARCHES
+    assert len(set(searches)) == len(searches) and set(searches) <= set(lengths)
+    searches.clear()
+    monkeypatch.setattr(rot_codec, "_SCREEN_MARGIN", -1.0)
+    codec = create("mcb-rot", eps_cm=0.2)
+    data = codec.encode(slow)
+    assert searches == [128]
+    assert metrics.max_joint_error(slow.positions(), codec.decode(data).positions) <= 0.2
 
 
 def test_rounding_search_keeps_the_smaller_stream_within_the_bound():
