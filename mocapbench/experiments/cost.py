@@ -5,6 +5,7 @@
     python -m mocapbench.experiments.cost --sweep small --dataset cmu_test --workers 2
     python -m mocapbench.experiments.cost --calibrate          # measure the per-frame costs on this machine
     python -m mocapbench.experiments.cost --calibrate-from multirun/<date>-bench/cmu_test   # from a finished run
+    python -m mocapbench.experiments.cost --calibrate-from DIR --codecs mcb-rot --scale 0.8    # one codec, loaded
 
 The estimate multiplies measured per-frame costs by the dataset's frames. Costs live in
 ``mocapbench/configs/costs.json`` (written by ``--calibrate``, which runs the sweep on two synthetic clips of
@@ -12,7 +13,9 @@ The estimate multiplies measured per-frame costs by the dataset's frames. Costs 
 clip (reading, positions, metrics) and a per-frame memory measurement of each codec at 4,000 frames);
 ``--calibrate-from`` takes them from a finished sweep's rows instead, and the job's own cost beyond its codec
 (``cpu_s_per_job`` plus ``cpu_s_per_frame`` of ``job``: its config, its clips, the metrics, the launcher's share)
-from its ``job.json`` (:func:`job_overhead`). Each codec
+from its ``job.json`` (:func:`job_overhead`); each row is priced at the calls the benchmark's timing makes now
+(:func:`timing_calls`), so a run timed under another budget still calibrates this one; ``--codecs`` updates only
+the configs of the named codecs, ``--scale`` multiplies the CPU times read (a run on a loaded machine). Each codec
 config's clips are cut into shards the way the sweeper cuts them (:mod:`mocapbench.experiments.shards`), and the
 shards are scheduled on ``--workers`` workers, longest first, for the wall time. The peak memory of a job is the
 process's resident baseline plus the motion and the codec's measured peak per frame times the longest clip of its
@@ -43,7 +46,8 @@ from importlib import resources
 from pathlib import Path
 from typing import Any, Sequence
 
-__all__ = ["COSTS_FILE", "load_costs", "for_dataset", "cpu_cost", "job_costs", "makespan", "Estimate", "estimate", "main"]
+__all__ = ["COSTS_FILE", "load_costs", "for_dataset", "cpu_cost", "job_costs", "makespan", "Estimate", "estimate",
+           "calls_under", "main"]
 
 COSTS_FILE = "configs/costs.json"
 # Used for a codec the costs file does not know (a codec added after the last calibration): 1 ms per frame.
@@ -354,16 +358,21 @@ def _config_folder(job_dir: str) -> str:
     return "/".join(parts[-2:])
 
 
-def calibrate_from(sweeps: Sequence[str | Path], out: Path | None = None, per_dataset: bool = False) -> dict[str, Any]:
+def calibrate_from(sweeps: Sequence[str | Path], out: Path | None = None, per_dataset: bool = False,
+                   codecs: Sequence[str] | None = None, scale: float = 1.0) -> dict[str, Any]:
     """Update the per-frame costs of the configs that finished sweeps ran, from their rows (no new run).
 
-    Each config's cost is its rows' encode and decode CPU seconds (times the calls the timing made) over their
-    frames, as :func:`calibrate` measures it, but on the clips the sweeps ran: for codecs whose cost per frame
-    depends on the clips (the neural Fourier codecs train a network per clip, side by side), the benchmark's own
-    jobs are the calibration that fits. The other entries of the costs file are kept. ``per_dataset``: the
-    sweeps (of one dataset) write the entries of their dataset only (``costs["datasets"][name]``, read by
-    :func:`for_dataset`), the general entries are kept; a config that refused every clip (a rig it cannot carry)
-    costs what its job spent on the refusals.
+    Each config's cost is its rows' encode and decode CPU seconds times the calls the benchmark's timing makes
+    now (:func:`timing_calls`, from each row's median wall time: the sweeps may have been timed under another
+    budget) over their frames, as :func:`calibrate` measures it, but on the clips the sweeps ran: for codecs whose
+    cost per frame depends on the clips (the neural Fourier codecs train a network per clip, side by side), the
+    benchmark's own jobs are the calibration that fits. The other entries of the costs file are kept.
+    ``per_dataset``: the sweeps (of one dataset) write the entries of their dataset only
+    (``costs["datasets"][name]``, read by :func:`for_dataset`), the general entries are kept; a config that refused
+    every clip (a rig it cannot carry) costs what its job spent on the refusals. ``codecs``: only the configs of
+    these codecs are updated, and the job's overhead is kept (sweeps of a few codecs, run beside other work).
+    ``scale``: a factor on every CPU time read (below 1 for sweeps measured on a loaded machine, where a
+    process's CPU time runs longer than on a quiet one: caches and cores shared).
     """
     from mocapbench.experiments.aggregate import aggregate
 
@@ -371,6 +380,11 @@ def calibrate_from(sweeps: Sequence[str | Path], out: Path | None = None, per_da
     if data.empty:
         raise RuntimeError(f"no results in {', '.join(str(s) for s in sweeps)}")
     data["folder"] = [_config_folder(d) for d in data["job_dir"]]
+    if codecs:
+        unknown = sorted(set(codecs) - set(map(str, data["codec"].unique())))
+        if unknown:
+            raise RuntimeError(f"--codecs {', '.join(unknown)}: no rows of them in {', '.join(map(str, sweeps))}")
+        data = data[data["codec"].isin(list(codecs))]
     costs = load_costs(out)
     if per_dataset:
         names = sorted(map(str, data["dataset"].unique()))
@@ -378,13 +392,16 @@ def calibrate_from(sweeps: Sequence[str | Path], out: Path | None = None, per_da
             raise RuntimeError(f"--per-dataset takes sweeps of one dataset, these hold {', '.join(names)}")
         own = costs.setdefault("datasets", {}).setdefault(names[0], {})
         configs = own.setdefault("configs", {})
-        configs.update(_refused_configs(sweeps, set(data["folder"])))
+        refused = _refused_configs(sweeps, set(data["folder"]), scale)
+        configs.update({k: v for k, v in refused.items() if not codecs or v["codec"] in codecs})
     else:
         configs = costs.setdefault("configs", {})
     import numpy as np
 
+    timing = benchmark_timing()
     for folder_name, group in data.groupby("folder"):
-        per_row = group["encode_cpu_s"] * _calls(group, "encode") + group["decode_cpu_s"] * _calls(group, "decode")
+        per_row = scale * (group["encode_cpu_s"] * timing_calls(group, "encode", timing)
+                           + group["decode_cpu_s"] * timing_calls(group, "decode", timing))
         cpu = float(per_row.sum())
         frames = int(group["frames"].sum())
         per_frame, per_clip = cpu / frames, 0.0
@@ -396,16 +413,18 @@ def calibrate_from(sweeps: Sequence[str | Path], out: Path | None = None, per_da
         configs[folder_name] = {"codec": str(group["codec"].iloc[0]), "cpu_s_per_frame": per_frame,
                                 "cpu_s_per_clip": per_clip, "frames_measured": frames,
                                 "measured_on": f"{time.strftime('%Y-%m-%d')}, results of "
-                                               f"{', '.join(sorted(map(str, group['dataset'].unique())))}"}
-    overhead = job_overhead(sweeps, data, float(costs.get("job", {}).get("cpu_s_per_frame", 0.0)))
+                                               f"{', '.join(sorted(map(str, group['dataset'].unique())))}"
+                                               + (f", CPU times x {scale:g}" if scale != 1.0 else "")}
+    overhead = None if codecs else job_overhead(sweeps, data, float(costs.get("job", {}).get("cpu_s_per_frame", 0.0)))
     if overhead is not None:
         (own if per_dataset else costs).setdefault("job", {}).update(overhead)
+    costs["measured"] = time.strftime("%Y-%m-%d")  # the date the estimate quotes: its latest measurement
     target = out or Path(__file__).resolve().parents[1] / COSTS_FILE
     Path(target).write_text(json.dumps(costs, indent=1, sort_keys=True) + "\n")
     return costs
 
 
-def _refused_configs(sweeps: Sequence[str | Path], measured: set[str]) -> dict[str, Any]:
+def _refused_configs(sweeps: Sequence[str | Path], measured: set[str], scale: float = 1.0) -> dict[str, Any]:
     """Configs of ``sweeps`` with no row, whose jobs finished (every clip refused): their job's CPU per frame."""
     spent: dict[str, list[float]] = {}
     for sweep in sweeps:
@@ -416,7 +435,7 @@ def _refused_configs(sweeps: Sequence[str | Path], measured: set[str]) -> dict[s
                 continue
             spent.setdefault(folder, []).append(float(record["cpu_s"]))
     return {folder: {"codec": folder.split("/", 1)[0], "cpu_s_per_frame": 0.0, "cpu_s_per_clip": 0.0,
-                     "refused": True, "job_cpu_s": sum(cpu) / len(cpu),
+                     "refused": True, "job_cpu_s": scale * sum(cpu) / len(cpu),
                      "measured_on": f"{time.strftime('%Y-%m-%d')}, every clip refused"}
             for folder, cpu in spent.items()}
 
@@ -461,10 +480,50 @@ def job_overhead(sweeps: Sequence[str | Path], data: Any, per_frame: float = 0.0
 
 
 def _calls(group, step: str):
-    """Encode/decode calls per clip: the timing's warm-up and repeats (one call in rows without them)."""
+    """Encode/decode calls per clip that the rows' timing made: warm-up and repeats (one in rows without them)."""
     if f"{step}_repeats" not in group:
         return 1
     return group[f"{step}_repeats"].fillna(1) + group.get(f"{step}_warmup", 0).fillna(0)
+
+
+def benchmark_timing() -> dict[str, Any]:
+    """The ``timing`` block of the package's ``configs/benchmark.yaml`` (how the next run times each call)."""
+    from omegaconf import OmegaConf
+
+    text = resources.files("mocapbench").joinpath("configs/benchmark.yaml").read_text()
+    return dict(OmegaConf.to_container(OmegaConf.create(text).get("timing") or {}))
+
+
+def calls_under(wall_s: float, repeats: int = 3, warmup: int = 0, budget_s: float | None = None) -> int:
+    """Calls :func:`mocapbench.metrics.timing.measure` makes of a function that takes ``wall_s`` seconds.
+
+    ``warmup`` untimed calls (the last one is the measurement when it alone passes the budget), then timed calls
+    until ``repeats`` ran or the calls so far passed ``budget_s`` (at least one).
+    """
+    if warmup and budget_s is not None and wall_s > budget_s:
+        return warmup
+    calls, spent = 1, wall_s * (warmup + 1)
+    while calls < repeats and (budget_s is None or spent <= budget_s):
+        calls, spent = calls + 1, spent + wall_s
+    return warmup + calls
+
+
+def timing_calls(group, step: str, timing: dict[str, Any]):
+    """Encode/decode calls per row under ``timing`` (:func:`benchmark_timing`), from each row's median wall time.
+
+    A row without a median wall time, or whose encode was one call for a batch of clips (``encode_batch_clips``),
+    keeps the calls it made (:func:`_calls`).
+    """
+    made = _calls(group, step)
+    column = f"{step}_wall_s" if f"{step}_wall_s" in group else f"{step}_s"
+    if column not in group or not timing:
+        return made
+    planned = group[column].map(lambda wall: calls_under(float(wall), int(timing.get("repeats", 3)),
+                                                          int(timing.get("warmup", 0)), timing.get("budget_s")))
+    keep = group[column].isna()
+    if step == "encode" and "encode_batch_clips" in group:
+        keep |= group["encode_batch_clips"].notna()
+    return planned.where(~keep, made)
 
 
 def _parse_cost_per_frame() -> float:
@@ -565,11 +624,22 @@ def main(argv: list[str] | None = None) -> int:
                         help="update the costs of the configs these finished sweeps ran, from their rows")
     parser.add_argument("--per-dataset", action="store_true",
                         help="with --calibrate-from: write the costs of the sweeps' dataset only (a rig of its own)")
+    parser.add_argument("--codecs", type=lambda text: [c for c in text.split(",") if c],
+                        help="with --calibrate-from: update these codecs' configs only (comma list); the job's "
+                             "overhead is kept")
+    parser.add_argument("--scale", type=float, default=1.0,
+                        help="with --calibrate-from: a factor on the CPU times read (sweeps run on a loaded machine)")
     parser.add_argument("overrides", nargs="*", help="Hydra overrides for the dataset, e.g. data_dir=/data/cmu")
     args = parser.parse_args(argv)
     if args.calibrate_from:
-        costs = calibrate_from(args.calibrate_from, out=Path(args.costs) if args.costs else None,
-                               per_dataset=args.per_dataset)
+        if not args.scale > 0:
+            parser.error(f"--scale must be > 0, got {args.scale}")
+        try:
+            costs = calibrate_from(args.calibrate_from, out=Path(args.costs) if args.costs else None,
+                                   per_dataset=args.per_dataset, codecs=args.codecs, scale=args.scale)
+        except RuntimeError as error:
+            print(f"cost --calibrate-from: {error}", file=sys.stderr)
+            return 2
         print(f"updated the costs of the configs in {' '.join(args.calibrate_from)}; wrote {args.costs or COSTS_FILE}")
         return 0
     if args.calibrate:

@@ -134,3 +134,54 @@ def test_calibrating_per_dataset_keeps_the_general_costs_and_prices_refusals(tmp
     rows.append({**rows[0], "dataset": "other"})
     with pytest.raises(RuntimeError, match="one dataset"):
         calibrate_from([sweep], out=path, per_dataset=True)
+
+
+def test_calls_under_follows_the_timing_of_measure(monkeypatch):
+    import types
+
+    from mocapbench.experiments.cost import calls_under
+    from mocapbench.metrics import timing
+
+    assert calls_under(0.01, 3, 0, 0.25) == 3 and calls_under(0.2, 3, 0, 0.25) == 2
+    assert calls_under(0.3, 3, 0, 0.25) == 1 and calls_under(0.3, 3, 0, None) == 3
+    clock = [0.0]  # a clock that only the measured calls advance, so the count cannot depend on the machine
+    monkeypatch.setattr(timing, "time", types.SimpleNamespace(perf_counter=lambda: clock[0],
+                                                              process_time=lambda: clock[0]))
+    for wall in (0.01, 0.1, 0.2, 0.26, 0.3, 2.0):
+        for warmup in (0, 1, 2):
+            calls = []
+
+            def call():
+                calls.append(1)
+                clock[0] += wall
+
+            timing.measure(call, repeats=3, warmup=warmup, budget_s=0.25)
+            assert len(calls) == calls_under(wall, 3, warmup, 0.25), (wall, warmup)
+
+
+def test_calibrating_prices_the_calls_the_current_timing_makes_for_the_named_codecs(tmp_path, monkeypatch):
+    import pandas as pd
+
+    from mocapbench.experiments import aggregate as aggregate_module
+    from mocapbench.experiments import cost as cost_module
+
+    sweep = tmp_path / "sweep"
+    rows = []
+    # one codec timed three times under an older, larger budget, one whose calls stay short
+    for codec, wall in (("slow/b", 0.5), ("cheap/a", 0.01)):
+        (sweep / codec).mkdir(parents=True)
+        rows.append({"job_dir": str(sweep / codec), "dataset": "cmu_test", "codec": codec.split("/")[0],
+                     "frames": 100, "encode_cpu_s": wall, "encode_wall_s": wall, "encode_repeats": 3,
+                     "encode_warmup": 0, "decode_cpu_s": wall / 10, "decode_wall_s": wall / 10,
+                     "decode_repeats": 3, "decode_warmup": 0})
+    monkeypatch.setattr(aggregate_module, "aggregate", lambda folders: pd.DataFrame(rows))
+    monkeypatch.setattr(cost_module, "benchmark_timing", lambda: {"repeats": 3, "warmup": 0, "budget_s": 0.25})
+    path = tmp_path / "costs.json"
+    path.write_text(json.dumps(COSTS))
+    cost_module.calibrate_from([sweep], out=path, codecs=["slow"], scale=0.5)
+    written = cost_module.load_costs(path)
+    # 0.5 s encodes once, 0.05 s decodes three times (0.15 s), halved by the scale, over 100 frames
+    assert written["configs"]["slow/b"]["cpu_s_per_frame"] == pytest.approx(0.5 * (0.5 + 0.15) / 100)
+    assert written["configs"]["cheap/a"] == COSTS["configs"]["cheap/a"] and written["job"] == COSTS["job"]
+    with pytest.raises(RuntimeError, match="no rows of them"):
+        cost_module.calibrate_from([sweep], out=path, codecs=["acl"])
