@@ -25,6 +25,10 @@ the overhead is most of the time. Here every network of a call is trained side b
     output row, normal equations of size h + 1, in float64 with a tiny relative ridge), and only ``[W0 | b0]``
     and ``[W1 | b1]`` are optimized: the loss is then a function of the hidden layers alone, and its gradient is
     the gradient of eq. (3) at the solved output layer (the output layer's own gradient is 0 there).
+  - *Fewer outputs to fit* (``rank_tolerance > 0``, the default of ``fourier-mlp-int``). With the output layer
+    solved, the targets enter the loss only through their row space: the hidden layers are fitted to the targets'
+    leading principal components (all but ``rank_tolerance`` of their energy, about half of the 97 outputs of a
+    CMU clip at 1e-8), and the output layer is solved on all outputs once at the end (:func:`_reduced_targets`).
   - *L-BFGS* (:func:`_lbfgs`) on those weights, each network with its own curvature pairs, step length and
     Armijo backtracking, one loss-and-gradient evaluation per iteration; accepted losses never rise.
 
@@ -96,6 +100,7 @@ class TrainingSettings:
     device: str = "cpu"
     optimizer: str = "adam"
     solve_output: bool = False
+    rank_tolerance: float = 0.0
 
     @classmethod
     def from_config(cls, config: Any) -> "TrainingSettings":
@@ -109,6 +114,7 @@ class TrainingSettings:
             device=str(getattr(config, "device", "cpu")),
             optimizer=str(getattr(config, "optimizer", "adam")),
             solve_output=bool(getattr(config, "solve_output", False)),
+            rank_tolerance=float(getattr(config, "rank_tolerance", 0.0)),
         )
 
 
@@ -388,6 +394,13 @@ def _train_group(networks: Sequence[Network], omegas: Sequence[Sequence[float]],
     padded_frames = bool((frame_mask == 0).any())
     params, features, targets, scale, frame_mask, frame_root = (
         x.to(device) for x in (params, features, targets, scale, frame_mask, frame_root))
+    # With the output layer solved, the targets enter the loss only through their row space: the optimizer fits
+    # their leading components (_reduced_targets) and the output layer is solved on all of them at the end.
+    fit = {"targets": targets, "offset": 0.0, "full": True}
+    if settings.solve_output and settings.rank_tolerance > 0:
+        reduced, offset = _reduced_targets(torch, targets, settings.rank_tolerance)
+        if reduced.shape[1] < targets.shape[1]:
+            fit = {"targets": reduced, "offset": offset, "full": False}
     # [a1; 1] and [a2; 1] of every frame (the ones row is 0 on padded frames): the second and third layers' inputs;
     # [a2; 1] scaled by the frame's sqrt weight.
     a1_ones = frame_mask.expand(count, 1, frames).repeat(1, hidden + 1, 1)
@@ -402,6 +415,7 @@ def _train_group(networks: Sequence[Network], omegas: Sequence[Sequence[float]],
 
     def evaluate(with_gradient: bool = True):
         """eq. (3) per network at ``params`` (B,), and its gradient into ``gradient`` when asked."""
+        targets = fit["targets"]
         # eq. (2): W2 ELU(W1 ELU(W0 x + b0) + b1) + b2, ELU(z) = max(z, e − 1), e = exp(min(z, 0)) = ELU'(z)
         z1 = torch.bmm(w0, features)
         e1 = torch.clamp_max(z1, 0.0).exp_()
@@ -420,11 +434,12 @@ def _train_group(networks: Sequence[Network], omegas: Sequence[Sequence[float]],
             gram.diagonal(dim1=1, dim2=2).add_(_RIDGE * gram.diagonal(dim1=1, dim2=2).mean(dim=1, keepdim=True))
             projected = torch.bmm(targets, a2_ones.transpose(1, 2)).double()  # (B, m, h + 1)
             scaled_out = torch.linalg.solve(gram, projected.transpose(1, 2)).transpose(1, 2).to(dtype)
-            torch.mul(scaled_out, inverse_scale, out=w2)
+            if fit["full"]:
+                torch.mul(scaled_out, inverse_scale, out=w2)
         else:
             scaled_out = w2 * scale  # (B, m, h + 1): [s ∘ W2 | s ∘ b2]
         residual = torch.baddbmm(targets, scaled_out, a2_ones, beta=-1.0)  # (F(x) − y) ∘ s, (B, m, N)
-        loss = torch.linalg.vector_norm(residual, dim=(1, 2)).square_().mul_(0.5)
+        loss = torch.linalg.vector_norm(residual, dim=(1, 2)).square_().mul_(0.5).add_(fit["offset"])
         if not with_gradient:
             return loss
         # d loss / d [W2 | b2] = s ∘ (residual [a2; 1]ᵀ); d loss / d a2 = (s ∘ W2)ᵀ residual; then back through
@@ -449,6 +464,10 @@ def _train_group(networks: Sequence[Network], omegas: Sequence[Sequence[float]],
     else:
         losses, stopped = _adam(torch, params, gradient, evaluate, iterations, settings, networks[0].rounds,
                                 stopping)
+    if not fit["full"]:
+        # The output layer on every target component, at the accepted hidden layers.
+        fit.update(targets=targets, offset=0.0, full=True)
+        evaluate(with_gradient=False)
     step = len(losses) - 1
     losses = losses.cpu().numpy().astype(np.float64)
     params = params.cpu().numpy()
@@ -457,6 +476,31 @@ def _train_group(networks: Sequence[Network], omegas: Sequence[Sequence[float]],
         last = min(int(stopped[b]), step)
         network.loss_history.append(losses[: last + 1, b].copy())
         network.rounds += 1
+
+
+def _reduced_targets(torch, targets, tolerance: float):
+    """The targets' leading components: ``(Uᵀ T, ½ |T − U Uᵀ T|²)`` per network, U the fewest leading left singular
+    vectors of ``T`` (B, m, N) whose left-out energy is at most ``tolerance`` of ``|T|²``.
+
+    With the output layer solved by least squares, the loss is ``min_W |W A − T|² / 2`` over the hidden
+    activations A, and for ``W = U W'`` it equals ``|W' A − Uᵀ T|² / 2`` plus the left-out energy (a constant): the
+    hidden layers can be fitted to ``Uᵀ T`` (r × N instead of m × N; the products over the outputs are most of a
+    step's arithmetic, r is about half of m on CMU clips). At a tolerance of 1e-8 the left-out part is below
+    float32's resolution of the initial loss. Networks with fewer components get zero rows (they add 0).
+    Returns the reduced targets (B, r, N) and the offset per network (B,), on the targets' device and dtype.
+    """
+    t64 = targets.double()
+    energy, vectors = torch.linalg.eigh(torch.bmm(t64, t64.transpose(1, 2)))  # ascending, per network
+    energy = energy.clamp_min(0.0)
+    outputs = energy.shape[1]
+    # Per network, the smallest components whose energy together is at most the tolerance are left out.
+    left_out = (energy.cumsum(dim=1) <= tolerance * energy.sum(dim=1, keepdim=True)).sum(dim=1)
+    keep = int((outputs - left_out).max())
+    kept = torch.arange(outputs, device=targets.device)[None, :] >= left_out[:, None]  # (B, m), ascending order
+    offset = 0.5 * torch.where(kept, torch.zeros_like(energy), energy).sum(dim=1)
+    basis = (vectors * kept[:, None, :])[:, :, outputs - keep:]  # (B, m, r): the r largest, zero where left out
+    reduced = torch.bmm(basis.transpose(1, 2), t64)
+    return reduced.to(targets.dtype), offset.to(targets.dtype)
 
 
 def _adam(torch, params, gradient, evaluate, iterations: int, settings: TrainingSettings, rounds: int,

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -282,3 +283,47 @@ def test_lbfgs_networks_trained_together_match_each_trained_alone():
         np.testing.assert_allclose(network.loss_history[0][:6], alone.loss_history[0][:6], rtol=1e-2)
         np.testing.assert_allclose(network.loss_history[0][-1], alone.loss_history[0][-1], rtol=0.25)
         assert network.weights[4].shape == alone.weights[4].shape
+
+
+@pytest.mark.torch
+def test_reduced_targets_keep_the_energy_and_leave_out_only_the_tolerated_part():
+    torch = pytest.importorskip("torch")
+    from mocapbench.codecs.neural_fourier.training import _reduced_targets
+
+    rng = np.random.default_rng(3)
+    # Two networks of 9 outputs and 50 frames: rank 3 and rank 5 plus components of energy ~1e-12 of the total.
+    low = [rng.standard_normal((9, r)) @ rng.standard_normal((r, 50)) for r in (3, 5)]
+    targets = torch.tensor(np.stack([t + 1e-6 * rng.standard_normal(t.shape) for t in low]), dtype=torch.float64)
+    reduced, offset = _reduced_targets(torch, targets, 1e-8)
+    assert reduced.shape == (2, 5, 50)  # the widest network's rank; the rank-3 one has zero rows
+    assert torch.count_nonzero(reduced[0].abs().sum(dim=1) > 0) == 3
+    total = targets.square().sum(dim=(1, 2))
+    kept = reduced.square().sum(dim=(1, 2))
+    np.testing.assert_allclose((kept + 2 * offset).numpy(), total.numpy(), rtol=1e-12)
+    assert np.all(offset.numpy() <= 0.5e-8 * total.numpy()) and np.all(offset.numpy() > 0)
+    # A tolerance of 0 keeps every nonzero component: nothing left out but exact zeros.
+    full, none_left = _reduced_targets(torch, targets, 0.0)
+    assert full.shape[1] == 9 and float(none_left.max()) < 1e-20 * float(total.min())
+
+
+@pytest.mark.torch
+def test_lbfgs_on_the_leading_components_fits_as_the_full_targets_and_solves_every_output():
+    pytest.importorskip("torch")
+    omegas = [1.0, 2.5]
+    rng = np.random.default_rng(5)
+    full, reduced = _network(90), _network(90)
+    # 13 outputs of rank 4: the reduced fit works on 4 components.
+    mix = rng.standard_normal((4, 13))
+    for network in (full, reduced):
+        network.targets = network.targets[:, :4] @ mix
+    train_round([full], [omegas], 30, LBFGS)
+    train_round([reduced], [omegas], 30, dataclasses.replace(LBFGS, rank_tolerance=1e-8))
+    np.testing.assert_allclose(reduced.loss_history[0][:5], full.loss_history[0][:5], rtol=1e-3)
+    assert reduced.loss_history[0][-1] <= full.loss_history[0][-1] * 1.1
+    # The stored output layer covers all 13 outputs and is their least-squares fit on the final hidden layers.
+    hidden = _hidden(reduced, omegas)
+    best, *_ = np.linalg.lstsq(hidden, reduced.targets, rcond=None)
+    stored = np.hstack([reduced.weights64()[4], reduced.weights64()[5][:, None]]).T
+    residual_best = np.linalg.norm((hidden @ best - reduced.targets) * reduced.loss_weights)
+    residual_stored = np.linalg.norm((hidden @ stored - reduced.targets) * reduced.loss_weights)
+    assert residual_stored <= residual_best * (1 + 1e-3)
