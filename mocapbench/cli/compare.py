@@ -2,14 +2,18 @@
 
 The engine is :mod:`mocapbench.experiments.compare_run` (rate search per clip, models held out by default, rows
 kept as they finish); this module reads the clips, says what it read (unit and up axis of every file, and why),
-tells the cost of the codecs on request before they start, shows progress, prints the ranked table with the model
-column, the wall and CPU time (in all and per codec), and builds the report from rows pooled as the table pools them
+tells the cost of the codecs on request before they start, runs the codecs side by side on the machine's cores
+(``--workers``), shows progress, prints the ranked table with the model column, the wall and CPU time (in all, the
+workers' included, and per codec), and builds the report from rows pooled as the table pools them
 (:mod:`mocapbench.experiments.compare_report`). Ctrl-C prints the table of the codecs that finished and keeps every
 finished clip's row under ``--runs``: the same command resumes.
 """
 
 from __future__ import annotations
 
+import argparse
+import os
+import resource
 import sys
 import time
 from pathlib import Path
@@ -20,6 +24,30 @@ __all__ = ["add_parser", "run"]
 
 #: Exit status of a run stopped by Ctrl-C (128 + SIGINT), as shells report it.
 INTERRUPTED_EXIT = 130
+
+
+def _cpu_s() -> float:
+    """CPU seconds of this process and of its finished worker processes (user + system)."""
+    children = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return time.process_time() + children.ru_utime + children.ru_stime
+
+
+def _workers(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected a whole number of worker processes >= 1, got {text!r}")
+    return value
+
+
+def _default_workers() -> int:
+    """The cores this process may run on (each codec runs on one)."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
 
 
 def _codec_names(text: str | None) -> list[str] | None:
@@ -78,11 +106,12 @@ def run(args) -> None:
     chosen = names or default_codecs()
     print(f"comparing {len(chosen)} codec(s) on {len(motions)} clip(s), {sum(m.num_frames for m in motions)} "
           f"frames, L-inf <= {args.max_error_cm:g} cm; models {policy}; rows in {store}", file=sys.stderr)
-    progress = Progress(len(chosen) * len(motions))
-    wall, cpu = time.perf_counter(), time.process_time()
+    workers = args.workers or _default_workers()
+    progress = Progress(len(chosen) * len(motions), workers=min(workers, len(chosen)))
+    wall, cpu = time.perf_counter(), _cpu_s()
     try:
         outcomes = compare(motions, args.max_error_cm, chosen, dataset=dataset, policy=policy, folds=args.folds,
-                           store=RowStore(store), progress=progress)
+                           store=RowStore(store), progress=progress, workers=workers)
     except CompareInterrupted as stop:
         progress.close()
         _interrupted(stop, args.max_error_cm, store)
@@ -93,7 +122,7 @@ def run(args) -> None:
     if note:
         print(note)
     resumed = sum(o.resumed for o in outcomes)
-    print(f"{duration_text(time.perf_counter() - wall)} wall, {duration_text(time.process_time() - cpu)} CPU"
+    print(f"{duration_text(time.perf_counter() - wall)} wall, {duration_text(_cpu_s() - cpu)} CPU"
           + (f" ({resumed} clip row(s) kept from an earlier run)" if resumed else ""))
     times = format_codec_times(outcomes)
     if times:
@@ -133,5 +162,7 @@ def add_parser(commands) -> None:
     parser.add_argument("--runs", default="multirun/compare", help="folder for the result rows (kept; resumed)")
     parser.add_argument("--reports", default="reports", help="folder for the report")
     parser.add_argument("--no-report", action="store_true", help="print the table only")
+    parser.add_argument("--workers", type=_workers, default=None,
+                        help="codecs run at once, one process each (default: the cores this process may use)")
     add_motion_options(parser)
     parser.set_defaults(run=run)

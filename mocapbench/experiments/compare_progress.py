@@ -3,7 +3,8 @@
 On a terminal, one tqdm bar over every (codec, clip) pair, its text naming the codec, the clip and the try of
 the rate search under way, with tqdm's estimate of the time left. Elsewhere (a log, a pipe), one line per finished
 clip with the same facts. The time left is the average time of the clips measured so far in this run (a resumed
-clip costs nothing and does not count) times the clips left; it is an estimate: codecs differ in cost.
+clip costs nothing and does not count) times the clips left, over the codecs run at once; it is an estimate: codecs
+differ in cost. Codecs run side by side (``compare --workers``) each keep their own clip's start and tries.
 """
 
 from __future__ import annotations
@@ -36,17 +37,21 @@ class Progress:
         Default stderr.
     bar : bool, optional
         A tqdm bar (default: when ``stream`` is a terminal), else one line per clip.
+    workers : int, optional
+        Codecs measured at once (the time left is divided among them); default 1.
     """
 
-    def __init__(self, total: int, stream: TextIO | None = None, bar: bool | None = None) -> None:
+    def __init__(self, total: int, stream: TextIO | None = None, bar: bool | None = None, workers: int = 1) -> None:
         self.stream = stream or sys.stderr
         self.total = int(total)
+        self.workers = max(1, int(workers))
         self.finished = 0
         self.measured = 0
         self.measured_s = 0.0
         self._done: dict[str, int] = {}
-        self._tries = 0
-        self._clip_start = time.perf_counter()
+        self._tries: dict[str, int] = {}
+        self._clip_start: dict[str, float] = {}
+        self._last = ""
         self._what = ""
         use_bar = bar if bar is not None else bool(getattr(self.stream, "isatty", lambda: False)())
         self._bar = None
@@ -63,20 +68,23 @@ class Progress:
         """Seconds left: the mean time of a measured clip times the clips left (None before the first)."""
         if not self.measured:
             return None
-        return self.measured_s / self.measured * (self.total - self.finished)
+        return self.measured_s / self.measured * (self.total - self.finished) / self.workers
 
     def clip_start(self, codec: str, clip: str) -> None:
-        self._tries = 0
-        self._clip_start = time.perf_counter()
+        self._tries[codec] = 0
+        self._clip_start[codec] = time.perf_counter()
+        self._last = codec
         self._what = f"{codec} on {clip}"
         if self._bar is not None:
             self._bar.set_description_str(self._what)
 
-    def try_started(self) -> None:
-        """A rate-search try begins (an encode and decode of one setting)."""
-        self._tries += 1
+    def try_started(self, codec: str | None = None) -> None:
+        """A rate-search try of ``codec`` (default: the codec last started) begins: an encode and decode of one
+        setting."""
+        codec = codec or self._last
+        self._tries[codec] = self._tries.get(codec, 0) + 1
         if self._bar is not None:
-            self._bar.set_postfix_str(f"try {self._tries}")
+            self._bar.set_postfix_str(f"{codec} try {self._tries[codec]}")
 
     def _advance(self, codec: str, clips: int) -> None:
         self._done[codec] = self._done.get(codec, 0) + clips
@@ -88,13 +96,14 @@ class Progress:
         """A clip is measured (or taken from an earlier run: ``resumed``)."""
         seconds = 0.0
         if not resumed:
-            seconds = time.perf_counter() - self._clip_start
+            seconds = time.perf_counter() - self._clip_start.get(codec, time.perf_counter())
             self.measured += 1
             self.measured_s += seconds
         self._advance(codec, 1)
         if self._bar is None:
             left = self.left_s()
-            what = "kept from the last run" if resumed else f"{self._tries} tries, {duration_text(seconds)}"
+            tries = self._tries.get(codec, 0)
+            what = "kept from the last run" if resumed else f"{tries} tries, {duration_text(seconds)}"
             tail = f"; about {duration_text(left)} left" if left is not None and self.finished < self.total else ""
             print(f"[{self.finished}/{self.total}] {codec} on {clip}: {what}{tail}", file=self.stream, flush=True)
 

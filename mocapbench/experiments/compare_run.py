@@ -255,7 +255,7 @@ def _compare_codec(name: str, motions: Sequence[Motion], plan: _Plan, store: Row
                 fitted = models.fitted(clip)
 
                 def prepare(codec, fitted=fitted):
-                    progress.try_started()
+                    progress.try_started(name)
                     return with_config(fitted, codec) if fitted is not None else codec
 
                 with single_thread(1):  # one core, as evaluate times: the tries' streams are the evaluated ones
@@ -305,7 +305,7 @@ def _searched_together(name: str, motions: Sequence[Motion], plan: _Plan, models
     progress.clip_start(name, f"{len(clips)} clip(s) searched side by side")
 
     def prepare(codec):
-        progress.try_started()
+        progress.try_started(name)
         return codec
 
     sources = [known_kinematics(motions[clip]) for clip in clips]
@@ -344,7 +344,7 @@ class _Quiet:
     def clip_start(self, codec, clip):
         pass
 
-    def try_started(self):
+    def try_started(self, codec=None):
         pass
 
     def clip_done(self, codec, clip, resumed=False):
@@ -367,6 +367,7 @@ def compare(
     folds: int = DEFAULT_FOLDS,
     store: RowStore | None = None,
     progress=None,
+    workers: int = 1,
 ) -> list[CodecOutcome]:
     """Every codec of ``codecs`` (default :func:`default_codecs`) on ``motions``, ranked.
 
@@ -383,8 +384,11 @@ def compare(
     store : RowStore, optional, keyword-only
         Where rows are appended as they finish and found again (default: nowhere).
     progress : optional, keyword-only
-        An object with ``clip_start(codec, clip)``, ``try_started()``, ``clip_done(codec, clip, resumed)``,
+        An object with ``clip_start(codec, clip)``, ``try_started(codec)``, ``clip_done(codec, clip, resumed)``,
         ``skip(codec, clips)``, ``done_in(codec)`` (:class:`mocapbench.experiments.compare_progress.Progress`).
+    workers : int, keyword-only
+        Codecs run at once, each in a worker process of its own (:func:`_compare_in_pool`); 1: one after another
+        in this process. The rows are the same either way.
 
     Returns
     -------
@@ -403,23 +407,133 @@ def compare(
     plan_folds(motions, policy, folds)  # a bad policy or fold count fails before any codec runs
     store = store or _NoStore()
     progress = progress or _Quiet()
+    if workers < 1:
+        raise ValueError(f"compare: workers must be >= 1, got {workers}")
     outcomes: list[CodecOutcome] = []
+    runnable = []
+    for name in names:
+        if name in UNAVAILABLE and name not in CODECS:
+            outcomes.append(CodecOutcome(name, [], reason=f"unavailable here: {UNAVAILABLE[name]}"))
+            progress.skip(name, len(motions))
+        elif name not in CODECS:
+            outcomes.append(CodecOutcome(name, [], reason="unknown codec; `mocapbench codecs` lists them"))
+            progress.skip(name, len(motions))
+        else:
+            runnable.append(name)
+    if workers > 1 and len(runnable) > 1:
+        return rank(outcomes + _compare_in_pool(runnable, motions, plan, store, progress, workers))
     current = None
     try:
-        for name in names:
+        for name in runnable:
             current = name
-            if name in UNAVAILABLE and name not in CODECS:
-                outcomes.append(CodecOutcome(name, [], reason=f"unavailable here: {UNAVAILABLE[name]}"))
-                progress.skip(name, len(motions))
-            elif name not in CODECS:
-                outcomes.append(CodecOutcome(name, [], reason="unknown codec; `mocapbench codecs` lists them"))
-                progress.skip(name, len(motions))
-            else:
-                outcomes.append(_compare_codec(name, motions, plan, store, progress))
+            outcomes.append(_compare_codec(name, motions, plan, store, progress))
             current = None
     except KeyboardInterrupt:
         raise CompareInterrupted(rank(outcomes), current) from None
     return rank(outcomes)
+
+
+class _Relay:
+    """A worker's progress: each call is put on the queue for the parent's progress, tagged with its codec.
+
+    A worker runs one codec at a time, so it counts that codec's finished clips itself (``done_in``).
+    """
+
+    def __init__(self, queue, codec: str) -> None:
+        self.queue = queue
+        self.codec = codec
+        self.done = 0
+
+    def clip_start(self, codec, clip):
+        self.queue.put(("clip_start", (codec, clip)))
+
+    def try_started(self, codec=None):
+        self.queue.put(("try_started", (codec or self.codec,)))
+
+    def clip_done(self, codec, clip, resumed=False):
+        self.done += 1
+        self.queue.put(("clip_done", (codec, clip, resumed)))
+
+    def skip(self, codec, clips):
+        self.done += clips
+        self.queue.put(("skip", (codec, clips)))
+
+    def done_in(self, codec):
+        return self.done
+
+
+_EVENTS = None  # the worker process's queue to the parent's progress (set by _worker_start)
+
+
+def _worker_start(events) -> None:
+    """A compare worker: Ctrl-C is the parent's to handle (it stops the workers), events go to ``events``."""
+    import signal
+
+    global _EVENTS
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    _EVENTS = events
+
+
+def _worker_codec(task) -> CodecOutcome:
+    name, motions, plan, store = task
+    return _compare_codec(name, motions, plan, store, _Relay(_EVENTS, name))
+
+
+def _compare_in_pool(names: Sequence[str], motions: Sequence[Motion], plan: _Plan, store: RowStore, progress,
+                     workers: int) -> list[CodecOutcome]:
+    """:func:`_compare_codec` of every codec of ``names`` in ``workers`` worker processes, longest first.
+
+    A codec is the unit of work: its clips share the models fit for their folds, and the neural codecs' clips
+    train side by side, so a codec's rows are the ones it gives alone. The codecs are handed out by decreasing
+    :func:`estimate_cpu_s` (the longest-processing-time-first schedule), so that the neural codecs, the longest,
+    start first instead of running alone at the end. Workers are started fresh (``spawn``: no thread or library
+    state of this process is copied into them); their progress calls come back through a queue and are replayed
+    on ``progress`` by a thread of this process. Ctrl-C stops every worker and raises :class:`CompareInterrupted`
+    with the codecs that finished (the rows of every finished clip are in ``store`` already).
+    """
+    import multiprocessing
+    import threading
+
+    order = sorted(names, key=lambda name: -estimate_cpu_s(name, motions))
+    context = multiprocessing.get_context("spawn")
+    events = context.Queue()
+    started: list[str] = []
+
+    def replay() -> None:
+        while True:
+            event = events.get()
+            if event is None:
+                return
+            method, arguments = event
+            if method == "clip_start" and arguments[0] not in started:
+                started.append(arguments[0])
+            getattr(progress, method)(*arguments)
+
+    relay = threading.Thread(target=replay, name="compare-progress", daemon=True)
+    outcomes: list[CodecOutcome] = []
+    pool = context.Pool(min(workers, len(order)), initializer=_worker_start, initargs=(events,))
+    relay.start()
+    try:
+        tasks = [(name, list(motions), plan, store) for name in order]
+        for outcome in pool.imap_unordered(_worker_codec, tasks, chunksize=1):
+            outcomes.append(outcome)
+        pool.close()
+        pool.join()
+    except KeyboardInterrupt:
+        pool.terminate()
+        pool.join()
+        finished = {o.codec for o in outcomes}
+        running = [name for name in started if name not in finished]
+        raise CompareInterrupted(rank(outcomes), ", ".join(running) or None) from None
+    except BaseException:
+        pool.terminate()
+        pool.join()
+        raise
+    finally:
+        events.put(None)
+        relay.join()
+        events.close()
+    return outcomes
 
 
 def rank(outcomes: Sequence[CodecOutcome]) -> list[CodecOutcome]:

@@ -266,3 +266,40 @@ def test_a_codec_that_encodes_many_at_once_is_searched_on_every_clip_in_lockstep
     keys = ("clip", "bitstream_bytes", "max_err_cm", "mean_err_cm", "rate_search_settings", "rate_search_tries")
     assert [{k: r[k] for k in keys} for r in together.rows] == [{k: r[k] for k in keys} for r in alone.rows]
     assert progress.finished == len(clips) and progress.measured == len(clips)
+
+
+_TIMING = ("encode_s", "decode_s", "encode_fps", "decode_fps")
+
+
+def _without_timing(row):
+    """A row without what depends on the machine's speed at the time (the timings and load), as JSON text (NaN
+    columns then compare equal)."""
+    import json
+
+    return json.dumps({key: value for key, value in row.items()
+                       if key not in _TIMING and not key.startswith(("encode_wall", "encode_cpu", "encode_load",
+                                                                     "decode_wall", "decode_cpu", "decode_load"))},
+                      sort_keys=True, default=str)
+
+
+@pytest.mark.slow
+def test_codecs_run_side_by_side_give_the_rows_they_give_one_after_another(tmp_path):
+    clips = _clips()
+    names = ["svd", "mcb-linf", "quant-delta-zstd", "raw-zstd", "no-such-codec"]
+    alone = compare(clips, 1.0, names, store=RowStore(tmp_path / "alone"))
+    out = io.StringIO()
+    progress = Progress(len(names) * len(clips), stream=out, bar=False, workers=2)
+    together = compare(clips, 1.0, names, store=RowStore(tmp_path / "together"), progress=progress, workers=2)
+    assert [o.codec for o in together] == [o.codec for o in alone]
+    for one, other in zip(alone, together):
+        assert one.reason == other.reason and len(one.rows) == len(other.rows)
+        assert [_without_timing(r) for r in one.rows] == [_without_timing(r) for r in other.rows]
+        stored = RowStore(tmp_path / "together")._rows(other.codec, "results.jsonl")
+        assert [_without_timing(r) for r in stored] == [_without_timing(r) for r in other.rows]
+    assert all(o.cpu_seconds > 0 for o in together if o.rows)  # measured in the worker that ran the codec
+    lines = out.getvalue().splitlines()
+    assert len(lines) == 4 * len(clips) and progress.finished == len(names) * len(clips)
+    assert {line.split(" on ")[0].split("] ")[1] for line in lines} == {"svd", "mcb-linf", "quant-delta-zstd",
+                                                                      "raw-zstd"}
+    with pytest.raises(ValueError, match="workers must be >= 1"):
+        compare(clips, 1.0, names, workers=0)
