@@ -74,6 +74,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+import weakref
 
 import constriction
 import numpy as np
@@ -91,6 +92,7 @@ from mocapbench.codecs.mcb_linf.layers import (
     CoefficientLayout,
     dead_zone_quantize,
     forward_dct,
+    _LATTICE_REACH,
     lattice_points,
     lattice_symbols,
     quantization_steps,
@@ -263,15 +265,25 @@ def _best_shifts(base_classes, groups: np.ndarray, num_groups: int, tokens, tabl
     histogram = np.bincount(
         (groups * NUM_CLASSES + base_classes) * TOKEN_COUNT + tokens, minlength=num_groups * NUM_CLASSES * TOKEN_COUNT
     ).reshape(num_groups, NUM_CLASSES * TOKEN_COUNT)
-    classes = np.arange(NUM_CLASSES)
-    shifted_log_probabilities = np.stack(
-        [
-            tables.log2_probabilities[np.clip(classes + shift, 0, NUM_CLASSES - 1)].ravel()
-            for shift in range(-_MAX_SHIFT, _MAX_SHIFT)
-        ]
-    )  # (2 _MAX_SHIFT, K T)
-    costs = -histogram @ shifted_log_probabilities.T  # (G, 2 _MAX_SHIFT), bits
+    costs = -histogram @ _shifted_log_probabilities(tables).T  # (G, 2 _MAX_SHIFT), bits
     return np.argmin(costs, axis=1).astype(np.int64) - _MAX_SHIFT
+
+
+_SHIFTED: "weakref.WeakKeyDictionary[ClassTables, np.ndarray]" = weakref.WeakKeyDictionary()
+
+
+def _shifted_log_probabilities(tables: ClassTables) -> np.ndarray:
+    """(2 :data:`_MAX_SHIFT`, K T) log2 of each (class, token)'s probability under each shift of the classes, as
+    :func:`_best_shifts` weighs them (built once per table)."""
+    if tables not in _SHIFTED:
+        classes = np.arange(NUM_CLASSES)
+        _SHIFTED[tables] = np.stack(
+            [
+                tables.log2_probabilities[np.clip(classes + shift, 0, NUM_CLASSES - 1)].ravel()
+                for shift in range(-_MAX_SHIFT, _MAX_SHIFT)
+            ]
+        )
+    return _SHIFTED[tables]
 
 
 def _write_trained(writer: ByteWriter, coefficients, layout: "CoefficientLayout", steps, model: TrainedModel) -> None:
@@ -438,17 +450,43 @@ def _rate_distortion_round(scaled: np.ndarray, classes: np.ndarray, tables: Clas
     """
     magnitude = np.abs(scaled)
     chosen = np.floor(magnitude + 0.5).astype(np.int64)
+    table = _magnitude_bits(tables)
     log2_probabilities = tables.log2_probabilities
 
-    def bits(values):
+    def bits(values, classes):
+        if not values.size or values.max() < table.shape[1]:
+            return table[classes, values]
         tokens, _, widths = tokenize(values)
         return widths + (values != 0) - log2_probabilities[classes, tokens]
 
+    live = np.flatnonzero(chosen)  # a zero stays zero: only the others are weighed
+    value, kept, live_classes = magnitude[live], chosen[live], classes[live]
     for _ in range(2):
-        lower = np.maximum(chosen - 1, 0)
-        gain = (magnitude - lower) ** 2 - (magnitude - chosen) ** 2 + rd_lambda * (bits(lower) - bits(chosen))
-        chosen = np.where((chosen > 0) & (gain < 0), lower, chosen)
+        lower = np.maximum(kept - 1, 0)
+        gain = (value - lower) ** 2 - (value - kept) ** 2 + rd_lambda * (
+            bits(lower, live_classes) - bits(kept, live_classes)
+        )
+        kept = np.where((kept > 0) & (gain < 0), lower, kept)
+    chosen[live] = kept
     return np.where(scaled < 0, -chosen, chosen)
+
+
+# Magnitudes below this have their bits under every class in a table (:func:`_magnitude_bits`).
+_TABLED_MAGNITUDES = 1 << 12
+
+
+_MAGNITUDE_BITS: "weakref.WeakKeyDictionary[ClassTables, np.ndarray]" = weakref.WeakKeyDictionary()
+
+
+def _magnitude_bits(tables: ClassTables) -> np.ndarray:
+    """(K, :data:`_TABLED_MAGNITUDES`) the ideal code length (bits) of each magnitude under each class: its token,
+    its raw low bits and, but for zero, its sign bit; the arithmetic of :func:`_rate_distortion_round`'s cost,
+    computed once per table."""
+    if tables not in _MAGNITUDE_BITS:
+        magnitudes = np.arange(_TABLED_MAGNITUDES, dtype=np.int64)
+        tokens, _, widths = tokenize(magnitudes)
+        _MAGNITUDE_BITS[tables] = widths + (magnitudes != 0) - tables.log2_probabilities[:, tokens]
+    return _MAGNITUDE_BITS[tables]
 
 
 # The 14 nearest neighbours of a BCC point (half-cell units): the 8 (±1, ±1, ±1) and the 6 (±2, 0, 0).
@@ -465,18 +503,44 @@ def _cheapest_lattice_points(residual, nearest, half_cell: float, radius: float,
     BCC balls of the covering radius overlap (the covering density is 1.46): a residual is often within
     ``radius`` of a neighbour of its nearest point too, and a neighbour nearer the origin has a likelier index.
     Candidates are the nearest point (always valid) and its 14 neighbours; the cost is the index's ideal code
-    length under the trained index distribution. The decoder is unchanged.
+    length under the trained index distribution (:func:`_lattice_costs`). The decoder is unchanged.
     """
     if not len(nearest):
         return nearest
-    candidates = nearest[:, None, :] + np.concatenate([np.zeros((1, 3), dtype=np.int64), _BCC_NEIGHBOURS])[None]
+    candidates = nearest[:, None, :] + _BCC_CANDIDATES[None]
     valid = np.sum((residual[:, None, :] - candidates * half_cell) ** 2, axis=-1) <= radius**2
     valid[:, 0] = True
-    symbols, _ = lattice_symbols(candidates.reshape(-1, 3))
-    tokens, _, widths = tokenize(symbols)
-    cost = (widths - model.lattice_tables.log2_probabilities[0, tokens]).reshape(valid.shape)
+    costs, escape_cost = _lattice_costs(model.lattice_tables)
+    inside = np.all(np.abs(candidates) <= _LATTICE_REACH, axis=-1)
+    cube = np.clip(candidates, -_LATTICE_REACH, _LATTICE_REACH) + _LATTICE_REACH
+    cost = np.where(inside, costs[cube[..., 0], cube[..., 1], cube[..., 2]], escape_cost)
     best = np.argmin(np.where(valid, cost, np.inf), axis=1)
     return candidates[np.arange(len(candidates)), best]
+
+
+# The nearest point's own offset, then its 14 neighbours: the candidates of :func:`_cheapest_lattice_points`.
+_BCC_CANDIDATES = np.concatenate([np.zeros((1, 3), dtype=np.int64), _BCC_NEIGHBOURS])
+
+
+_LATTICE_COSTS: "weakref.WeakKeyDictionary[ClassTables, tuple[np.ndarray, float]]" = weakref.WeakKeyDictionary()
+
+
+def _lattice_costs(tables: ClassTables) -> tuple[np.ndarray, float]:
+    """The ideal code length (bits) of every lattice point within reach under the index distribution ``tables``
+    (class 0), as a cube ``(2R + 1,) * 3`` indexed by coordinates + R, and the cost of the escape index (the
+    coordinates that follow it are not counted).
+
+    Computed once per table with the arithmetic of ``widths - log2 p[token]`` on each point's index
+    (:func:`lattice_symbols`), the cost of the point itself; the cells off the lattice and the origin, which have no
+    index, cost what :func:`lattice_symbols`'s -1 costs there (the origin is never valid for a corrected joint).
+    """
+    if tables not in _LATTICE_COSTS:
+        points, lookup = lattice_points()
+        symbols = np.append(lookup.ravel(), len(points))
+        tokens, _, widths = tokenize(symbols)
+        cost = widths - tables.log2_probabilities[0, tokens]
+        _LATTICE_COSTS[tables] = cost[:-1].reshape(lookup.shape), float(cost[-1])
+    return _LATTICE_COSTS[tables]
 
 
 def _rigid_bones(positions: np.ndarray, parents: np.ndarray, eps: float) -> np.ndarray:
@@ -504,9 +568,9 @@ def _bone_lengths(base: np.ndarray, codes: np.ndarray) -> np.ndarray:
     return lengths
 
 
-def _onto_sphere(points: np.ndarray, centres: np.ndarray, length: float) -> np.ndarray:
+def _onto_sphere(points: np.ndarray, centres: np.ndarray, length) -> np.ndarray:
     """``points`` (F, 3) moved radially onto the sphere of radius ``length`` around ``centres`` (F, 3); a point on
-    its centre stays."""
+    its centre stays. Also (F, k, 3) points and centres with lengths (k, 1), one sphere per column."""
     offset = points - centres
     norm = np.linalg.norm(offset, axis=-1, keepdims=True)
     return np.where(norm > 0, centres + offset * (length / np.where(norm > 0, norm, 1.0)), points)
@@ -532,25 +596,34 @@ def _refine(positions, base, radius: float, model: TrainedModel | None, codes: n
         return corrected, lattice, residual, None
     lengths = _bone_lengths(base, codes)
     final = base.copy()
-    residual = np.empty_like(base)
     lattices = np.zeros((num_frames, num_joints, 3), dtype=np.int64)
     flags = np.zeros((num_frames, num_joints), dtype=bool)
+    residual = np.empty_like(base)
     codes = codes.copy()
-    for joint in range(num_joints):
-        if codes[joint]:  # held only where that corrects fewer frames of this joint
-            held = _onto_sphere(final[:, joint], final[:, joint - codes[joint]], lengths[joint])
-            if np.count_nonzero(np.sum((positions[:, joint] - held) ** 2, axis=-1) > radius**2) <= np.count_nonzero(
-                np.sum((positions[:, joint] - final[:, joint]) ** 2, axis=-1) > radius**2
-            ):
-                final[:, joint] = held
-            else:
-                codes[joint] = 0
-        error = positions[:, joint] - final[:, joint]
+    # A held joint waits for its parent's final position; every other joint is independent. Joints are taken a
+    # level of the held chains at a time (level 0: the joints not held, then the held joints whose parent is
+    # final): per joint, the very arithmetic of one joint at a time, with a few array calls per level.
+    level = np.zeros(num_joints, dtype=np.int64)
+    for joint in np.flatnonzero(codes).tolist():
+        level[joint] = level[joint - codes[joint]] + 1
+    for depth in range(int(level.max()) + 1 if num_joints else 0):
+        joints = np.flatnonzero(level == depth)
+        if depth:  # held only where that corrects fewer frames of this joint
+            held = _onto_sphere(final[:, joints], final[:, joints - codes[joints]], lengths[joints, None])
+            target = positions[:, joints]
+            keep = np.count_nonzero(np.sum((target - held) ** 2, axis=-1) > radius**2, axis=0) <= np.count_nonzero(
+                np.sum((target - final[:, joints]) ** 2, axis=-1) > radius**2, axis=0
+            )
+            final[:, joints[keep]] = held[:, keep]
+            codes[joints[~keep]] = 0
+        error = positions[:, joints] - final[:, joints]  # (F, k, 3)
         mine = np.sum(error**2, axis=-1) > radius**2
-        lattice = _lattice_points_for(error[mine], radius, model)
-        final[mine, joint] += lattice * half_cell
-        error[mine] -= lattice * half_cell
-        residual[:, joint], lattices[mine, joint], flags[:, joint] = error, lattice, mine
+        frames, columns = np.nonzero(mine)
+        lattice = _lattice_points_for(error[frames, columns], radius, model)
+        lattices[frames, joints[columns]] = lattice
+        final[frames, joints[columns]] += lattice * half_cell
+        error[frames, columns] -= lattice * half_cell
+        residual[:, joints], flags[:, joints] = error, mine
     corrected = np.flatnonzero(flags.ravel())
     return corrected, lattices.reshape(-1, 3)[corrected], residual.reshape(-1, 3), codes
 
@@ -595,12 +668,14 @@ def _read_sphere_joints(reader: ByteReader, num_joints: int) -> np.ndarray:
 
 @dataclass(frozen=True, eq=False)
 class _Stream:
-    """What one encode codes with: the effective representation and entropy coder, the model, the cuts (N,)."""
+    """What one encode codes with: the effective representation and entropy coder, the model, the cuts (N,), the
+    sphere codes of the bones that keep their length (J,) (:func:`_rigid_bones`; None without ``bone_spheres``)."""
 
     representation: str
     entropy: str
     model: TrainedModel | None
     cuts: np.ndarray
+    sphere_codes: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -831,7 +906,9 @@ class McbLinfCodec(Codec):
         signal = to_signal(positions, parents, representation, model)
         spectrum = forward_dct(signal, config.clip_frames, cuts)
         layout = CoefficientLayout.of(motion.num_frames, config.clip_frames, 3 * motion.num_joints, cuts)
-        stream = _Stream(representation, entropy, model, cuts)
+        # Which bones keep their length depends on the motion only: found once for every step the search tries.
+        sphere_codes = _rigid_bones(positions, parents, config.eps_cm) if config.bone_spheres else None
+        stream = _Stream(representation, entropy, model, cuts, sphere_codes)
 
         def attempt(step: float, slope: float = config.frequency_slope) -> _Candidate:
             return self._encode_with_step(positions, parents, spectrum, layout, step, slope, stream)
@@ -891,9 +968,9 @@ class McbLinfCodec(Codec):
         ).reshape(-1, 3)
         radius = config.eps_cm * (1.0 - _SAFETY_MARGIN)
         lattice_model = model if stream.entropy == "trained" else None
-        sphere_codes = _rigid_bones(positions, parents, config.eps_cm) if config.bone_spheres else np.zeros(1, int)
+        sphere_codes = stream.sphere_codes
         best_refinement = None
-        for codes in ([None, sphere_codes] if sphere_codes.any() else [None]):
+        for codes in ([None, sphere_codes] if sphere_codes is not None and sphere_codes.any() else [None]):
             corrected, lattice, residual, codes = _refine(
                 positions, base.reshape(positions.shape), radius, lattice_model, codes
             )
