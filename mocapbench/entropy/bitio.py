@@ -388,6 +388,10 @@ def decode_varint(data, offset: int = 0, what: str = "varint", max_bytes: int = 
     raise BitstreamError(f"varint {what} longer than {max_bytes} bytes")
 
 
+#: Up to this many values, :func:`encode_varints` codes them one by one in Python (the same bytes).
+_FEW_VARINTS = 64
+
+
 def encode_varints(values) -> bytes:
     """Unsigned LEB128 of every element of ``values`` (flattened), concatenated; vectorized.
 
@@ -398,6 +402,14 @@ def encode_varints(values) -> bytes:
         return b""
     if np.issubdtype(arr.dtype, np.signedinteger) and arr.min() < 0:
         raise ValueError(f"`values` must be non-negative, got min {arr.min()}")
+    if arr.size <= _FEW_VARINTS:  # a few values: a loop costs less than the array calls below
+        out = bytearray()
+        for value in arr.tolist():
+            while value >= 0x80:
+                out.append((value & 0x7F) | 0x80)
+                value >>= 7
+            out.append(value)
+        return bytes(out)
     u = arr.astype(np.uint64)
     nbytes = np.ones(u.size, dtype=np.int64)
     rest = u >> np.uint64(7)

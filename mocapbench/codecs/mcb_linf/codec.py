@@ -511,9 +511,14 @@ def _cheapest_lattice_points(residual, nearest, half_cell: float, radius: float,
     valid = np.sum((residual[:, None, :] - candidates * half_cell) ** 2, axis=-1) <= radius**2
     valid[:, 0] = True
     costs, escape_cost = _lattice_costs(model.lattice_tables)
-    inside = np.all(np.abs(candidates) <= _LATTICE_REACH, axis=-1)
-    cube = np.clip(candidates, -_LATTICE_REACH, _LATTICE_REACH) + _LATTICE_REACH
-    cost = np.where(inside, costs[cube[..., 0], cube[..., 1], cube[..., 2]], escape_cost)
+    side = 2 * _LATTICE_REACH + 1
+    if np.abs(nearest).max() <= _LATTICE_REACH - 2:  # every candidate within reach: one flat lookup
+        flat = (nearest + _LATTICE_REACH) @ np.array([side * side, side, 1])
+        cost = costs.ravel()[flat[:, None] + _BCC_CANDIDATES @ np.array([side * side, side, 1])]
+    else:
+        inside = np.all(np.abs(candidates) <= _LATTICE_REACH, axis=-1)
+        cube = np.clip(candidates, -_LATTICE_REACH, _LATTICE_REACH) + _LATTICE_REACH
+        cost = np.where(inside, costs[cube[..., 0], cube[..., 1], cube[..., 2]], escape_cost)
     best = np.argmin(np.where(valid, cost, np.inf), axis=1)
     return candidates[np.arange(len(candidates)), best]
 

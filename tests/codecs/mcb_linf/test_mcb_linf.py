@@ -9,7 +9,7 @@ from hypothesis import strategies as st
 
 from mocapbench import metrics
 from mocapbench.codecs import BitstreamError, create
-from mocapbench.codecs.mcb_linf.codec import bcc_quantize
+from mocapbench.codecs.mcb_linf.codec import _BCC_NEIGHBOURS, bcc_quantize
 from mocapbench.synthetic import sinusoidal_motion
 
 
@@ -494,3 +494,94 @@ def test_the_encoder_holds_a_bone_only_where_that_corrects_no_more_frames():
     assert used[radial] == codes[radial]
     assert np.all((used == 0) | (used == codes)) and np.all(np.linalg.norm(residual, axis=-1) <= 0.1)
     assert len(corrected) == len(lattice) < positions.shape[0] * positions.shape[1]
+
+
+def _refine_joint_by_joint(positions, base, radius, model, codes):
+    """The refinement with bone spheres one joint at a time, parents first, as the decoder applies it: the
+    reference that :func:`_refine`'s level-at-a-time version must match bit for bit."""
+    from mocapbench.codecs.mcb_linf.codec import _bone_lengths, _lattice_points_for, _onto_sphere
+
+    num_frames, num_joints, _ = positions.shape
+    half_cell = 2.0 * radius / np.sqrt(5.0)
+    lengths, final, codes = _bone_lengths(base, codes), base.copy(), codes.copy()
+    residual = np.empty_like(base)
+    lattices = np.zeros((num_frames, num_joints, 3), dtype=np.int64)
+    flags = np.zeros((num_frames, num_joints), dtype=bool)
+    for joint in range(num_joints):
+        if codes[joint]:
+            held = _onto_sphere(final[:, joint], final[:, joint - codes[joint]], lengths[joint])
+            if np.count_nonzero(np.sum((positions[:, joint] - held) ** 2, axis=-1) > radius**2) <= np.count_nonzero(
+                np.sum((positions[:, joint] - final[:, joint]) ** 2, axis=-1) > radius**2
+            ):
+                final[:, joint] = held
+            else:
+                codes[joint] = 0
+        error = positions[:, joint] - final[:, joint]
+        mine = np.sum(error**2, axis=-1) > radius**2
+        lattice = _lattice_points_for(error[mine], radius, model)
+        final[mine, joint] += lattice * half_cell
+        error[mine] -= lattice * half_cell
+        residual[:, joint], lattices[mine, joint], flags[:, joint] = error, lattice, mine
+    corrected = np.flatnonzero(flags.ravel())
+    return corrected, lattices.reshape(-1, 3)[corrected], residual.reshape(-1, 3), codes
+
+
+@pytest.mark.parametrize("trained", [False, True])
+def test_the_refinement_a_level_at_a_time_is_the_joint_by_joint_one(trained):
+    """The encoder refines the held bones a level of their chains at a time; its corrections, lattice points,
+    residuals and held bones are exactly those of one joint at a time (the decoder's order)."""
+    from mocapbench.codecs.mcb_linf.codec import _refine, _rigid_bones
+    from mocapbench.codecs.mcb_linf.model import load_default_model
+
+    motion = sinusoidal_motion(num_frames=90, fps=30.0, seed=7, amplitude_deg=40.0)
+    positions, parents = motion.positions(), motion.skeleton.parents
+    codes = _rigid_bones(positions, parents, 0.1)
+    assert np.count_nonzero(codes[np.flatnonzero(codes) - codes[np.flatnonzero(codes)]]) > 3  # chains of held bones
+    rng = np.random.default_rng(1)  # base errors of another size on each joint: some held bones lose, and go
+    base = positions + rng.normal(0.0, 0.04, positions.shape) * rng.uniform(0.2, 2.0, (1, positions.shape[1], 1))
+    model = load_default_model() if trained else None
+    got = _refine(positions, base, 0.1, model, codes)
+    want = _refine_joint_by_joint(positions, base, 0.1, model, codes)
+    assert 0 < len(want[0]) < positions.shape[0] * positions.shape[1] and np.any(want[3] != codes)
+    for mine, theirs in zip(got, want):
+        assert np.array_equal(mine, theirs)
+
+
+def test_the_encoders_cost_tables_are_the_token_arithmetic():
+    """The rounding's and the lattice points' bits read from per-table caches are exactly the per-value arithmetic
+    on tokens (magnitudes past the rounding's table, lattice points past the reach included)."""
+    from mocapbench.codecs.mcb_linf.codec import _cheapest_lattice_points, _rate_distortion_round
+    from mocapbench.codecs.mcb_linf.layers import lattice_symbols
+    from mocapbench.codecs.mcb_linf.model import load_default_model
+    from mocapbench.entropy.ans import tokenize
+
+    model = load_default_model()
+    tables = model.tables
+    rng = np.random.default_rng(2)
+    scaled = np.concatenate([rng.laplace(0.0, 3.0, 4000), rng.laplace(0.0, 3000.0, 200)])
+    classes = rng.integers(0, tables.num_classes, scaled.size)
+    magnitude = np.abs(scaled)
+    chosen = np.floor(magnitude + 0.5).astype(np.int64)
+
+    def bits(values):
+        tokens, _, widths = tokenize(values)
+        return widths + (values != 0) - tables.log2_probabilities[classes, tokens]
+
+    for _ in range(2):
+        lower = np.maximum(chosen - 1, 0)
+        gain = (magnitude - lower) ** 2 - (magnitude - chosen) ** 2 + 0.1 * (bits(lower) - bits(chosen))
+        chosen = np.where((chosen > 0) & (gain < 0), lower, chosen)
+    assert chosen.max() > 4096
+    assert np.array_equal(_rate_distortion_round(scaled, classes, tables, 0.1), np.where(scaled < 0, -chosen, chosen))
+
+    radius = 0.1
+    for spread in (0.4, 4.0):  # within the lattice's reach, then past it (escaped points)
+        residual = rng.uniform(-spread, spread, (3000, 3))
+        nearest, half_cell = bcc_quantize(residual, radius)
+        candidates = nearest[:, None, :] + np.concatenate([np.zeros((1, 3), dtype=np.int64), _BCC_NEIGHBOURS])[None]
+        valid = np.sum((residual[:, None, :] - candidates * half_cell) ** 2, axis=-1) <= radius**2
+        valid[:, 0] = True
+        tokens, _, widths = tokenize(lattice_symbols(candidates.reshape(-1, 3))[0])
+        cost = (widths - model.lattice_tables.log2_probabilities[0, tokens]).reshape(valid.shape)
+        want = candidates[np.arange(len(candidates)), np.argmin(np.where(valid, cost, np.inf), axis=1)]
+        assert np.array_equal(_cheapest_lattice_points(residual, nearest, half_cell, radius, model), want)
