@@ -585,3 +585,22 @@ def test_the_encoders_cost_tables_are_the_token_arithmetic():
         cost = (widths - model.lattice_tables.log2_probabilities[0, tokens]).reshape(valid.shape)
         want = candidates[np.arange(len(candidates)), np.argmin(np.where(valid, cost, np.inf), axis=1)]
         assert np.array_equal(_cheapest_lattice_points(residual, nearest, half_cell, radius, model), want)
+
+
+def test_the_rate_search_walks_downhill_past_one_bump_and_stops_after_two_misses():
+    """:func:`_descend` from position 8 finds a minimum behind a one-step bump, calls each position at most once,
+    and gives up a way after two positions in a row without a smaller size (a deeper minimum behind a wider bump
+    is missed: the documented simplification)."""
+    from mocapbench.codecs.mcb_linf.codec import _descend
+
+    def walk(sizes):
+        calls = []
+        _descend(lambda position: calls.append(position) or sizes[position], len(sizes), 8, 2)
+        assert len(calls) == len(set(calls))
+        return min(calls, key=lambda position: sizes[position]), calls
+
+    found, calls = walk([9, 8, 7, 6, 5, 4, 5, 6, 7, 8, 9, 10, 11])
+    assert found == 5 and sorted(calls) == [3, 4, 5, 6, 7, 8, 9, 10]
+    assert walk([9, 9, 9, 9, 9, 3, 4, 7, 5, 6, 7, 8, 9])[0] == 5  # the bump at 7 is one position wide
+    found, calls = walk([9, 9, 9, 9, 9, 3, 7, 7, 5, 6, 7, 8, 9])  # two positions wide: the walk stops at 6
+    assert found == 8 and sorted(calls) == [6, 7, 8, 9, 10]
