@@ -179,6 +179,24 @@ def test_neural_fourier_table_uses_the_paper_ratio_and_two_percent_of_height():
     assert detail.loc[detail["clip"] == "c3", "CR (paper's raw)"].iloc[0] == 9.0
 
 
+def test_naive_frequency_claim_names_each_arms_trainer_and_keeps_its_computed_verdict():
+    rates = [1.0, 2.0, 4.0]
+    rows = pd.concat([
+        _rows("fourier-mlp-dct", clip, rates, [4.0, 2.0, 1.0], max_err_percent_height=[3.0, 2.0, 1.0],
+              compression_ratio=[30.0, 15.0, 8.0], param_optimizer="lbfgs")
+        for clip in ("c1", "c2", "c3")] + [
+        _rows("fourier-mlp-int", clip, rates, [3.0, 1.5, 0.8], max_err_percent_height=[3.0, 2.0, 1.0],
+              compression_ratio=[30.0, 15.0, 8.0], param_optimizer="adam" if clip == "c1" else "lbfgs")
+        for clip in ("c1", "c2", "c3")])
+    claims = neural_fourier_tables(rows)[1]
+    naive = claims[claims["claim (published)"].str.contains("naive")].iloc[0]
+    assert naive["holds?"] == "no"  # the naive curve is lower on every clip: the notice does not change the verdict
+    assert "0/3" in naive["measured here"]
+    assert "fourier-mlp-dct lbfgs, fourier-mlp-int adam/lbfgs" in naive["measured here"]
+    without = neural_fourier_tables(rows.drop(columns="param_optimizer"))[1]
+    assert "trained by" not in without[without["claim (published)"].str.contains("naive")].iloc[0]["measured here"]
+
+
 def test_pga_table_compares_09_06_at_the_paper_distortion():
     rows = _rows("pga-ik", "09_06", [1.0, 2.0], [3.0, 1.0], kg_percent=[0.5, 0.3],
                  compression_ratio=[40.0, 20.0], paper_compression_ratio=[45.0, 25.0], decode_fps=[100.0, 100.0],
