@@ -234,6 +234,18 @@ def _hidden(network: Network, omegas: list[float]) -> np.ndarray:
     return np.hstack([a2, np.ones((len(a2), 1))])
 
 
+def _assert_output_layer_solved(network: Network, omegas: list[float]):
+    """The stored output layer is the weighted least-squares fit on the final hidden activations (eq. (3) is
+    separable per output, so the weights w drop out of each row's fit). Returns (hidden, best fit, its residual)."""
+    hidden = _hidden(network, omegas)
+    best, *_ = np.linalg.lstsq(hidden, network.targets, rcond=None)
+    stored = np.hstack([network.weights64()[4], network.weights64()[5][:, None]]).T
+    residual_best = np.linalg.norm((hidden @ best - network.targets) * network.loss_weights)
+    residual_stored = np.linalg.norm((hidden @ stored - network.targets) * network.loss_weights)
+    assert residual_stored <= residual_best * (1 + 1e-3)
+    return hidden, best, residual_best
+
+
 @pytest.mark.torch
 def test_lbfgs_with_a_solved_output_layer_never_raises_the_loss_and_solves_the_output_layer():
     pytest.importorskip("torch")
@@ -243,14 +255,7 @@ def test_lbfgs_with_a_solved_output_layer_never_raises_the_loss_and_solves_the_o
     history = network.loss_history[0]
     assert len(history) > 10
     assert np.all(np.diff(history) <= 0)  # a step is accepted only when the loss does not rise (Armijo)
-    # The stored output layer is the weighted least-squares fit on the final hidden activations (eq. (3) is
-    # separable per output, so the weights w drop out of each row's fit).
-    hidden = _hidden(network, omegas)
-    best, *_ = np.linalg.lstsq(hidden, network.targets, rcond=None)
-    stored = np.hstack([network.weights64()[4], network.weights64()[5][:, None]]).T
-    residual_best = np.linalg.norm((hidden @ best - network.targets) * network.loss_weights)
-    residual_stored = np.linalg.norm((hidden @ stored - network.targets) * network.loss_weights)
-    assert residual_stored <= residual_best * (1 + 1e-3)
+    hidden, best, residual_best = _assert_output_layer_solved(network, omegas)
     # A wrong output layer (the least-squares fit, perturbed) is measurably worse: the check above can fail.
     assert np.linalg.norm((hidden @ (best * 1.05) - network.targets) * network.loss_weights) > residual_best * 1.001
 
@@ -321,9 +326,4 @@ def test_lbfgs_on_the_leading_components_fits_as_the_full_targets_and_solves_eve
     np.testing.assert_allclose(reduced.loss_history[0][:5], full.loss_history[0][:5], rtol=1e-3)
     assert reduced.loss_history[0][-1] <= full.loss_history[0][-1] * 1.1
     # The stored output layer covers all 13 outputs and is their least-squares fit on the final hidden layers.
-    hidden = _hidden(reduced, omegas)
-    best, *_ = np.linalg.lstsq(hidden, reduced.targets, rcond=None)
-    stored = np.hstack([reduced.weights64()[4], reduced.weights64()[5][:, None]]).T
-    residual_best = np.linalg.norm((hidden @ best - reduced.targets) * reduced.loss_weights)
-    residual_stored = np.linalg.norm((hidden @ stored - reduced.targets) * reduced.loss_weights)
-    assert residual_stored <= residual_best * (1 + 1e-3)
+    _assert_output_layer_solved(reduced, omegas)
