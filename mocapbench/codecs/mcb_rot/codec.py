@@ -250,8 +250,8 @@ class McbRotCodec(Codec):
             True, doc="the rate search also tries a wider dead zone (rounding 0.40, 0.35) at the step it chose"
         )
         segment_search: bool = param(
-            True, doc="below 60 fps, also try segments of half segment_frames (and a short clip even splits of it): "
-                      "the smallest stream is kept"
+            True, doc="below 60 fps, also try segments of half segment_frames (and a short clip even splits of it), "
+                      "each screened by one attempt, the closest two searched: the smallest stream is kept"
         )
 
     # The prior (:mod:`.prior`) a fit or a model file gave this codec, and whether the last encode named one of its rigs.
