@@ -1046,8 +1046,7 @@ typedef struct unit_t {
     const uint8_t *data;
     size_t pos, end;         /* rANS bytes */
     size_t bit, bit_limit;   /* sign and raw bits, in bits from data */
-    uint32_t x[2];
-    uint32_t index;
+    uint32_t x[2];           /* x[0]: the state of the next value */
 } unit_t;
 
 /* Start a unit at r->pos; `count` values follow. */
@@ -1063,7 +1062,6 @@ static int unit_begin(reader_t *r, unit_t *u, uint32_t count, size_t limit, cons
     u->end = r->pos + (size_t)size;
     u->bit = u->end * 8;
     u->bit_limit = limit * 8;
-    u->index = 0;
     if (count == 0) {
         if (size != 0) return fail(MSG(r), MCBROT_E_CORRUPT, "mcb-rot: %s: rANS bytes for no value", what);
         return MCBROT_OK;
@@ -1084,18 +1082,29 @@ static int unit_begin(reader_t *r, unit_t *u, uint32_t count, size_t limit, cons
 #endif
 
 static ALWAYS_INLINE int unit_next(unit_t *u, uint32_t k, int32_t *out) {
-    uint32_t *x = &u->x[u->index & 1];
-    ++u->index;
-    uint32_t slot = *x & ((1u << PRECISION) - 1);
-    const uint16_t *cum = mcbrot_cum[k];
-    uint32_t token = mcbrot_lookup[k][slot >> MCBROT_LOOKUP_SHIFT];
-    while (cum[token + 1] <= slot) ++token;
-    uint32_t value = mcbrot_freq[k][token] * (*x >> PRECISION) + slot - cum[token];
+    /* value i uses state i & 1: the state in x[0], the other moves in front of it (no index to keep) */
+    uint32_t x = u->x[0];
+    uint32_t slot = x & ((1u << PRECISION) - 1);
+    /* the bucket's first token, its start and frequency in one load; the token's search goes on only where the
+     * slot lies past it (a bucket holding a boundary, rarely hit) */
+    uint32_t bucket = slot >> MCBROT_LOOKUP_SHIFT, entry = mcbrot_entry[k][bucket];
+    uint32_t token = mcbrot_lookup[k][bucket], start = entry & 0xffff, freq = entry >> 16;
+    if (start + freq <= slot) {
+        const uint16_t *cum = mcbrot_cum[k];
+        while (cum[token + 1] <= slot) ++token;
+        start = cum[token];
+        freq = mcbrot_freq[k][token];
+    }
+    uint32_t value = freq * (x >> PRECISION) + slot - start;
+    /* the renormalization, the zero token and the escaped token keep their branches: taken without a branch
+     * (a two-byte window, a 64-bit bit window) they cost more at 0.5-1 cm, where the branches predict well, than
+     * they saved at 0.1 cm */
     while (value < RANS_LOW) {
         if (u->pos >= u->end) return 1;
         value = value << 8 | u->data[u->pos++];
     }
-    *x = value;
+    u->x[0] = u->x[1];
+    u->x[1] = value;
     if (token > MAX_TOKEN) return 2;
     if (token == 0) {
         *out = 0;
@@ -1104,7 +1113,7 @@ static ALWAYS_INLINE int unit_next(unit_t *u, uint32_t k, int32_t *out) {
     if (u->bit >= u->bit_limit) return 4;
     uint32_t negative = (u->data[u->bit >> 3] >> (7 - (u->bit & 7))) & 1;
     ++u->bit;
-    int64_t magnitude = token;
+    uint32_t magnitude = token;
     if (token >= 16) {
         uint32_t width = token - 16 + 4;
         if (u->bit_limit - u->bit < width) return 4;
@@ -1112,7 +1121,7 @@ static ALWAYS_INLINE int unit_next(unit_t *u, uint32_t k, int32_t *out) {
         for (uint32_t i = 0; i < width; ++i, ++u->bit)
             magnitude = magnitude << 1 | ((u->data[u->bit >> 3] >> (7 - (u->bit & 7))) & 1);
     }
-    *out = (int32_t)(negative ? -magnitude : magnitude);
+    *out = (int32_t)((magnitude ^ (0u - negative)) + negative);
     return 0;
 }
 
@@ -2100,15 +2109,21 @@ static int load_chunk(ctx_t *x, uint32_t k) {
         }
         blocks[B] = start;
         memset(x->values + at, 0, 4 * (size_t)(start - at));
+        /* the unit in a local whose address never leaves this loop, so that its states stay in registers (a
+         * store of a value through int32_t * could otherwise change the unit's fields as far as the compiler
+         * knows) */
+        unit_t v = u;
+        const uint8_t *bands = x->bands;
         for (uint32_t ch = 0; ch < C; ++ch) {
             uint32_t kmax = cnt[ch], rank = x->rank[ch];
             int32_t *slot = x->values + blocks[rank / LANES] + rank % LANES - LANES; /* frequency q at q LANES */
             const uint8_t *row = x->class_table + (size_t)ch * NUM_BANDS;
             for (uint32_t q = 1; q <= kmax; ++q) {
-                int e = unit_next(&u, row[x->bands[q]], slot + q * LANES);
+                int e = unit_next(&v, row[bands[q]], slot + q * LANES);
                 if (e) return unit_error(&r, e, what);
             }
         }
+        u = v;
         x->longest[local] = most;
         at = start;
     }

@@ -20,6 +20,7 @@ HEADER = Path(__file__).resolve().parents[1] / "src" / "mcbrot_tables.h"
 LOOKUP = 256
 
 
+
 def crc32_tables():
     """(4, 256) uint32: zlib's CRC32 table and the three that advance it one, two and three more bytes (slicing by
     four), checked against :func:`zlib.crc32`."""
@@ -54,6 +55,8 @@ def render() -> str:
     precision = int(tables.cum[0, -1])
     buckets = np.arange(LOOKUP) * (precision // LOOKUP)
     lookup = np.stack([np.searchsorted(row, buckets, side="right") - 1 for row in tables.cum])
+    first = np.arange(tables.num_classes)[:, None]
+    entry = tables.cum[first, lookup].astype(np.int64) | tables.freq[first, lookup].astype(np.int64) << 16
 
     def rows(name: str, ctype: str, array) -> str:
         body = ",\n".join("    {" + ", ".join(str(int(v)) for v in row) + "}" for row in array)
@@ -68,6 +71,9 @@ def render() -> str:
         + rows("mcbrot_cum", "uint16_t", tables.cum)
         + f"#define MCBROT_LOOKUP_SHIFT {int(np.log2(precision // LOOKUP))}\n"
         + rows("mcbrot_lookup", "uint8_t", lookup)
+        + "/* the first token's start and frequency of each bucket (cum | freq << 16): a value whose slot lies\n"
+        " * there (most) finds both in one load */\n"
+        + rows("mcbrot_entry", "uint32_t", entry)
         + "/* CRC32 (zlib's polynomial), slicing by four: mcbrot_crc32[0] is zlib's table */\n"
         + rows("mcbrot_crc32", "uint32_t", crc32_tables())
         + "#endif\n"
