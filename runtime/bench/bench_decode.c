@@ -1,0 +1,90 @@
+/* The runtime alone, for comparing two builds of it on one machine: µs per pose of forward playback and of random
+ * access (mcbrot_sample, nearest frame, warm caches, thread CPU time), each the least over ROUNDS rounds (the
+ * figure least disturbed by other processes on a busy machine), then the median over the streams; and a hash of
+ * every stream's decoded frames, so that two builds are seen to give the same bits.
+ *
+ *   cc -O2 -DNDEBUG -msse4.1 -std=c11 -Iruntime/include runtime/bench/bench_decode.c runtime/src/mcbrot.c -lm
+ *   ./a.out ROUNDS stream.mcb...
+ *
+ * Prints: forward_us random_us hash (one line). Two builds: compile each from its own src/ (the tables header
+ * beside its mcbrot.c) and run them one after the other, or alternately, on the same streams. */
+#define _POSIX_C_SOURCE 199309L
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#include "mcbrot.h"
+
+static double thread_seconds(void) {
+    struct timespec now;
+    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &now);
+    return (double)now.tv_sec + 1e-9 * (double)now.tv_nsec;
+}
+
+static int by_value(const void *a, const void *b) {
+    double x = *(const double *)a, y = *(const double *)b;
+    return x < y ? -1 : x > y;
+}
+
+static uint64_t fnv(uint64_t h, const void *data, size_t n) {
+    const uint8_t *p = data;
+    for (size_t i = 0; i < n; ++i) h = (h ^ p[i]) * 1099511628211ull;
+    return h;
+}
+
+int main(int argc, char **argv) {
+    if (argc < 3) {
+        fprintf(stderr, "usage: %s ROUNDS stream.mcb...\n", argv[0]);
+        return 2;
+    }
+    int rounds = atoi(argv[1]), streams = argc - 2;
+    double *forward = calloc((size_t)streams, sizeof(double)), *random = calloc((size_t)streams, sizeof(double));
+    uint64_t hash = 1469598103934665603ull;
+    for (int a = 0; a < streams; ++a) {
+        FILE *file = fopen(argv[a + 2], "rb");
+        if (!file) { fprintf(stderr, "%s: cannot open\n", argv[a + 2]); return 1; }
+        fseek(file, 0, SEEK_END);
+        long bytes = ftell(file);
+        fseek(file, 0, SEEK_SET);
+        uint8_t *stream = malloc((size_t)bytes);
+        if (fread(stream, 1, (size_t)bytes, file) != (size_t)bytes) { fprintf(stderr, "%s: short read\n", argv[a + 2]); return 1; }
+        fclose(file);
+        size_t size;
+        char message[256];
+        if (mcbrot_context_size(stream, (size_t)bytes, &size, message, sizeof message)) { fprintf(stderr, "%s\n", message); return 1; }
+        void *context = aligned_alloc(MCBROT_CONTEXT_ALIGN, (size + 63) & ~(size_t)63);
+        if (mcbrot_open(context, size, stream, (size_t)bytes)) { fprintf(stderr, "%s\n", mcbrot_message(context)); return 1; }
+        mcbrot_clip_info info;
+        mcbrot_info(context, &info);
+        uint32_t frames = info.num_frames, joints = info.num_joints;
+        double *rotations = malloc(sizeof(double) * 4 * joints * frames), *roots = malloc(sizeof(double) * 3 * frames);
+        if (mcbrot_decode_frames(context, 0, frames, rotations, roots)) { fprintf(stderr, "%s\n", mcbrot_message(context)); return 1; }
+        hash = fnv(fnv(hash, rotations, sizeof(double) * 4 * joints * frames), roots, sizeof(double) * 3 * frames);
+        forward[a] = random[a] = 1e30;
+        for (int r = 0; r < rounds; ++r) {
+            double start = thread_seconds();
+            for (uint32_t f = 0; f < frames; ++f) mcbrot_sample(context, f / info.fps, MCBROT_NEAREST, rotations, roots);
+            double middle = thread_seconds();
+            uint64_t state = 0x9e3779b97f4a7c15ull;
+            for (uint32_t i = 0; i < frames; ++i) {
+                state = state * 6364136223846793005ull + 1442695040888963407ull;
+                mcbrot_sample(context, (uint32_t)((state >> 33) % frames) / info.fps, MCBROT_NEAREST, rotations, roots);
+            }
+            double end = thread_seconds();
+            if (middle - start < forward[a]) forward[a] = middle - start;
+            if (end - middle < random[a]) random[a] = end - middle;
+        }
+        forward[a] *= 1e6 / frames;
+        random[a] *= 1e6 / frames;
+        free(rotations);
+        free(roots);
+        free(context);
+        free(stream);
+    }
+    qsort(forward, (size_t)streams, sizeof(double), by_value);
+    qsort(random, (size_t)streams, sizeof(double), by_value);
+    printf("%.3f %.3f %016llx\n", forward[streams / 2], random[streams / 2], (unsigned long long)hash);
+    return 0;
+}
