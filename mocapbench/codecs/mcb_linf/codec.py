@@ -18,11 +18,14 @@ Design (two layers, in the spirit of near-lossless image coding such as JPEG-LS)
          Δ_k = Δ (1 + 2 k / L) (a quantization matrix, as in JPEG), and a finer step on the root's channels
          (``root_step_rel``, 0.2): a root error moves all J joints, so in mean squared error it weighs J times a
          single joint's (the MSE-optimal root step is Δ / sqrt(J), 0.18 Δ for 31 joints).
-         Δ is chosen per stream: with ``mean_cm`` = 0, by a rate search over multiples of ε (quarter octaves, then
-         the eighth octaves beside the best; the smallest stream wins; a step of this grid and the default slopes
+         Δ is chosen per stream: with ``mean_cm`` = 0, by a rate search over multiples of ε (quarter octaves from
+         0.5 to 4 ε, walked downhill from 2 ε until two steps in a row give no smaller stream each way, then the
+         eighth octaves beside the best; the smallest stream wins; a step of this grid and the default slopes
          are written as two indices, not three float64; below 60 fps the search also tries the flatter slope
-         ``low_fps_slope``, 0.25, since a frame at 30 fps carries more of the motion's high frequencies); with ``mean_cm`` > 0, as the coarsest step whose
-         decoded mean error is <= ``mean_cm``.
+         ``low_fps_slope``, 0.25, from the first slope's best step, since a frame at 30 fps carries more of the
+         motion's high frequencies); with ``mean_cm`` > 0, as the coarsest step whose decoded mean error is <=
+         ``mean_cm``. The walk finds the step of the exhaustive search on every benchmark clip in about half its
+         tries (:data:`_SEARCH_START`); a size curve with a deeper minimum behind a wider bump would be missed.
          Rounding: with the trained entropy coder, rate-distortion rounding (``rd_lambda``): each coefficient
          starts at its nearest integer and moves towards zero where its squared error plus ``rd_lambda`` times
          its bits under its class falls (a lone ±1 where a zero is near-certain goes); without it (``"bands"``, or
