@@ -161,7 +161,7 @@ def _player_entries(rows: pd.DataFrame, picks: pd.DataFrame, bound: float,
 
 
 def add_animator_section(doc, rows: pd.DataFrame, points: pd.DataFrame, bounds: Sequence[float], out: Path,
-                         config_text) -> None:
+                         config_text, draw=None) -> None:
     """Append "What animators see" to ``doc`` and write its figures and player pages into the report ``out``.
 
     Parameters
@@ -176,8 +176,14 @@ def add_animator_section(doc, rows: pd.DataFrame, points: pd.DataFrame, bounds: 
         ``out/player.js``).
     config_text : callable(point) -> str
         How the report writes a config.
+    draw : callable, optional
+        ``draw(figure function, *args, **kwargs) -> Future`` (:class:`~mocapbench.experiments.plots.FigurePool`);
+        default: drawn here, at once.
     """
     from mocapbench.experiments import plots
+    from mocapbench.experiments.document import image_fill
+
+    draw = draw or plots.FigurePool().draw
     from mocapbench.experiments.player import player_html, player_script
     from mocapbench.io.safe_output import write_text
 
@@ -211,12 +217,11 @@ def add_animator_section(doc, rows: pd.DataFrame, points: pd.DataFrame, bounds: 
             doc.table(_section_table(picks, config_text))
             per_clip = pd.concat([_clip_rows(clip_rows, p) for _, p in picks.iterrows()], ignore_index=True)
             panels = [p for p in _PANELS if p[0] in per_clip and per_clip[p[0]].notna().any()]
-            path = plots.clip_distribution_figure(per_clip, dataset, bound, out / "figures" /
-                                                  f"animators_{slug}_{bound:g}cm.png", panels=panels) \
-                if panels else None
-            if path is not None:
-                doc.image(path.relative_to(out).as_posix(), f"{dataset}: what animators see per clip at "
-                                                            f"L∞ < {bound:g} cm (bar: median)")
+            if panels:
+                doc.later(draw(plots.clip_distribution_figure, per_clip, dataset, bound,
+                               out / "figures" / f"animators_{slug}_{bound:g}cm.png", panels=panels),
+                          image_fill(out, f"{dataset}: what animators see per clip at L∞ < {bound:g} cm "
+                                          "(bar: median)"))
             found, lost = _player_entries(rows, picks, bound, config_text)
             entries += found
             missing += lost

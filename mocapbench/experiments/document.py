@@ -17,7 +17,7 @@ from typing import Any
 
 import pandas as pd
 
-__all__ = ["Document", "format_value", "format_column", "markdown_table", "slug"]
+__all__ = ["Document", "format_value", "format_column", "markdown_table", "slug", "image_fill"]
 
 SIGNIFICANT = 3
 
@@ -121,6 +121,19 @@ def _html_table(frame: pd.DataFrame) -> dict:
     return {"columns": columns, "rows": rows}
 
 
+def image_fill(out: Path, caption: str, missing: str | None = None):
+    """``fill`` of :meth:`Document.later` for a figure: its image (path made relative to the report folder ``out``)
+    with ``caption``, or the ``missing`` paragraph (or nothing) when the figure function drew nothing (None)."""
+
+    def fill(doc: "Document", path: Path | None) -> None:
+        if path is not None:
+            doc.image(Path(path).relative_to(out).as_posix(), caption)
+        elif missing:
+            doc.paragraph(missing)
+
+    return fill
+
+
 @dataclass
 class Document:
     """Blocks of a report, in order; :meth:`markdown` and :meth:`html` render the same blocks."""
@@ -150,6 +163,27 @@ class Document:
     def link(self, href: str, text: str) -> None:
         """A paragraph that is one link (``href`` relative to the report, e.g. a page beside it)."""
         self.blocks.append(("link", (href, text)))
+
+    def later(self, result: Any, fill: Any) -> None:
+        """A place for blocks known later: ``fill(document, result.result())`` adds them when :meth:`resolve` runs.
+
+        ``result`` is a ``concurrent.futures.Future`` (a figure drawn in another process while the next sections
+        are computed); the blocks land here, in the document's order, whatever order the results come in.
+        """
+        self.blocks.append(("later", (result, fill)))
+
+    def resolve(self) -> None:
+        """Wait for every :meth:`later` block and put its blocks in its place (before rendering)."""
+        blocks: list[tuple[str, Any]] = []
+        for kind, value in self.blocks:
+            if kind == "later":
+                part = Document(self.title)
+                value[1](part, value[0].result())
+                part.resolve()
+                blocks += part.blocks
+            else:
+                blocks.append((kind, value))
+        self.blocks = blocks
 
     def markdown(self) -> str:
         out = [f"# {self.title}", ""]

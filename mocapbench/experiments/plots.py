@@ -38,7 +38,7 @@ log = logging.getLogger(__name__)
 
 __all__ = ["codec_style", "family_linestyle", "DISTORTIONS", "rd_metric_figure", "rd_per_clip_figure",
            "clip_distribution_figure", "error_heatmap_figure", "skeleton_overlay_figure", "smallest_text_px",
-           "published_points_on", "LOSSLESS_CM", "PAGE_PX"]
+           "published_points_on", "LOSSLESS_CM", "PAGE_PX", "FigurePool"]
 
 # The report's content width in CSS px in a 1024 px window (the narrowest the browser check tries; the page's
 # max-width is 1200 px) and the widest figure, in inches.
@@ -128,6 +128,45 @@ def smallest_text_px(fig, page_px: float = PAGE_PX, draw: bool = True) -> float:
     scale = min(1.0, page_px / (width_in * DPI)) * DPI / 72.0  # px per pt on the page
     sizes = [t.get_fontsize() for t in fig.findobj(matplotlib.text.Text) if t.get_text().strip() and t.get_visible()]
     return min(sizes) * scale if sizes else float("inf")
+
+
+class FigurePool:
+    """Figures drawn in ``workers`` processes of their own while the caller goes on (a report's other sections).
+
+    :meth:`draw` returns a ``concurrent.futures.Future`` of the figure function's result; with ``workers`` 1 the
+    function runs at once, here, and the future is already done (an error is raised at once, as without a pool).
+    The workers are started fresh (``spawn``) and draw with the same functions on the same data (pickled), so the
+    files are the ones this process would write. Use it as a context manager: leaving it waits for every figure.
+    """
+
+    def __init__(self, workers: int = 1) -> None:
+        self.workers = max(1, int(workers))
+        self._pool = None
+        if self.workers > 1:
+            import multiprocessing
+            from concurrent.futures import ProcessPoolExecutor
+
+            self._pool = ProcessPoolExecutor(self.workers, mp_context=multiprocessing.get_context("spawn"))
+
+    def draw(self, function, *args, **kwargs):
+        from concurrent.futures import Future
+
+        if self._pool is not None:
+            return self._pool.submit(function, *args, **kwargs)
+        done: Future = Future()
+        done.set_result(function(*args, **kwargs))
+        return done
+
+    def close(self) -> None:
+        if self._pool is not None:
+            self._pool.shutdown(wait=True, cancel_futures=True)
+            self._pool = None
+
+    def __enter__(self) -> "FigurePool":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
 
 
 def _save(fig, path: Path) -> Path:

@@ -13,6 +13,7 @@ and skeleton overlays, the full RD table, the failed jobs grouped by reason, and
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import datetime as _dt
 import os
 import platform
@@ -20,7 +21,7 @@ import shlex
 import sys
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Iterable, Sequence
+from typing import Any, Callable, Iterable, Sequence
 
 import numpy as np
 import pandas as pd
@@ -30,7 +31,7 @@ from mocapbench.experiments.aggregate import aggregate, curve_points, read_error
 from mocapbench.experiments.animator_report import FLAG_COLUMN, add_animator_section
 from mocapbench.experiments.animator_report import method_bullets as animator_method_bullets
 from mocapbench.experiments.bdrate import DEFAULT_ANCHOR, bd_rate_table
-from mocapbench.experiments.document import Document, markdown_table
+from mocapbench.experiments.document import Document, image_fill, markdown_table
 from mocapbench.experiments.headline import (DEFAULT_BOUNDS_CM, EQUAL_AT, EQUAL_CR, EQUAL_FACTOR, bounds_with,
                                              datasets_side_by_side,
                                              headline_table, is_synthetic, synthetic_only_note, winner_sentences)
@@ -291,6 +292,10 @@ class ReportData:
         The sweep folders read.
     command : str or None
         The command that produced everything, quoted in "Data and method".
+    draw : callable
+        ``draw(figure function, *args, **kwargs) -> Future`` of the figure's path: a
+        :class:`~mocapbench.experiments.plots.FigurePool`'s (the sections place each figure with
+        :meth:`Document.later <mocapbench.experiments.document.Document.later>`).
     """
 
     rows: pd.DataFrame
@@ -305,6 +310,7 @@ class ReportData:
     anchor: str
     folders: list[Path]
     command: str | None
+    draw: Callable[..., Any] = plots.FigurePool().draw
 
     @property
     def figures(self) -> Path:
@@ -325,6 +331,7 @@ def write_report(
     anchor: str = DEFAULT_ANCHOR,
     command: str | None = None,
     bounds: Sequence[float] | None = None,
+    workers: int | None = None,
 ) -> ReportData:
     """Aggregate the sweep folders and write the report; returns what it read (rows, points, headline, folder),
     so that a caller printing the headline does not read and pool the sweeps a second time.
@@ -345,27 +352,43 @@ def write_report(
         The command that produced everything (e.g. ``make run``), quoted in "Data and method".
     bounds : floats, cm, optional
         L∞ bounds of the headline beside 1 cm and 3 cm.
+    workers : int, optional
+        Processes that draw the figures while this one computes the other sections (default: 2 where two cores
+        are free to this process, else 1, the figures drawn here in turn); the report is the same either way.
     """
     from mocapbench.experiments.results_files import write_results
 
     data = _read_sweeps(folders, name=name, reports_root=reports_root, anchor=anchor, command=command, bounds=bounds)
     doc = Document(f"mocapbench report: {data.name}")
-    _summary_section(doc, data)
-    _headline_section(doc, data)
-    _rate_distortion_section(doc, data)
-    _distributions_section(doc, data)
-    add_animator_section(doc, data.rows, data.points, data.bounds, data.out, _config_labels(data.points))
-    _bd_rate_section(doc, data)
-    _reproduction_section(doc, data.rows)
-    _pictures_section(doc, data)
-    _all_points_section(doc, data)
-    _failures_section(doc, data)
-    _method_section(doc, data)
-    _acknowledgement_section(doc, data)
-    write_results(data.out, data.rows, data.points)
+    with plots.FigurePool(_figure_workers() if workers is None else workers) as pool:
+        data = dataclasses.replace(data, draw=pool.draw)
+        _summary_section(doc, data)
+        _headline_section(doc, data)
+        _rate_distortion_section(doc, data)
+        _distributions_section(doc, data)
+        add_animator_section(doc, data.rows, data.points, data.bounds, data.out, _config_labels(data.points),
+                             draw=data.draw)
+        _bd_rate_section(doc, data)
+        _reproduction_section(doc, data.rows)
+        _pictures_section(doc, data)
+        _all_points_section(doc, data)
+        _failures_section(doc, data)
+        _method_section(doc, data)
+        _acknowledgement_section(doc, data)
+        write_results(data.out, data.rows, data.points)
+        doc.resolve()
     write_text(data.out / "report.md", doc.markdown())
     write_text(data.out / "index.html", doc.html())
     return data
+
+
+def _figure_workers() -> int:
+    """Figure processes of a report: 2 where this process may run on two cores or more, else 1 (drawn here)."""
+    try:
+        cores = len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        cores = os.cpu_count() or 1
+    return 2 if cores >= 2 else 1
 
 
 def _config_labels(points: pd.DataFrame):
@@ -455,12 +478,11 @@ def _rate_distortion_section(doc: Document, data: ReportData) -> None:
         cmu = bool(ds_rows["cmu_data"].fillna(False).astype(bool).any()) if "cmu_data" in ds_rows else False
         published = points_for(set(map(str, ds_rows["clip"])), cmu=cmu)
         for metric, label in plots.DISTORTIONS:
-            path = plots.rd_metric_figure(ds_points, dataset, metric, figures / f"rd_{metric}_{slug}.png",
-                                          bounds=bounds, published=published)
-            if path is not None:
-                doc.image(path.relative_to(out).as_posix(), f"{dataset}: bits/joint/frame vs {label}")
-        path = plots.rd_per_clip_figure(ds_rows, dataset, figures / f"rd_per_clip_{slug}.png")
-        doc.image(path.relative_to(out).as_posix(), f"{dataset}: per clip, bits/joint/frame vs L∞")
+            doc.later(data.draw(plots.rd_metric_figure, ds_points, dataset, metric,
+                                figures / f"rd_{metric}_{slug}.png", bounds=bounds, published=published),
+                      image_fill(out, f"{dataset}: bits/joint/frame vs {label}"))
+        doc.later(data.draw(plots.rd_per_clip_figure, ds_rows, dataset, figures / f"rd_per_clip_{slug}.png"),
+                  image_fill(out, f"{dataset}: per clip, bits/joint/frame vs L∞"))
 
 
 def _distributions_section(doc: Document, data: ReportData) -> None:
@@ -480,12 +502,10 @@ def _distributions_section(doc: Document, data: ReportData) -> None:
         slug = dataset.replace("/", "_")
         for bound in bounds:
             per_clip = _per_clip_at_bound(rows, headline, dataset, bound, points)
-            path = plots.clip_distribution_figure(per_clip, dataset, bound,
-                                                  figures / f"clips_{slug}_{bound:g}cm.png")
-            if path is None:
-                doc.paragraph(f"{dataset}, {bound:g} cm: no codec under the bound.")
-                continue
-            doc.image(path.relative_to(out).as_posix(), f"{dataset}: over clips at L∞ < {bound:g} cm")
+            doc.later(data.draw(plots.clip_distribution_figure, per_clip, dataset, bound,
+                                figures / f"clips_{slug}_{bound:g}cm.png"),
+                      image_fill(out, f"{dataset}: over clips at L∞ < {bound:g} cm",
+                                f"{dataset}, {bound:g} cm: no codec under the bound."))
 
 
 def _bd_rate_section(doc: Document, data: ReportData) -> None:
@@ -513,13 +533,11 @@ def _pictures_section(doc: Document, data: ReportData) -> None:
             doc.paragraph(f"{dataset}: no example.npz saved by the jobs (save_example=false?).")
             continue
         slug = dataset.replace("/", "_")
-        path = plots.error_heatmap_figure(examples, figures / f"heatmap_{slug}.png")
-        doc.image(path.relative_to(out).as_posix(), f"{dataset}: per-joint × time error of one clip, each codec at "
-                                                    "its headline point under 3 cm (else its most accurate config), "
-                                                    "each on its own colour scale")
-        path = plots.skeleton_overlay_figure(examples, figures / f"overlay_{slug}.png")
-        doc.image(path.relative_to(out).as_posix(), f"{dataset}: original vs decoded at each codec's worst joint, "
-                                                    "whole body and zoomed")
+        doc.later(data.draw(plots.error_heatmap_figure, examples, figures / f"heatmap_{slug}.png"),
+                  image_fill(out, f"{dataset}: per-joint × time error of one clip, each codec at its headline point "
+                                 "under 3 cm (else its most accurate config), each on its own colour scale"))
+        doc.later(data.draw(plots.skeleton_overlay_figure, examples, figures / f"overlay_{slug}.png"),
+                  image_fill(out, f"{dataset}: original vs decoded at each codec's worst joint, whole body and zoomed"))
 
 
 def _all_points_section(doc: Document, data: ReportData) -> None:

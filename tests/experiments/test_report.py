@@ -207,3 +207,25 @@ def test_pga_table_compares_09_06_at_the_paper_distortion():
     assert first["ours: ratio (paper's raw)"] == "1:25"
     assert "not available" in table[table["clip"] == "17_08"].iloc[0]["ours"]
     assert "not run" in pga_tables(rows.iloc[:0])["ours"].iloc[0]
+
+
+def test_figures_drawn_elsewhere_land_in_the_documents_order(tmp_path):
+    import math
+    from concurrent.futures import Future
+
+    from mocapbench.experiments.document import Document, image_fill
+    from mocapbench.experiments.plots import FigurePool
+
+    doc = Document("t")
+    first, second = Future(), Future()
+    doc.heading("a")
+    doc.later(first, image_fill(tmp_path, "one"))
+    doc.paragraph("middle")
+    doc.later(second, image_fill(tmp_path, "two", "nothing to draw"))
+    second.set_result(None)  # the results come in any order
+    first.set_result(tmp_path / "figures" / "x.png")
+    doc.resolve()
+    assert [kind for kind, _ in doc.blocks] == ["heading", "image", "paragraph", "paragraph"]
+    assert doc.blocks[1][1] == ("figures/x.png", "one") and doc.blocks[3][1] == ("nothing to draw", False)
+    with FigurePool(2) as pool, FigurePool(1) as here:
+        assert pool.draw(math.sqrt, 6.25).result() == here.draw(math.sqrt, 6.25).result() == 2.5
