@@ -108,10 +108,12 @@ def estimate_run(plans: Sequence[SweepPlan], workers: int, common: Sequence[str]
 
 
 def report_cost(costs: dict[str, Any], datasets: int, jobs: int) -> float:
-    """Seconds to write the report of ``jobs`` jobs over ``datasets`` datasets (one process: wall = CPU).
+    """Wall seconds to write the report of ``jobs`` jobs over ``datasets`` datasets.
 
     ``costs["report"]``: ``cpu_s`` (reading, pooling, the tables) plus ``cpu_s_per_dataset`` (its figures) plus
-    ``cpu_s_per_job`` (reading each job's rows and pictures), measured by timing the report of finished sweeps.
+    ``cpu_s_per_job`` (reading each job's rows and pictures), measured by timing the report of finished sweeps,
+    as the wall time of the report with its figures drawn in two processes beside it (the names keep the file's
+    keys: one process's wall time was its CPU time).
     """
     entry = costs.get("report", {})
     return (float(entry.get("cpu_s", 0.0)) + datasets * float(entry.get("cpu_s_per_dataset", 0.0))

@@ -363,8 +363,8 @@ def calibrate_from(sweeps: Sequence[str | Path], out: Path | None = None, per_da
     """Update the per-frame costs of the configs that finished sweeps ran, from their rows (no new run).
 
     Each config's cost is its rows' encode and decode CPU seconds times the calls the benchmark's timing makes
-    now (:func:`timing_calls`, from each row's median wall time: the sweeps may have been timed under another
-    budget) over their frames, as :func:`calibrate` measures it, but on the clips the sweeps ran: for codecs whose
+    now on a quiet machine (:func:`timing_calls`: the sweeps may have been timed under another budget, or on a
+    loaded machine) over their frames, as :func:`calibrate` measures it, but on the clips the sweeps ran: for codecs whose
     cost per frame depends on the clips (the neural Fourier codecs train a network per clip, side by side), the
     benchmark's own jobs are the calibration that fits. The other entries of the costs file are kept.
     ``per_dataset``: the sweeps (of one dataset) write the entries of their dataset only
@@ -400,8 +400,8 @@ def calibrate_from(sweeps: Sequence[str | Path], out: Path | None = None, per_da
 
     timing = benchmark_timing()
     for folder_name, group in data.groupby("folder"):
-        per_row = scale * (group["encode_cpu_s"] * timing_calls(group, "encode", timing)
-                           + group["decode_cpu_s"] * timing_calls(group, "decode", timing))
+        per_row = scale * (group["encode_cpu_s"] * timing_calls(group, "encode", timing, scale)
+                           + group["decode_cpu_s"] * timing_calls(group, "decode", timing, scale))
         cpu = float(per_row.sum())
         frames = int(group["frames"].sum())
         per_frame, per_clip = cpu / frames, 0.0
@@ -508,18 +508,20 @@ def calls_under(wall_s: float, repeats: int = 3, warmup: int = 0, budget_s: floa
     return warmup + calls
 
 
-def timing_calls(group, step: str, timing: dict[str, Any]):
-    """Encode/decode calls per row under ``timing`` (:func:`benchmark_timing`), from each row's median wall time.
+def timing_calls(group, step: str, timing: dict[str, Any], scale: float = 1.0):
+    """Encode/decode calls per row under ``timing`` (:func:`benchmark_timing`) on a quiet machine.
 
-    A row without a median wall time, or whose encode was one call for a batch of clips (``encode_batch_clips``),
-    keeps the calls it made (:func:`_calls`).
+    The budget is wall time; a quiet machine's wall time of a one-thread call is its CPU time, so each row's median
+    CPU time (times ``scale``, the loaded machine's inflation taken off) stands for it: the row's own wall time
+    would count the other processes of a loaded machine. A row without a median CPU time, or whose encode was one
+    call for a batch of clips (``encode_batch_clips``), keeps the calls it made (:func:`_calls`).
     """
     made = _calls(group, step)
-    column = f"{step}_wall_s" if f"{step}_wall_s" in group else f"{step}_s"
-    if column not in group or not timing:
+    column = f"{step}_cpu_s"
+    if column not in group or f"{step}_repeats" not in group or not timing:  # rows from before the timing's repeats
         return made
-    planned = group[column].map(lambda wall: calls_under(float(wall), int(timing.get("repeats", 3)),
-                                                          int(timing.get("warmup", 0)), timing.get("budget_s")))
+    planned = group[column].map(lambda cpu: calls_under(float(cpu) * scale, int(timing.get("repeats", 3)),
+                                                         int(timing.get("warmup", 0)), timing.get("budget_s")))
     keep = group[column].isna()
     if step == "encode" and "encode_batch_clips" in group:
         keep |= group["encode_batch_clips"].notna()

@@ -168,7 +168,7 @@ def test_calibrating_prices_the_calls_the_current_timing_makes_for_the_named_cod
     sweep = tmp_path / "sweep"
     rows = []
     # one codec timed three times under an older, larger budget, one whose calls stay short
-    for codec, wall in (("slow/b", 0.5), ("cheap/a", 0.01)):
+    for codec, wall in (("slow/b", 0.6), ("cheap/a", 0.01)):
         (sweep / codec).mkdir(parents=True)
         rows.append({"job_dir": str(sweep / codec), "dataset": "cmu_test", "codec": codec.split("/")[0],
                      "frames": 100, "encode_cpu_s": wall, "encode_wall_s": wall, "encode_repeats": 3,
@@ -180,8 +180,8 @@ def test_calibrating_prices_the_calls_the_current_timing_makes_for_the_named_cod
     path.write_text(json.dumps(COSTS))
     cost_module.calibrate_from([sweep], out=path, codecs=["slow"], scale=0.5)
     written = cost_module.load_costs(path)
-    # 0.5 s encodes once, 0.05 s decodes three times (0.15 s), halved by the scale, over 100 frames
-    assert written["configs"]["slow/b"]["cpu_s_per_frame"] == pytest.approx(0.5 * (0.5 + 0.15) / 100)
+    # halved by the scale: a 0.3 s encode is timed once, a 0.03 s decode three times, over 100 frames
+    assert written["configs"]["slow/b"]["cpu_s_per_frame"] == pytest.approx(0.5 * (0.6 + 3 * 0.06) / 100)
     assert written["configs"]["cheap/a"] == COSTS["configs"]["cheap/a"] and written["job"] == COSTS["job"]
     with pytest.raises(RuntimeError, match="no rows of them"):
         cost_module.calibrate_from([sweep], out=path, codecs=["acl"])
