@@ -25,7 +25,7 @@ the overhead is most of the time. Here every network of a call is trained side b
     output row, normal equations of size h + 1, in float64 with a tiny relative ridge), and only ``[W0 | b0]``
     and ``[W1 | b1]`` are optimized: the loss is then a function of the hidden layers alone, and its gradient is
     the gradient of eq. (3) at the solved output layer (the output layer's own gradient is 0 there).
-  - *Fewer outputs to fit* (``rank_tolerance > 0``, the default of ``fourier-mlp-int``). With the output layer
+  - *Fewer outputs to fit* (``rank_tolerance > 0``, opt-in). With the output layer
     solved, the targets enter the loss only through their row space: the hidden layers are fitted to the targets'
     leading principal components (all but ``rank_tolerance`` of their energy, about half of the 97 outputs of a
     CMU clip at 1e-8), and the output layer is solved on all outputs once at the end (:func:`_reduced_targets`).
