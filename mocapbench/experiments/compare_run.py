@@ -434,106 +434,156 @@ def compare(
 
 
 class _Relay:
-    """A worker's progress: each call is put on the queue for the parent's progress, tagged with its codec.
+    """A worker's progress: each call is sent down the worker's pipe for the parent's progress.
 
-    A worker runs one codec at a time, so it counts that codec's finished clips itself (``done_in``).
+    A worker runs one codec, so it counts that codec's finished clips itself (``done_in``).
     """
 
-    def __init__(self, queue, codec: str) -> None:
-        self.queue = queue
+    def __init__(self, connection, codec: str) -> None:
+        self.connection = connection
         self.codec = codec
         self.done = 0
 
     def clip_start(self, codec, clip):
-        self.queue.put(("clip_start", (codec, clip)))
+        self.connection.send(("clip_start", (codec, clip)))
 
     def try_started(self, codec=None):
-        self.queue.put(("try_started", (codec or self.codec,)))
+        self.connection.send(("try_started", (codec or self.codec,)))
 
     def clip_done(self, codec, clip, resumed=False):
         self.done += 1
-        self.queue.put(("clip_done", (codec, clip, resumed)))
+        self.connection.send(("clip_done", (codec, clip, resumed)))
 
     def skip(self, codec, clips):
         self.done += clips
-        self.queue.put(("skip", (codec, clips)))
+        self.connection.send(("skip", (codec, clips)))
 
     def done_in(self, codec):
         return self.done
 
 
-_EVENTS = None  # the worker process's queue to the parent's progress (set by _worker_start)
-
-
-def _worker_start(events) -> None:
-    """A compare worker: Ctrl-C is the parent's to handle (it stops the workers), events go to ``events``."""
+def _worker(connection, name: str, motions: Sequence[Motion], plan: _Plan, store: RowStore) -> None:
+    """A compare worker process: :func:`_compare_codec` of one codec; its progress calls, then its outcome (or the
+    error that stopped it, as the parent would have met it) go down ``connection``."""
+    import pickle
     import signal
 
-    global _EVENTS
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    _EVENTS = events
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's to handle: it stops the workers
+    try:
+        message = ("outcome", _compare_codec(name, motions, plan, store, _Relay(connection, name)))
+    except Exception as error:  # noqa: BLE001 - handed to the parent, which raises it
+        try:
+            pickle.dumps(error)
+        except Exception:  # noqa: BLE001 - an exception that cannot travel: its line does
+            error = RuntimeError(f"{name}: {_one_line(error)}")
+        message = ("error", error)
+    connection.send(message)
+    connection.close()
 
 
-def _worker_codec(task) -> CodecOutcome:
-    name, motions, plan, store = task
-    return _compare_codec(name, motions, plan, store, _Relay(_EVENTS, name))
+def _start_worker(process) -> None:
+    """Start ``process`` with SIGINT ignored from its first instruction on (a spawned child keeps an ignored signal,
+    and Python then installs no handler), so that a Ctrl-C while it starts is the parent's alone."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():  # only the main thread sets handlers
+        process.start()
+        return
+    before = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        process.start()
+    finally:
+        signal.signal(signal.SIGINT, before)
+
+
+def _ended_without_outcome(name: str, exitcode: int | None) -> CodecOutcome:
+    """The outcome of a codec whose worker process ended without sending one (killed, or crashed)."""
+    import signal
+
+    if exitcode is not None and exitcode < 0:
+        try:
+            how = f"killed by {signal.Signals(-exitcode).name}"
+        except ValueError:
+            how = f"killed by signal {-exitcode}"
+    else:
+        how = f"exit code {exitcode}"
+    return CodecOutcome(name, [], reason=f"its worker process ended without a result ({how})")
 
 
 def _compare_in_pool(names: Sequence[str], motions: Sequence[Motion], plan: _Plan, store: RowStore, progress,
                      workers: int) -> list[CodecOutcome]:
-    """:func:`_compare_codec` of every codec of ``names`` in ``workers`` worker processes, longest first.
+    """:func:`_compare_codec` of every codec of ``names``, each in a process of its own, ``workers`` at once, longest
+    first; the outcomes in the order of ``names`` (so that :func:`rank` breaks ties as one after another does).
 
     A codec is the unit of work: its clips share the models fit for their folds, and the neural codecs' clips
-    train side by side, so a codec's rows are the ones it gives alone. The codecs are handed out by decreasing
+    train side by side, so a codec's rows are the ones it gives alone. The codecs are started by decreasing
     :func:`estimate_cpu_s` (the longest-processing-time-first schedule), so that the neural codecs, the longest,
     start first instead of running alone at the end. Workers are started fresh (``spawn``: no thread or library
-    state of this process is copied into them); their progress calls come back through a queue and are replayed
-    on ``progress`` by a thread of this process. Ctrl-C stops every worker and raises :class:`CompareInterrupted`
-    with the codecs that finished (the rows of every finished clip are in ``store`` already).
+    state of this process is copied into them). Each sends its progress calls and then its outcome down a pipe of
+    its own; this thread replays the calls on ``progress`` as they come and sees a worker end (its pipe closes):
+    a worker that ends without an outcome (killed: out of memory, a crash in native code) gives its codec a row
+    with that reason and the others go on; an error that stopped a worker stops the others and is raised here.
+    Ctrl-C stops every worker and raises :class:`CompareInterrupted` with the codecs that finished (the rows of
+    every finished clip are in ``store`` already).
     """
     import multiprocessing
-    import threading
+    from multiprocessing.connection import wait
 
-    order = sorted(names, key=lambda name: -estimate_cpu_s(name, motions))
     context = multiprocessing.get_context("spawn")
-    events = context.Queue()
-    started: list[str] = []
-
-    def replay() -> None:
-        while True:
-            event = events.get()
-            if event is None:
-                return
-            method, arguments = event
-            if method == "clip_start" and arguments[0] not in started:
-                started.append(arguments[0])
-            getattr(progress, method)(*arguments)
-
-    relay = threading.Thread(target=replay, name="compare-progress", daemon=True)
+    waiting = sorted(names, key=lambda name: -estimate_cpu_s(name, motions))
+    running: dict[Any, tuple[str, Any]] = {}  # a worker's pipe (read end) -> (codec, process)
     outcomes: list[CodecOutcome] = []
-    pool = context.Pool(min(workers, len(order)), initializer=_worker_start, initargs=(events,))
-    relay.start()
+
+    def finished(reader, outcome: CodecOutcome | None) -> None:
+        name, process = running.pop(reader)
+        reader.close()
+        process.join()
+        outcomes.append(outcome if outcome is not None else _ended_without_outcome(name, process.exitcode))
+        if outcome is None:
+            progress.skip(name, len(motions) - progress.done_in(name))
+
     try:
-        tasks = [(name, list(motions), plan, store) for name in order]
-        for outcome in pool.imap_unordered(_worker_codec, tasks, chunksize=1):
-            outcomes.append(outcome)
-        pool.close()
-        pool.join()
+        while waiting or running:
+            while waiting and len(running) < workers:
+                name = waiting.pop(0)
+                reader, writer = context.Pipe(duplex=False)
+                process = context.Process(target=_worker, args=(writer, name, list(motions), plan, store),
+                                          name=f"compare {name}", daemon=True)
+                _start_worker(process)
+                writer.close()  # the worker holds the write end: the pipe closes when it ends
+                running[reader] = (name, process)
+            for reader in wait(list(running)):
+                try:
+                    method, arguments = reader.recv()
+                except (EOFError, OSError):  # ended without its outcome (or in the middle of a message)
+                    finished(reader, None)
+                    continue
+                if method == "outcome":
+                    finished(reader, arguments)
+                elif method == "error":
+                    raise arguments
+                else:
+                    getattr(progress, method)(*arguments)
     except KeyboardInterrupt:
-        pool.terminate()
-        pool.join()
-        finished = {o.codec for o in outcomes}
-        running = [name for name in started if name not in finished]
-        raise CompareInterrupted(rank(outcomes), ", ".join(running) or None) from None
+        cut = [name for name, _ in running.values()]
+        _stop(running)
+        raise CompareInterrupted(rank(outcomes), ", ".join(cut) or None) from None
     except BaseException:
-        pool.terminate()
-        pool.join()
+        _stop(running)
         raise
-    finally:
-        events.put(None)
-        relay.join()
-        events.close()
-    return outcomes
+    order = {name: index for index, name in enumerate(names)}
+    return sorted(outcomes, key=lambda outcome: order[outcome.codec])
+
+
+def _stop(running: dict) -> None:
+    """Terminate the workers still running and wait for them (a row cut short is a torn last line: measured again)."""
+    for _, process in running.values():
+        process.terminate()
+    for reader, (_, process) in list(running.items()):
+        process.join()
+        reader.close()
+    running.clear()
 
 
 def rank(outcomes: Sequence[CodecOutcome]) -> list[CodecOutcome]:

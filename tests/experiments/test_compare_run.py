@@ -303,3 +303,44 @@ def test_codecs_run_side_by_side_give_the_rows_they_give_one_after_another(tmp_p
                                                                       "raw-zstd"}
     with pytest.raises(ValueError, match="workers must be >= 1"):
         compare(clips, 1.0, names, workers=0)
+
+
+class _DyingStore(RowStore):
+    """Rows stored as usual, but the worker process of codec ``victim`` kills itself when it looks for its rows (as
+    the kernel kills a process out of memory): only in a worker, never in the test's own process."""
+
+    def __init__(self, folder, victim: str) -> None:
+        super().__init__(folder)
+        self.victim = victim
+
+    def find_failure(self, codec, key):
+        import multiprocessing
+        import os
+        import signal
+
+        if codec == self.victim:
+            if multiprocessing.parent_process() is None:
+                raise RuntimeError("_DyingStore kills worker processes only")
+            os.kill(os.getpid(), signal.SIGKILL)
+        return super().find_failure(codec, key)
+
+
+@pytest.mark.slow
+def test_a_worker_killed_mid_run_gives_its_codec_a_reason_and_the_others_their_rows(tmp_path):
+    """A worker that dies without an outcome (killed, a crash in native code) is seen: its codec gets a row with the
+    reason, the other codecs their rows, and compare returns (it does not wait for an outcome that never comes)."""
+    import threading
+
+    clips = _clips()
+    names = ["raw-zstd", "svd", "quant-delta-zstd"]
+    progress = Progress(len(names) * len(clips), stream=io.StringIO(), bar=False, workers=2)
+    returned = []
+    run = threading.Thread(target=lambda: returned.append(
+        compare(clips, 1.0, names, store=_DyingStore(tmp_path, "svd"), progress=progress, workers=2)), daemon=True)
+    run.start()
+    run.join(timeout=300)
+    assert returned, "compare did not return after a worker was killed"
+    outcomes = {outcome.codec: outcome for outcome in returned[0]}
+    assert outcomes["svd"].rows == [] and "ended without a result (killed by SIGKILL)" in outcomes["svd"].reason
+    assert len(outcomes["raw-zstd"].rows) == len(outcomes["quant-delta-zstd"].rows) == len(clips)
+    assert progress.finished == len(names) * len(clips)  # the killed codec's clips are counted as skipped
