@@ -173,7 +173,8 @@ class Document:
         self.blocks.append(("later", (result, fill)))
 
     def resolve(self) -> None:
-        """Wait for every :meth:`later` block and put its blocks in its place (before rendering)."""
+        """Wait for every :meth:`later` block and put its blocks in its place (:meth:`markdown` and :meth:`html` do it
+        first: a place left unfilled would drop its figure without a word)."""
         blocks: list[tuple[str, Any]] = []
         for kind, value in self.blocks:
             if kind == "later":
@@ -186,6 +187,7 @@ class Document:
         self.blocks = blocks
 
     def markdown(self) -> str:
+        self.resolve()
         out = [f"# {self.title}", ""]
         for kind, value in self.blocks:
             if kind == "heading":
@@ -212,6 +214,7 @@ class Document:
         """The document through ``templates/report.html.j2`` (autoescaped), with a table of contents."""
         from jinja2 import Environment, PackageLoader, select_autoescape
 
+        self.resolve()
         env = Environment(loader=PackageLoader("mocapbench.experiments", "templates"),
                           autoescape=select_autoescape(["html", "j2"]), trim_blocks=True, lstrip_blocks=True)
         taken: set[str] = set()

@@ -136,7 +136,9 @@ class FigurePool:
     :meth:`draw` returns a ``concurrent.futures.Future`` of the figure function's result; with ``workers`` 1 the
     function runs at once, here, and the future is already done (an error is raised at once, as without a pool).
     The workers are started fresh (``spawn``) and draw with the same functions on the same data (pickled), so the
-    files are the ones this process would write. Use it as a context manager: leaving it waits for every figure.
+    files are the ones this process would write. They ignore Ctrl-C: it is this process's to handle (leaving the
+    pool then waits for the figures under way, instead of each worker dying with a traceback of its own). Use it as
+    a context manager: leaving it waits for every figure.
     """
 
     def __init__(self, workers: int = 1) -> None:
@@ -146,7 +148,8 @@ class FigurePool:
             import multiprocessing
             from concurrent.futures import ProcessPoolExecutor
 
-            self._pool = ProcessPoolExecutor(self.workers, mp_context=multiprocessing.get_context("spawn"))
+            self._pool = ProcessPoolExecutor(self.workers, mp_context=multiprocessing.get_context("spawn"),
+                                             initializer=_ignore_interrupt)
 
     def draw(self, function, *args, **kwargs):
         from concurrent.futures import Future
@@ -167,6 +170,13 @@ class FigurePool:
 
     def __exit__(self, *exc) -> None:
         self.close()
+
+
+def _ignore_interrupt() -> None:
+    """A figure worker's start: Ctrl-C (SIGINT, sent to the whole process group) is left to the parent."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 def _save(fig, path: Path) -> Path:

@@ -229,3 +229,26 @@ def test_figures_drawn_elsewhere_land_in_the_documents_order(tmp_path):
     assert doc.blocks[1][1] == ("figures/x.png", "one") and doc.blocks[3][1] == ("nothing to draw", False)
     with FigurePool(2) as pool, FigurePool(1) as here:
         assert pool.draw(math.sqrt, 6.25).result() == here.draw(math.sqrt, 6.25).result() == 2.5
+
+
+def test_a_document_rendered_before_it_is_resolved_keeps_its_figures(tmp_path):
+    from concurrent.futures import Future
+
+    from mocapbench.experiments.document import Document, image_fill
+
+    drawn = Future()
+    drawn.set_result(tmp_path / "figures" / "rd.png")
+    for render in (Document.markdown, Document.html):
+        doc = Document("t")
+        doc.later(drawn, image_fill(tmp_path, "the rate-distortion figure"))
+        assert "figures/rd.png" in render(doc) and "the rate-distortion figure" in render(doc)
+
+
+def test_figure_workers_leave_ctrl_c_to_the_report():
+    """SIGINT reaches every process of the terminal's group: the figure workers ignore it, the report handles it."""
+    import signal
+
+    from mocapbench.experiments.plots import FigurePool
+
+    with FigurePool(2) as pool:
+        assert pool.draw(signal.getsignal, signal.SIGINT).result() == signal.SIG_IGN
