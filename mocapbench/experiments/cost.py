@@ -67,6 +67,17 @@ def load_costs(path: str | Path | None = None) -> dict[str, Any]:
     return json.loads(text)
 
 
+def _write_costs(costs: dict[str, Any], path: str | Path | None = None) -> Path:
+    """Write ``costs`` to ``path`` (default the package's ``configs/costs.json``), replacing it: updating it is what
+    ``--calibrate`` and ``--calibrate-from`` are for. Atomically and never through a link
+    (:mod:`mocapbench.io.safe_output`): a run stopped while writing leaves the old file, which every estimate
+    reads, whole."""
+    from mocapbench.io.safe_output import write_text
+
+    target = path or Path(__file__).resolve().parents[1] / COSTS_FILE
+    return write_text(target, json.dumps(costs, indent=1, sort_keys=True) + "\n", force=True)
+
+
 def for_dataset(costs: dict[str, Any], dataset: str | None) -> dict[str, Any]:
     """The costs of a sweep over the dataset config ``dataset``: its own measurements over the general ones.
 
@@ -345,8 +356,7 @@ def calibrate(sweep: str = "all", clip_frames: int = 300, memory_frames: int = 4
         },
         "old_layout": old_layout,
     }
-    target = out or Path(__file__).resolve().parents[1] / COSTS_FILE
-    Path(target).write_text(json.dumps(costs, indent=1, sort_keys=True) + "\n")
+    _write_costs(costs, out)
     return costs
 
 
@@ -419,8 +429,7 @@ def calibrate_from(sweeps: Sequence[str | Path], out: Path | None = None, per_da
     if overhead is not None:
         (own if per_dataset else costs).setdefault("job", {}).update(overhead)
     costs["measured"] = time.strftime("%Y-%m-%d")  # the date the estimate quotes: its latest measurement
-    target = out or Path(__file__).resolve().parents[1] / COSTS_FILE
-    Path(target).write_text(json.dumps(costs, indent=1, sort_keys=True) + "\n")
+    _write_costs(costs, out)
     return costs
 
 

@@ -185,3 +185,24 @@ def test_calibrating_prices_the_calls_the_current_timing_makes_for_the_named_cod
     assert written["configs"]["cheap/a"] == COSTS["configs"]["cheap/a"] and written["job"] == COSTS["job"]
     with pytest.raises(RuntimeError, match="no rows of them"):
         cost_module.calibrate_from([sweep], out=path, codecs=["acl"])
+
+
+def test_calibrating_replaces_the_costs_file_and_never_writes_through_a_link(tmp_path, monkeypatch):
+    import pandas as pd
+
+    from mocapbench.experiments import aggregate as aggregate_module
+    from mocapbench.experiments import cost as cost_module
+
+    sweep = tmp_path / "sweep"
+    (sweep / "slow" / "b").mkdir(parents=True)
+    rows = [{"job_dir": str(sweep / "slow" / "b"), "dataset": "cmu_test", "codec": "slow", "frames": 100,
+             "encode_cpu_s": 0.6, "decode_cpu_s": 0.06}]
+    monkeypatch.setattr(aggregate_module, "aggregate", lambda folders: pd.DataFrame(rows))
+    elsewhere = tmp_path / "elsewhere.json"
+    elsewhere.write_text(json.dumps(COSTS))
+    link = tmp_path / "costs.json"
+    link.symlink_to(elsewhere)
+    cost_module.calibrate_from([sweep], out=link, codecs=["slow"])
+    assert json.loads(elsewhere.read_text()) == COSTS  # the file the link named is untouched
+    assert not link.is_symlink()
+    assert cost_module.load_costs(link)["configs"]["slow/b"]["cpu_s_per_frame"] == pytest.approx(0.66 / 100)
