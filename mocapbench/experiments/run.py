@@ -88,8 +88,8 @@ def _evaluate_clip(codec: Any, motion: Any, encoded: Any, timing: Any, output_di
     ``encoded`` is the clip's stream when the codec encodes clips in batches (an exception if that failed), else
     None. The clip named ``example_clip`` is saved as the job's example; a clip whose largest error exceeds
     ``worst`` (``worst`` None: no worst clip is kept) comes back as ``(motion, reference, decoded positions,
-    row)``, which the job writes once at its end (:func:`_save_worst`): a compressed write for every new worst
-    clip cost a cheap job a tenth of its CPU.
+    row)``, which the job writes once at its end (:func:`_save_worst`): a compressed write at every new worst
+    clip was a large share of a cheap job's CPU (README, "Timings").
     """
     from mocapbench.experiments.evaluate import evaluate_with_decoded
 

@@ -86,8 +86,8 @@ _CONTROLLER: list[Any] = []
 def _controller() -> Any:
     """The process's ``threadpoolctl.ThreadpoolController``, made again when a module was imported since.
 
-    Making one reads ``/proc/self/maps`` and inspects every loaded shared library (about 5 ms of CPU in a
-    benchmark job, which times two calls per clip); a BLAS or OpenMP library is loaded with the extension module
+    Making one reads ``/proc/self/maps`` and inspects every loaded shared library (a cost paid at every
+    timed call otherwise: README, "Timings"); a BLAS or OpenMP library is loaded with the extension module
     that links it, so while no module was imported the libraries it found are still all there are.
     """
     from threadpoolctl import ThreadpoolController

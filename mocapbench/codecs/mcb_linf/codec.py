@@ -24,8 +24,9 @@ Design (two layers, in the spirit of near-lossless image coding such as JPEG-LS)
          are written as two indices, not three float64; below 60 fps the search also tries the flatter slope
          ``low_fps_slope``, 0.25, from the first slope's best step, since a frame at 30 fps carries more of the
          motion's high frequencies); with ``mean_cm`` > 0, as the coarsest step whose decoded mean error is <=
-         ``mean_cm``. The walk finds the step of the exhaustive search on every benchmark clip in about half its
-         tries (:data:`_SEARCH_START`); a size curve with a deeper minimum behind a wider bump would be missed.
+         ``mean_cm``. On the benchmark's clips the walk finds the step of the exhaustive search in fewer tries
+         (:data:`_SEARCH_START`; README, `mcb-linf`); a size curve with a deeper minimum behind a wider bump would
+         be missed.
          Rounding: with the trained entropy coder, rate-distortion rounding (``rd_lambda``): each coefficient
          starts at its nearest integer and moves towards zero where its squared error plus ``rd_lambda`` times
          its bits under its class falls (a lone ±1 where a zero is near-certain goes); without it (``"bands"``, or
@@ -174,8 +175,8 @@ _COMPACT_SHAPES = ((2.0, 0.2), (0.25, 0.2))
 
 # The rate search walks the quarter octaves of :data:`_RDO_STEPS` from this one (2 eps, the step most often chosen
 # on the benchmark's clips) and stops each way after this many steps in a row found no smaller stream
-# (:func:`_descend`). On every clip of cmu_test, cmu_test_24fps and bandai_test at the sweep's eps (0.1 to 5 cm) it
-# picks the step of the exhaustive search, in about half its tries; a clip whose size has a local minimum more than
+# (:func:`_descend`). On the benchmark's clips it picks the step of the exhaustive search in fewer tries (README,
+# `mcb-linf`, has the clips and the count); a clip whose size has a local minimum more than
 # two quarter octaves from the global one could get a slightly larger stream.
 _SEARCH_START, _SEARCH_PATIENCE = 8, 2
 
