@@ -37,11 +37,37 @@ def _spec(name: str, data_dir: str | None) -> dict:
     return spec
 
 
+def _dataset_names() -> list[str]:
+    """The dataset configs of the package (``configs/dataset/*.yaml``), by name."""
+    from pathlib import Path
+
+    from mocapbench import configs
+
+    return sorted(path.stem for path in (Path(configs.__file__).parent / "dataset").glob("*.yaml"))
+
+
+def _centimetres(low: float, strict: bool):
+    """argparse type: a float in cm above ``low`` (``strict``) or at least ``low``; else a one-line usage error."""
+
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            value = float("nan")
+        if not (value > low if strict else value >= low) or value == float("inf"):
+            sign = ">" if strict else ">="
+            raise argparse.ArgumentTypeError(f"expected a finite length in cm {sign} {low:g}, got {text!r}")
+        return value
+
+    return parse
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--datasets", nargs="+", default=["bandai_test", "cmu_test_24fps", "cmu_test"])
-    parser.add_argument("--eps", nargs="+", type=float, default=[0.1, 1.0], metavar="CM")
-    parser.add_argument("--shell", nargs="+", type=float, default=[0.0, 3.0], metavar="CM")
+    parser.add_argument("--datasets", nargs="+", default=["bandai_test", "cmu_test_24fps", "cmu_test"],
+                        choices=_dataset_names(), metavar="NAME", help="dataset configs (configs/dataset/NAME.yaml)")
+    parser.add_argument("--eps", nargs="+", type=_centimetres(0.0, True), default=[0.1, 1.0], metavar="CM")
+    parser.add_argument("--shell", nargs="+", type=_centimetres(0.0, False), default=[0.0, 3.0], metavar="CM")
     parser.add_argument("--data-dir", default=None, help="CMU data folder (default: ../shared/data/cmu)")
     args = parser.parse_args(argv)
     from mocapbench.codecs import create
@@ -77,4 +103,6 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    from mocapbench.benchmarks.entry import run_script
+
+    raise SystemExit(run_script(main))  # a missing data folder: one line, exit 2
