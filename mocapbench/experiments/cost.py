@@ -643,12 +643,15 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("overrides", nargs="*", help="Hydra overrides for the dataset, e.g. data_dir=/data/cmu")
     args = parser.parse_args(argv)
     if args.calibrate_from:
-        if not args.scale > 0:
-            parser.error(f"--scale must be > 0, got {args.scale}")
+        if not (args.scale > 0 and math.isfinite(args.scale)):
+            parser.error(f"--scale must be a finite number > 0, got {args.scale}")
+        from mocapbench.experiments.aggregate import AggregateError
+        from mocapbench.experiments.results import CorruptResultsError
+
         try:
             costs = calibrate_from(args.calibrate_from, out=Path(args.costs) if args.costs else None,
                                    per_dataset=args.per_dataset, codecs=args.codecs, scale=args.scale)
-        except RuntimeError as error:
+        except (RuntimeError, AggregateError, CorruptResultsError) as error:  # no rows, a missing folder, a torn row
             print(f"cost --calibrate-from: {error}", file=sys.stderr)
             return 2
         print(f"updated the costs of the configs in {' '.join(args.calibrate_from)}; wrote {args.costs or COSTS_FILE}")

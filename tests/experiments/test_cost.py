@@ -206,3 +206,18 @@ def test_calibrating_replaces_the_costs_file_and_never_writes_through_a_link(tmp
     assert json.loads(elsewhere.read_text()) == COSTS  # the file the link named is untouched
     assert not link.is_symlink()
     assert cost_module.load_costs(link)["configs"]["slow/b"]["cpu_s_per_frame"] == pytest.approx(0.66 / 100)
+
+
+def test_calibrating_from_a_missing_folder_or_with_a_bad_scale_is_one_line(tmp_path, capsys):
+    from mocapbench.experiments.cost import main
+
+    costs = tmp_path / "costs.json"
+    costs.write_text(json.dumps(COSTS))
+    assert main(["--calibrate-from", str(tmp_path / "no_such_sweep"), "--costs", str(costs)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("cost --calibrate-from: ") and "no_such_sweep" in err and len(err.strip().splitlines()) == 1
+    for scale in ("0", "inf", "nan"):
+        with pytest.raises(SystemExit) as stop:
+            main(["--calibrate-from", str(tmp_path), "--costs", str(costs), "--scale", scale])
+        assert stop.value.code == 2 and "--scale must be a finite number > 0" in capsys.readouterr().err
+    assert json.loads(costs.read_text()) == COSTS
