@@ -487,10 +487,12 @@ def _start_worker(process) -> None:
     import signal
     import threading
 
-    if threading.current_thread() is not threading.main_thread():  # only the main thread sets handlers
+    before = signal.getsignal(signal.SIGINT)
+    # Only the main thread sets handlers; a handler not set from Python (None) could not be put back.
+    if threading.current_thread() is not threading.main_thread() or before is None:
         process.start()
         return
-    before = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     try:
         process.start()
     finally:
