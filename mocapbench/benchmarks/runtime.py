@@ -10,6 +10,10 @@ from the clips: mcb-rot at each ε (``eps_cm``), ACL with ``precision_cm = ε`` 
 defaults); both decoded by Python once for their L∞ error (cm, max over joints and frames) and their ratio.
 
     python -m mocapbench.benchmarks.runtime [--dataset cmu_test] [--eps 0.1 0.5 1] [--every 1 5] [--repeats 3]
+        [--set KEY=VALUE]
+
+``--set`` sets an ``mcb-rot`` config field (e.g. ``--set segment_frames=64 --set chunk_frames=64``: shorter random
+access units), so that the speed of a setting is measured beside its bytes.
 
 Every figure is the decoder's native code (never Python); the decode-speed columns of the other benchmarks time
 decoders through Python, and say so.
@@ -66,7 +70,7 @@ def build_harness() -> Path:
     return program
 
 
-def _streams(motions, eps: float, folder: Path, tag: str) -> tuple[list[str], dict]:
+def _streams(motions, eps: float, folder: Path, tag: str, settings: dict) -> tuple[list[str], dict]:
     """Write each clip's mcb-rot stream and ACL buffer; manifest lines and the pooled ratios and errors."""
     from mocapbench.codecs import create
     from mocapbench.codecs.acl.codec import AclCodec  # noqa: F401 (the registry's ACL must be available)
@@ -78,7 +82,8 @@ def _streams(motions, eps: float, folder: Path, tag: str) -> tuple[list[str], di
     for index, motion in enumerate(motions):
         raw += 12 * motion.num_frames * motion.num_joints
         streams = {}
-        for name, codec in (("mcb-rot", create("mcb-rot", eps_cm=eps)), ("acl", create("acl", precision_cm=eps))):
+        for name, codec in (("mcb-rot", create("mcb-rot", **settings, eps_cm=eps)),
+                            ("acl", create("acl", precision_cm=eps))):
             data = codec.encode(motion)
             streams[name] = data
             sizes[name] += len(data)
@@ -92,7 +97,7 @@ def _streams(motions, eps: float, folder: Path, tag: str) -> tuple[list[str], di
         acl = folder / f"{tag}-{index:02d}.acl"
         acl.write_bytes(bytes(reader.read_blob("ACL buffer")))
         lines.append(f"{mcb} {acl}")
-    pooled = {name: {"ratio": raw / sizes[name], "linf_cm": errors[name]} for name in sizes}
+    pooled = {name: {"ratio": raw / sizes[name], "bytes": sizes[name], "linf_cm": errors[name]} for name in sizes}
     return lines, pooled
 
 
@@ -111,18 +116,20 @@ def _run(program: Path, lines: list[str], manifest: Path, repeats: int) -> list[
 
 def _table(rows: list[dict], pooled: dict, label: str) -> None:
     print(f"\n## {label}: µs per pose (median over clips; thread CPU time, native decoders)")
-    print("| decoder | ratio | L∞ cm | " + " | ".join(_MODES) + " | resident bytes (max) | stream + 64 kB? | open µs |")
-    print("|---|---:|---:|" + "---:|" * len(_MODES) + "---:|---|---:|")
+    print("| decoder | ratio | bytes | L∞ cm | " + " | ".join(_MODES)
+          + " | resident bytes (max) | stream + 64 kB? | open µs |")
+    print("|---|---:|---:|---:|" + "---:|" * len(_MODES) + "---:|---|---:|")
     medians = {}
     for decoder in ("mcb-rot", "acl"):
         mine = [row for row in rows if row["decoder"] == decoder]
         medians[decoder] = {mode: statistics.median(row[mode] for row in mine) for mode in _MODES}
         within = all(row["resident_bytes"] <= row["stream_bytes"] + 65536 for row in mine)
-        print(f"| {decoder} | {pooled[decoder]['ratio']:.1f} | {pooled[decoder]['linf_cm']:.3f} | "
+        print(f"| {decoder} | {pooled[decoder]['ratio']:.2f} | {pooled[decoder]['bytes']:,} | "
+              f"{pooled[decoder]['linf_cm']:.4f} | "
               + " | ".join(f"{medians[decoder][mode]:.3f}" for mode in _MODES)
               + f" | {max(row['resident_bytes'] for row in mine):,} | {'yes' if within else 'no'} | "
               f"{statistics.median(row['open_us'] for row in mine):.1f} |")
-    print("| mcb-rot / acl | " + f"{pooled['mcb-rot']['ratio'] / pooled['acl']['ratio']:.2f} | | "
+    print("| mcb-rot / acl | " + f"{pooled['mcb-rot']['ratio'] / pooled['acl']['ratio']:.2f} | | | "
           + " | ".join(f"{medians['mcb-rot'][mode] / medians['acl'][mode]:.2f}" for mode in _MODES) + " | | | |")
 
 
@@ -135,13 +142,26 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--keep", default=None, help="folder to keep the streams and manifests in (else a temporary "
                         "one): rerun the harness on them with `<harness> <folder>/<case>.txt REPEATS`")
+    parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                        help="an mcb-rot config field (Python literal), e.g. --set segment_frames=64")
     args = parser.parse_args(argv)
+    from mocapbench.cli.arguments import CliError, parse_settings
     from mocapbench.datasets.cmu import load_split
+
+    from mocapbench.codecs import create
+
+    try:
+        settings = parse_settings(args.set)
+        if "eps_cm" in settings:
+            raise CliError("--set eps_cm: give the bounds with --eps")
+        create("mcb-rot", **settings)  # a field or value it refuses is one line here, not a traceback later
+    except (CliError, TypeError, ValueError) as error:
+        parser.error(str(error))
 
     program = build_harness()
     motions = load_split(args.dataset, data_dir=args.data_dir)
     print(f"# the mcb-rot runtime beside ACL 2.1 on {args.dataset} ({len(motions)} clips; load average "
-          f"{os.getloadavg()[0]:.1f}; flags {' '.join(_FLAGS)})")
+          f"{os.getloadavg()[0]:.1f}; flags {' '.join(_FLAGS)}; mcb-rot {settings or 'defaults'})")
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(args.keep or tmp)
         folder.mkdir(parents=True, exist_ok=True)
@@ -151,7 +171,7 @@ def main(argv: list[str] | None = None) -> None:
             fps = clips[0].fps
             for eps in args.eps:
                 wall, cpu = time.perf_counter(), time.process_time()
-                lines, pooled = _streams(clips, eps, folder, f"e{step}-{eps:g}")
+                lines, pooled = _streams(clips, eps, folder, f"e{step}-{eps:g}", settings)
                 rows = _run(program, lines, folder / f"e{step}-{eps:g}.txt", args.repeats)
                 _table(rows, pooled, f"{args.dataset} at {fps:g} fps, ε = {eps:g} cm")
                 print(f"({time.perf_counter() - wall:.0f} s wall, {time.process_time() - cpu:.0f} s CPU of this "
