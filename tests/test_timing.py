@@ -55,3 +55,13 @@ def test_single_thread_limits_the_pools_and_restores_them(monkeypatch):
     assert timing._controller() is first  # the loaded libraries are listed once while no module is imported
     monkeypatch.setitem(sys.modules, "_a_module_imported_later", types.ModuleType("_a_module_imported_later"))
     assert timing._controller() is not first
+
+
+def test_usable_cores_are_the_affinity_of_the_process():
+    import os
+
+    from mocapbench.metrics.timing import usable_cores
+
+    assert 1 <= usable_cores() <= (os.cpu_count() or 1)
+    if hasattr(os, "sched_getaffinity"):
+        assert usable_cores() == len(os.sched_getaffinity(0))

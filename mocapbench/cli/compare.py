@@ -12,7 +12,6 @@ finished clip's row under ``--runs``: the same command resumes.
 from __future__ import annotations
 
 import argparse
-import os
 import resource
 import sys
 import time
@@ -40,14 +39,6 @@ def _workers(text: str) -> int:
     if value < 1:
         raise argparse.ArgumentTypeError(f"expected a whole number of worker processes >= 1, got {text!r}")
     return value
-
-
-def _default_workers() -> int:
-    """The cores this process may run on (each codec runs on one)."""
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:  # not on Linux
-        return os.cpu_count() or 1
 
 
 def _codec_names(text: str | None) -> list[str] | None:
@@ -106,7 +97,9 @@ def run(args) -> None:
     chosen = names or default_codecs()
     print(f"comparing {len(chosen)} codec(s) on {len(motions)} clip(s), {sum(m.num_frames for m in motions)} "
           f"frames, L-inf <= {args.max_error_cm:g} cm; models {policy}; rows in {store}", file=sys.stderr)
-    workers = args.workers or _default_workers()
+    from mocapbench.metrics.timing import usable_cores
+
+    workers = args.workers or usable_cores()  # each codec runs on one core
     progress = Progress(len(chosen) * len(motions), workers=min(workers, len(chosen)))
     wall, cpu = time.perf_counter(), _cpu_s()
     try:

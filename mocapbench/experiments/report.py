@@ -384,11 +384,9 @@ def write_report(
 
 def _figure_workers() -> int:
     """Figure processes of a report: 2 where this process may run on two cores or more, else 1 (drawn here)."""
-    try:
-        cores = len(os.sched_getaffinity(0))
-    except AttributeError:  # not on Linux
-        cores = os.cpu_count() or 1
-    return 2 if cores >= 2 else 1
+    from mocapbench.metrics.timing import usable_cores
+
+    return 2 if usable_cores() >= 2 else 1
 
 
 def _config_labels(points: pd.DataFrame):

@@ -28,7 +28,7 @@ from contextlib import contextmanager
 from dataclasses import asdict, dataclass
 from typing import Any, Iterator
 
-__all__ = ["Timing", "measure", "time_call", "load_average", "single_thread", "METHOD"]
+__all__ = ["Timing", "measure", "time_call", "load_average", "usable_cores", "single_thread", "METHOD"]
 
 # One sentence for reports and script footers: how every speed was taken.
 METHOD = ("median of {repeats} timed runs after {warmup} warm-up run(s), {threads} thread(s); CPU time of the "
@@ -77,6 +77,14 @@ def load_average() -> float:
         return float(os.getloadavg()[0])
     except (AttributeError, OSError):
         return float("nan")
+
+
+def usable_cores() -> int:
+    """The cores this process may run on: its CPU affinity (a job's share of a machine), else the machine's count."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
 
 
 #: ``(modules loaded when it was made, ThreadpoolController)`` of this process (:func:`_controller`).
