@@ -42,7 +42,8 @@ def _workers(text: str) -> int:
 
 
 def _codec_names(text: str | None) -> list[str] | None:
-    return [name.strip() for name in text.split(",") if name.strip()] if text else None
+    """The names of ``--codecs``, each once, in their order."""
+    return list(dict.fromkeys(name.strip() for name in text.split(",") if name.strip())) if text else None
 
 
 def _announce_costs(names: list[str] | None, motions) -> None:

@@ -402,7 +402,8 @@ def compare(
     """
     from mocapbench.codecs import CODECS, UNAVAILABLE
 
-    names = list(codecs) if codecs else default_codecs()
+    # A codec named twice runs once (two workers would append to its one results file at once).
+    names = list(dict.fromkeys(codecs)) if codecs else default_codecs()
     plan = _Plan(float(bound_cm), policy, int(folds), dataset, tuple(_fingerprint(m) for m in motions))
     plan_folds(motions, policy, folds)  # a bad policy or fold count fails before any codec runs
     store = store or _NoStore()

@@ -344,3 +344,17 @@ def test_a_worker_killed_mid_run_gives_its_codec_a_reason_and_the_others_their_r
     assert outcomes["svd"].rows == [] and "ended without a result (killed by SIGKILL)" in outcomes["svd"].reason
     assert len(outcomes["raw-zstd"].rows) == len(outcomes["quant-delta-zstd"].rows) == len(clips)
     assert progress.finished == len(names) * len(clips)  # the killed codec's clips are counted as skipped
+
+
+def test_a_codec_named_twice_runs_once(tmp_path):
+    clips = _clips()[:2]
+    outcomes = compare(clips, 1.0, ["raw-zstd", "quant-delta-zstd", "raw-zstd"], store=RowStore(tmp_path), workers=2)
+    assert sorted(o.codec for o in outcomes) == ["quant-delta-zstd", "raw-zstd"]
+    rows = RowStore(tmp_path)._rows("raw-zstd", "results.jsonl")
+    assert [row["clip"] for row in rows] == [clip.name for clip in clips]  # each clip's row written once
+
+
+def test_the_command_counts_a_codec_named_twice_once():
+    from mocapbench.cli.compare import _codec_names
+
+    assert _codec_names("svd, raw-zstd,svd,,raw-zstd") == ["svd", "raw-zstd"]
