@@ -358,3 +358,23 @@ def test_the_command_counts_a_codec_named_twice_once():
     from mocapbench.cli.compare import _codec_names
 
     assert _codec_names("svd, raw-zstd,svd,,raw-zstd") == ["svd", "raw-zstd"]
+
+
+class _BrokenStore(RowStore):
+    """A store that fails for codec ``victim`` outside the codec's own try (an error compare does not turn into a
+    row: it stops the run, in a worker as in this process)."""
+
+    def __init__(self, folder, victim: str) -> None:
+        super().__init__(folder)
+        self.victim = victim
+
+    def find_failure(self, codec, key):
+        if codec == self.victim:
+            raise OSError(f"cannot read the rows of {codec}")
+        return super().find_failure(codec, key)
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_an_error_outside_a_codec_stops_the_run_in_a_worker_as_in_this_process(tmp_path, workers):
+    with pytest.raises(OSError, match="cannot read the rows of svd"):
+        compare(_clips()[:2], 1.0, ["raw-zstd", "svd"], store=_BrokenStore(tmp_path, "svd"), workers=workers)
