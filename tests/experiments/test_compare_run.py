@@ -346,6 +346,7 @@ def test_a_worker_killed_mid_run_gives_its_codec_a_reason_and_the_others_their_r
     assert progress.finished == len(names) * len(clips)  # the killed codec's clips are counted as skipped
 
 
+@pytest.mark.slow
 def test_a_codec_named_twice_runs_once(tmp_path):
     clips = _clips()[:2]
     outcomes = compare(clips, 1.0, ["raw-zstd", "quant-delta-zstd", "raw-zstd"], store=RowStore(tmp_path), workers=2)
