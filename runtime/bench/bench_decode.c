@@ -34,32 +34,43 @@ static uint64_t fnv(uint64_t h, const void *data, size_t n) {
     return h;
 }
 
+/* Every allocation of this tool is checked: a failure (or a clip too large to hold) is one line and exit 1. */
+static void *allocated(void *pointer, const char *what, const char *path) {
+    if (!pointer) {
+        fprintf(stderr, "%s: cannot allocate %s\n", path, what);
+        exit(1);
+    }
+    return pointer;
+}
+
 int main(int argc, char **argv) {
-    if (argc < 3) {
-        fprintf(stderr, "usage: %s ROUNDS stream.mcb...\n", argv[0]);
+    int rounds = argc >= 3 ? atoi(argv[1]) : 0, streams = argc - 2;
+    if (argc < 3 || rounds < 1) {
+        fprintf(stderr, "usage: %s ROUNDS stream.mcb... (ROUNDS >= 1)\n", argv[0]);
         return 2;
     }
-    int rounds = atoi(argv[1]), streams = argc - 2;
-    double *forward = calloc((size_t)streams, sizeof(double)), *random = calloc((size_t)streams, sizeof(double));
+    double *forward = allocated(calloc((size_t)streams, sizeof(double)), "the timings", argv[0]);
+    double *random = allocated(calloc((size_t)streams, sizeof(double)), "the timings", argv[0]);
     uint64_t hash = 1469598103934665603ull;
     for (int a = 0; a < streams; ++a) {
         FILE *file = fopen(argv[a + 2], "rb");
         if (!file) { fprintf(stderr, "%s: cannot open\n", argv[a + 2]); return 1; }
-        fseek(file, 0, SEEK_END);
-        long bytes = ftell(file);
-        fseek(file, 0, SEEK_SET);
-        uint8_t *stream = malloc((size_t)bytes);
+        long bytes = fseek(file, 0, SEEK_END) == 0 ? ftell(file) : -1;
+        if (bytes <= 0 || bytes > (1L << 30) || fseek(file, 0, SEEK_SET) != 0) { fprintf(stderr, "%s: empty, over 1 GiB or not a regular file\n", argv[a + 2]); return 1; }
+        uint8_t *stream = allocated(malloc((size_t)bytes), "the stream", argv[a + 2]);
         if (fread(stream, 1, (size_t)bytes, file) != (size_t)bytes) { fprintf(stderr, "%s: short read\n", argv[a + 2]); return 1; }
         fclose(file);
         size_t size;
         char message[256];
         if (mcbrot_context_size(stream, (size_t)bytes, &size, message, sizeof message)) { fprintf(stderr, "%s\n", message); return 1; }
-        void *context = aligned_alloc(MCBROT_CONTEXT_ALIGN, (size + 63) & ~(size_t)63);
+        void *context = allocated(aligned_alloc(MCBROT_CONTEXT_ALIGN, (size + 63) & ~(size_t)63), "the context", argv[a + 2]);
         if (mcbrot_open(context, size, stream, (size_t)bytes)) { fprintf(stderr, "%s\n", mcbrot_message(context)); return 1; }
         mcbrot_clip_info info;
         mcbrot_info(context, &info);
         uint32_t frames = info.num_frames, joints = info.num_joints;
-        double *rotations = malloc(sizeof(double) * 4 * joints * frames), *roots = malloc(sizeof(double) * 3 * frames);
+        if (frames == 0) { fprintf(stderr, "%s: a clip of no frames\n", argv[a + 2]); return 1; }
+        double *rotations = allocated(malloc(sizeof(double) * 4 * joints * frames), "the decoded frames", argv[a + 2]);
+        double *roots = allocated(malloc(sizeof(double) * 3 * frames), "the decoded frames", argv[a + 2]);
         if (mcbrot_decode_frames(context, 0, frames, rotations, roots)) { fprintf(stderr, "%s\n", mcbrot_message(context)); return 1; }
         hash = fnv(fnv(hash, rotations, sizeof(double) * 4 * joints * frames), roots, sizeof(double) * 3 * frames);
         forward[a] = random[a] = 1e30;
