@@ -20,7 +20,6 @@ HEADER = Path(__file__).resolve().parents[1] / "src" / "mcbrot_tables.h"
 LOOKUP = 256
 
 
-
 def crc32_tables():
     """(4, 256) uint32: zlib's CRC32 table and the three that advance it one, two and three more bytes (slicing by
     four), checked against :func:`zlib.crc32`."""
