@@ -30,7 +30,9 @@ the overhead is most of the time. Here every network of a call is trained side b
     leading principal components (all but ``rank_tolerance`` of their energy, about half of the 97 outputs of a
     CMU clip at 1e-8), and the output layer is solved on all outputs once at the end (:func:`_reduced_targets`).
   - *L-BFGS* (:func:`_lbfgs`) on those weights, each network with its own curvature pairs, step length and
-    Armijo backtracking, one loss-and-gradient evaluation per iteration; accepted losses never rise.
+    Armijo backtracking, one loss evaluation per iteration (and its gradient when some network accepts the
+    point); accepted losses never rise. Its per-network numbers are kept in numpy, its vectors in torch (a step
+    of these networks is mostly per-operation overhead; the same float32 operations, so the same values).
 
   Together they reach in a few hundred iterations the loss that Adam reaches in tens of thousands of steps (the
   README has the measurement). ``optimizer="adam"`` (the default of ``fourier-mlp-dct``) is the update of
@@ -413,6 +415,8 @@ def _train_group(networks: Sequence[Network], omegas: Sequence[Sequence[float]],
     stopping = settings.stop_tolerance > 0 and settings.stop_window > 0
     inverse_scale = torch.where(scale > 0, 1.0 / scale.clamp_min(1e-30), torch.zeros_like(scale))
 
+    saved = {}  # the forward pass's quantities the gradient reuses
+
     def evaluate(with_gradient: bool = True):
         """eq. (3) per network at ``params`` (B,), and its gradient into ``gradient`` when asked."""
         targets = fit["targets"]
@@ -440,8 +444,15 @@ def _train_group(networks: Sequence[Network], omegas: Sequence[Sequence[float]],
             scaled_out = w2 * scale  # (B, m, h + 1): [s ∘ W2 | s ∘ b2]
         residual = torch.baddbmm(targets, scaled_out, a2_ones, beta=-1.0)  # (F(x) − y) ∘ s, (B, m, N)
         loss = torch.linalg.vector_norm(residual, dim=(1, 2)).square_().mul_(0.5).add_(fit["offset"])
-        if not with_gradient:
-            return loss
+        saved.update(e1=e1, e2=e2, scaled_out=scaled_out, residual=residual)
+        if with_gradient:
+            backward()
+        return loss
+
+    def backward() -> None:
+        """The gradient of eq. (3) at the point of the last :func:`evaluate`, into ``gradient`` (its activations
+        ``a1``, ``a2`` and the saved quantities are that point's until the next evaluation)."""
+        e1, e2, scaled_out, residual = saved["e1"], saved["e2"], saved["scaled_out"], saved["residual"]
         # d loss / d [W2 | b2] = s ∘ (residual [a2; 1]ᵀ); d loss / d a2 = (s ∘ W2)ᵀ residual; then back through
         # both ELUs (their derivatives are e2, e1) and the first two layers.
         if settings.solve_output:
@@ -454,13 +465,12 @@ def _train_group(networks: Sequence[Network], omegas: Sequence[Sequence[float]],
         gradient_w1.copy_(torch.bmm(d2, a1_ones.transpose(1, 2)))
         d1 = torch.bmm(w1[:, :, :hidden].transpose(1, 2), d2).mul_(e1)
         gradient_w0.copy_(torch.bmm(d1, features.transpose(1, 2)))
-        return loss
 
     if settings.optimizer == "lbfgs":
         # With a solved output layer only [W0 | b0] and [W1 | b1] are the optimizer's variables.
         free = int(offsets[2]) if settings.solve_output else int(offsets[-1])
-        losses, stopped = _lbfgs(torch, params[:, :free], gradient[:, :free], evaluate, iterations, settings,
-                                 stopping)
+        losses, stopped = _lbfgs(torch, params[:, :free], gradient[:, :free], evaluate, backward, iterations,
+                                 settings, stopping)
     else:
         losses, stopped = _adam(torch, params, gradient, evaluate, iterations, settings, networks[0].rounds,
                                 stopping)
@@ -544,8 +554,16 @@ def _adam(torch, params, gradient, evaluate, iterations: int, settings: Training
     return losses[: step + 1], stopped
 
 
-def _lbfgs(torch, params, gradient, evaluate, iterations: int, settings: TrainingSettings, stopping: bool):
-    """Full-batch L-BFGS per network, in lockstep: one loss-and-gradient evaluation per iteration.
+def _host_shares_memory(device) -> bool:
+    """Whether numpy arrays and tensors on ``device`` can share memory (the CPU), so that :func:`_lbfgs` hands its
+    per-network numbers to torch without copies."""
+    return device.type == "cpu"
+
+
+def _lbfgs(torch, params, gradient, evaluate, backward, iterations: int, settings: TrainingSettings,
+           stopping: bool):
+    """Full-batch L-BFGS per network, in lockstep: one loss evaluation per iteration, and one gradient when some
+    network accepts its trial point.
 
     Each network keeps its own last ``_LBFGS_MEMORY`` curvature pairs (two-loop recursion, initial scale
     ``s·y / y·y`` of its newest pair) and its own step length: a trial point that fails the Armijo test
@@ -554,82 +572,135 @@ def _lbfgs(torch, params, gradient, evaluate, iterations: int, settings: Trainin
     curvature (``s·y ≤ 10⁻⁸ |s| |y|``) is not stored. The first direction is the gradient scaled so that no weight
     moves by more than ``learning_rate``. A network stops when its loss fell by at most ``stop_tolerance``
     (relative) over the last ``stop_window`` iterations, or when its step shrinks below 10⁻⁶ (float32 cannot lower
-    the loss further). Same return values as :func:`_adam` (``losses[i]``: the loss of the accepted point after i
-    iterations).
+    the loss further). ``evaluate(with_gradient)`` is as for :func:`_adam`; ``backward()`` writes the gradient at
+    the point last evaluated into ``gradient``. Same return values as :func:`_adam` (``losses[i]``: the loss of the
+    accepted point after i iterations).
+
+    A step of these small networks costs more in per-operation overhead than in arithmetic, so the bookkeeping
+    does only what changes a result, in float32 throughout as before: the vectors (B × |α|: points, gradients,
+    directions, curvature pairs) stay torch tensors on the training device, while the per-network numbers (B:
+    losses, slopes, step lengths, ρ, γ, the masks) are numpy arrays on the host, where an operation costs a
+    fraction of a torch call (the same IEEE float32 operations in the same order, so the same values); a trial
+    point's gradient is computed only when some network accepts it (a rejected point's gradient is never read);
+    an iteration in which no network accepts stores an empty pair and keeps every direction, so it runs no
+    two-loop recursion; and the recursion leaves out the pairs that no network stored (ρ = 0 for all: their
+    terms are 0).
     """
     count, size = params.shape
     device, dtype = params.device, params.dtype
+    f32 = np.float32
+
+    # Host numbers and their device views: on the CPU the same memory (no copies), elsewhere copied each time.
+    on_cpu = _host_shares_memory(device)
+    dots = np.empty((5, count), dtype=f32)  # rows: slope, s·y, y·y, s·s, the two-loop's current product
+    columns = np.empty((4, count, 1), dtype=f32)  # rows: α, γ, the accepted mask, the two-loop's coefficient
+    flags = np.empty((2, count, 1), dtype=bool)  # rows: uphill, accepted
+    dot_rows = list(torch.from_numpy(dots).unbind(0))
+    column_views = list(torch.from_numpy(columns).unbind(0))
+    flag_views = list(torch.from_numpy(flags).unbind(0))
+
+    def host(tensor) -> np.ndarray:
+        return tensor.numpy() if on_cpu else tensor.cpu().numpy()
+
+    def dot(x, y, row: int) -> np.ndarray:
+        """``x · y`` per network (torch's reduction, as before) into row ``row`` of ``dots``."""
+        if on_cpu:
+            torch.linalg.vecdot(x, y, out=dot_rows[row])
+        else:
+            dots[row] = torch.linalg.vecdot(x, y).cpu().numpy()
+        return dots[row]
+
+    def column(values: np.ndarray, row: int):
+        """(B,) host numbers as a (B, 1) tensor on the device (row ``row`` of ``columns`` or ``flags``): it
+        scales or selects the rows of a (B, |α|) tensor."""
+        store, views = (flags, flag_views) if values.dtype == bool else (columns, column_views)
+        store[row, :, 0] = values
+        return views[row] if on_cpu else views[row].to(device)
+
     memory = _LBFGS_MEMORY
     s_history = torch.zeros(memory, count, size, dtype=dtype, device=device)
     y_history = torch.zeros(memory, count, size, dtype=dtype, device=device)
-    rho = torch.zeros(memory, count, dtype=dtype, device=device)
+    s_slots, y_slots = list(s_history.unbind(0)), list(y_history.unbind(0))
+    rho = np.zeros((memory, count), dtype=f32)
+    holds_pair = [False] * memory  # whether some network stored a pair (ρ > 0) in the slot
     newest = -1  # slot of the newest pair (the history is a ring shared by the networks)
-    losses = torch.empty(iterations + 1, count, dtype=dtype, device=device)
+    losses = np.empty((iterations + 1, count), dtype=f32)
     stopped = np.full(count, iterations)
-    active = torch.ones(count, dtype=torch.bool, device=device)
+    active = np.ones(count, dtype=bool)
     point = params.clone()
-    loss = evaluate()
+    loss = host(evaluate()).copy()
     grad = gradient.clone()
     losses[0] = loss
-    gamma = settings.learning_rate / grad.abs().amax(dim=1).clamp_min(1e-30)
-    direction = -gamma[:, None] * grad
-    alpha = torch.ones(count, dtype=dtype, device=device)
+    gamma_t = settings.learning_rate / grad.abs().amax(dim=1).clamp_min(1e-30)
+    direction = -gamma_t[:, None] * grad
+    gamma = host(gamma_t).copy()
+    alpha = np.ones(count, dtype=f32)
     step = 0
     for step in range(1, iterations + 1):
-        slope = torch.linalg.vecdot(grad, direction)
-        uphill = active & ~(slope < 0)  # no descent along the quasi-Newton direction: the scaled gradient instead
-        if bool(uphill.any()):
-            direction = torch.where(uphill[:, None], -gamma[:, None] * grad, direction)
-            slope = torch.linalg.vecdot(grad, direction)
-        moving = active & (slope < 0)
-        alpha_used = torch.where(moving, alpha, torch.zeros_like(alpha))
-        torch.addcmul(point, alpha_used[:, None], direction, out=params)
-        trial_loss = evaluate()
-        accepted = moving & torch.isfinite(trial_loss) & (trial_loss <= loss + _ARMIJO * alpha_used * slope)
-        # Rejected: shrink the step (minimum of the quadratic through f(x), f'(x; d) and f(x + α d)).
-        excess = (trial_loss - loss - slope * alpha_used).clamp_min(1e-30)
-        shrunk = (-slope * alpha_used * alpha_used / (2 * excess)).nan_to_num(0.0)
-        shrunk = torch.minimum(torch.maximum(shrunk, 0.1 * alpha_used), 0.5 * alpha_used)
-        alpha = torch.where(accepted, torch.ones_like(alpha), torch.where(moving, shrunk, alpha))
-        # Accepted: store the pair, move.
-        mask = accepted[:, None].to(dtype)
-        s = (params - point) * mask
-        y = (gradient - grad) * mask
-        sy = torch.linalg.vecdot(s, y)
-        yy = torch.linalg.vecdot(y, y)
-        curved = accepted & (sy > 1e-8 * torch.sqrt(torch.linalg.vecdot(s, s) * yy))
+        slope = dot(grad, direction, 0)
+        descent = slope < 0
+        uphill = active & ~descent  # no descent along the quasi-Newton direction: the scaled gradient instead
+        if uphill.any():
+            direction = torch.where(column(uphill, 0), column(-gamma, 1) * grad, direction)
+            slope = dot(grad, direction, 0)
+            descent = slope < 0
+        moving = active & descent
+        alpha_used = np.where(moving, alpha, f32(0))
+        torch.addcmul(point, column(alpha_used, 0), direction, out=params)
+        trial_loss = host(evaluate(False))
+        with np.errstate(all="ignore"):  # a non-finite trial loss is rejected below
+            accepted = moving & np.isfinite(trial_loss) & (trial_loss <= loss + _ARMIJO * alpha_used * slope)
+            # Rejected: shrink the step (minimum of the quadratic through f(x), f'(x; d) and f(x + α d)).
+            excess = np.maximum(trial_loss - loss - slope * alpha_used, f32(1e-30))
+            shrunk = np.nan_to_num(-slope * alpha_used * alpha_used / (2 * excess), nan=0.0)
+        shrunk = np.minimum(np.maximum(shrunk, 0.1 * alpha_used), 0.5 * alpha_used)
+        alpha = np.where(accepted, f32(1), np.where(moving, shrunk, alpha))
         newest = (newest + 1) % memory
-        s_history[newest] = s
-        y_history[newest] = y
-        rho[newest] = torch.where(curved, 1.0 / sy.clamp_min(1e-30), torch.zeros_like(sy))
-        gamma = torch.where(curved, sy / yy.clamp_min(1e-30), gamma)
-        point = torch.where(accepted[:, None], params, point)
-        grad = torch.where(accepted[:, None], gradient, grad)
-        loss = torch.where(accepted, trial_loss, loss)
+        s, y = s_slots[newest], y_slots[newest]
+        if accepted.any():
+            # Accepted: the gradient there, store the pair, move.
+            backward()
+            taken = column(accepted, 1)
+            mask = column(accepted.astype(f32), 2)
+            torch.sub(params, point, out=s).mul_(mask)
+            torch.sub(gradient, grad, out=y).mul_(mask)
+            sy, yy, ss = dot(s, y, 1), dot(y, y, 2), dot(s, s, 3)
+            curved = accepted & (sy > 1e-8 * np.sqrt(ss * yy))
+            rho[newest] = np.where(curved, 1.0 / np.maximum(sy, f32(1e-30)), f32(0))
+            holds_pair[newest] = bool(curved.any())
+            gamma = np.where(curved, sy / np.maximum(yy, f32(1e-30)), gamma)
+            point = torch.where(taken, params, point)
+            grad = torch.where(taken, gradient, grad)
+            loss = np.where(accepted, trial_loss, loss)
+            # New directions (two-loop recursion) for the networks that moved; the others retry along theirs.
+            q = grad.clone()
+            coefficients = []
+            for back in range(memory):
+                i = (newest - back) % memory
+                if holds_pair[i]:
+                    a = rho[i] * dot(s_slots[i], q, 4)
+                    q.addcmul_(column(a, 3), y_slots[i], value=-1.0)
+                    coefficients.append((i, a))
+            r = column(gamma, 1) * q
+            for i, a in reversed(coefficients):
+                b = rho[i] * dot(y_slots[i], r, 4)
+                r.addcmul_(column(a - b, 3), s_slots[i])
+            direction = torch.where(taken, -r, direction)
+        else:  # no network moved: an empty pair; points, losses and directions stay
+            s.zero_()
+            y.zero_()
+            rho[newest] = 0.0
+            holds_pair[newest] = False
         losses[step] = loss
-        # New directions (two-loop recursion) for the networks that moved; the others retry along theirs.
-        q = grad.clone()
-        coefficients = []
-        for back in range(memory):
-            i = (newest - back) % memory
-            a = rho[i] * torch.linalg.vecdot(s_history[i], q)
-            q.addcmul_(a[:, None], y_history[i], value=-1.0)
-            coefficients.append((i, a))
-        r = gamma[:, None] * q
-        for i, a in reversed(coefficients):
-            b = rho[i] * torch.linalg.vecdot(y_history[i], r)
-            r.addcmul_((a - b)[:, None], s_history[i])
-        direction = torch.where(accepted[:, None], -r, direction)
-        # Stopping.
-        finished = (active & ~accepted & moving & (alpha < 1e-6)) | (active & ~moving)
+        # Stopping (accepted networks go on; of the others, those that could not move or whose step is too short).
+        finished = active & ~accepted & (~moving | (alpha < 1e-6))
         if stopping and step >= settings.stop_window and step % 10 == 0:
             before = losses[step - settings.stop_window]
-            finished |= active & ((before - loss).abs() <= settings.stop_tolerance * before)
-        if bool(finished.any()):
-            for b in torch.nonzero(finished).flatten().tolist():
-                stopped[b] = step
+            finished |= active & (np.abs(before - loss) <= settings.stop_tolerance * before)
+        if finished.any():
+            stopped[finished] = step
             active = active & ~finished
-            if not bool(active.any()):
+            if not active.any():
                 break
     params.copy_(point)
-    return losses[: step + 1], stopped
+    return torch.from_numpy(losses[: step + 1]), stopped

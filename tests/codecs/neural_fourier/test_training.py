@@ -327,3 +327,25 @@ def test_lbfgs_on_the_leading_components_fits_as_the_full_targets_and_solves_eve
     assert reduced.loss_history[0][-1] <= full.loss_history[0][-1] * 1.1
     # The stored output layer covers all 13 outputs and is their least-squares fit on the final hidden layers.
     _assert_output_layer_solved(reduced, omegas)
+
+
+@pytest.mark.torch
+def test_lbfgs_bookkeeping_gives_the_same_bits_with_its_numbers_copied_to_the_device(monkeypatch):
+    """L-BFGS keeps its per-network numbers in numpy and hands them to torch without copies on the CPU; on a GPU
+    it copies them. Both ways do the same float32 operations, so the networks come out bit for bit the same
+    (the copying way is the one a CUDA device takes, run here on the CPU)."""
+    pytest.importorskip("torch")
+    from mocapbench.codecs.neural_fourier import training
+
+    shapes = [(60, 13), (90, 7)]
+    omegas = [[1.0, 3.0]] * len(shapes)
+    shared = [_network(f, m) for f, m in shapes]
+    train_round(shared, omegas, 30, LBFGS)
+    monkeypatch.setattr(training, "_host_shares_memory", lambda device: False)
+    copied = [_network(f, m) for f, m in shapes]
+    train_round(copied, omegas, 30, LBFGS)
+    for a, b in zip(shared, copied):
+        np.testing.assert_array_equal(a.loss_history[0], b.loss_history[0])
+        for wa, wb in zip(a.weights, b.weights):
+            np.testing.assert_array_equal(wa, wb)
+        assert a.loss_history[0][-1] < a.loss_history[0][0]  # it trained
