@@ -15,7 +15,11 @@ Design::
          through a half turn stays continuous; where a segment of a joint strays beyond 1.5 pi from the identity,
          that segment is coded relative to its own middle rotation (a float32 rotation vector in the stream)
       └─ segments: a grid of ``segment_frames`` frames, restarted at every detected cut (a T-pose first frame, a
-         seam between takes) so that no transform straddles a jump; each segment is a random-access unit
+         seam between takes) so that no transform straddles a jump; each segment is a random-access unit. At 60 fps
+         and above, segments and chunks are at most ``high_rate_segment_frames`` long: a random pose decodes its
+         whole chunk, so a shorter chunk buys the native runtime's random access time for a few percent of bytes
+         (a segment's means and significance counts are paid more often; they weigh most at large ε, where few
+         coefficients are coded); the README has the curve of bytes against µs per segment length
       └─ base layer: orthonormal DCT-II along time per segment and channel (3 root + 3 J rotation-vector channels);
          the step of channel ``c`` is ``m β_c (1 + slope k / n)``: ``β_c`` is the channel's error budget from its lever
          arm (:mod:`.budgets`: an error at the hips moves every joint, one at the wrist only the fingers) and ``m`` a
@@ -169,8 +173,10 @@ _AXES_CACHE = ("axes", "turned", "turned axes")
 _PREFETCH = ((6, 7, 8), (7, 8, 9))
 # Below this frame rate the encoder also tries segments of half ``segment_frames`` and keeps the smaller stream (a
 # second encode): a segment of 128 frames spans 4.3 s at 30 fps, and which length codes a clip of a game capture
-# smaller depends on the clip and on eps (the README has the figures). At 120 fps (1.1 s segments) it is not tried.
-_HALF_SEGMENTS_BELOW_FPS = 60.0
+# smaller depends on the clip and on eps (the README has the figures). At or above it (a segment of 128 frames is
+# 1.1 s at 120 fps) no length is searched, and segments and chunks are at most ``high_rate_segment_frames`` long:
+# a random pose entropy-decodes its whole chunk, so the runtime's random access costs about the chunk's values.
+_HIGH_RATE_FPS = 60.0
 _MIN_SEARCHED_SEGMENT = 16
 # The other segment lengths are screened by one attempt each at the config's length's pick; the rate search runs on
 # the two whose screens are smallest, where within 3 % of the best stream so far (a length whose screen is further
@@ -253,6 +259,11 @@ class McbRotCodec(Codec):
             True, doc="below 60 fps, also try segments of half segment_frames (and a short clip even splits of it), "
                       "each screened by one attempt, the closest two searched: the smallest stream is kept"
         )
+        high_rate_segment_frames: int = param(
+            80, low=0, high=4096, unit="frames",
+            doc="at >= 60 fps, segments and chunks of at most this many frames (the unit a random pose decodes; "
+                "0: segment_frames and chunk_frames at every rate)",
+        )
 
     # The prior (:mod:`.prior`) a fit or a model file gave this codec, and whether the last encode named one of its rigs.
     _prior: Prior | None = None
@@ -311,13 +322,14 @@ class McbRotCodec(Codec):
             payload = self._encode_window(motion.slice(start, stop))
             return payload, self.last_encode_stats
 
-        payload, stats = windowed.encode(motion.num_frames, self.config.segment_frames, encode_window)
+        segment_frames = self._config_at(motion.fps).segment_frames
+        payload, stats = windowed.encode(motion.num_frames, segment_frames, encode_window)
         self.last_encode_stats = windowed.merged_stats(stats)
         return payload
 
     def _encode_window(self, motion: Motion) -> bytes:
         """The one-window payload of ``motion`` (a whole clip, or one window of a long capture), checked; below
-        :data:`_HALF_SEGMENTS_BELOW_FPS` with ``segment_search``, the smallest stream over the segment lengths of
+        :data:`_HIGH_RATE_FPS` with ``segment_search``, the smallest stream over the segment lengths of
         :func:`_segment_lengths`.
 
         The config's length gets the whole rate search; every other length is first screened by one attempt at the
@@ -326,7 +338,7 @@ class McbRotCodec(Codec):
         screens within :data:`_SCREEN_MARGIN` of the best stream so far get a rate search of their own. Every
         stream written (the screens too: each is refined in closed loop) is a candidate; only the one returned is
         decoded and checked (the check guards what leaves the encoder)."""
-        if not (self.config.segment_search and motion.fps < _HALF_SEGMENTS_BELOW_FPS):
+        if not (self.config.segment_search and motion.fps < _HIGH_RATE_FPS):
             return self._encode_segments(motion)
         lengths = _segment_lengths(motion.num_frames, self.config.segment_frames)
         common = self._common(motion, self.config)
@@ -357,9 +369,19 @@ class McbRotCodec(Codec):
         return payload
 
     def _encode_segments(self, full: Motion) -> bytes:
-        """The one-window payload of ``full`` with the config's segments, checked."""
-        prepared = self._prepare(full, self.config)
+        """The one-window payload of ``full`` with the config's segments (at most ``high_rate_segment_frames`` at
+        :data:`_HIGH_RATE_FPS` and above), checked."""
+        prepared = self._prepare(full, self._config_at(full.fps))
         return self._finish(prepared, self._search_of(prepared))
+
+    def _config_at(self, fps: float):
+        """The config a clip at ``fps`` is coded with: at :data:`_HIGH_RATE_FPS` and above, segments and chunks of
+        at most ``high_rate_segment_frames`` (when > 0); below it, the config itself (its segment search)."""
+        limit = self.config.high_rate_segment_frames
+        if fps < _HIGH_RATE_FPS or limit == 0:
+            return self.config
+        return dataclasses.replace(self.config, segment_frames=min(self.config.segment_frames, limit),
+                                   chunk_frames=min(self.config.chunk_frames, limit))
 
     def _common(self, full: Motion, config) -> "_Common":
         """What every segment length of ``full`` shares: the rig, its tracks, the bound left, targets and cuts.
@@ -621,7 +643,7 @@ class McbRotCodec(Codec):
 
 
 def _segment_lengths(num_frames: int, segment_frames: int) -> list[int]:
-    """The segment lengths the search below :data:`_HALF_SEGMENTS_BELOW_FPS` tries, in order (the first is
+    """The segment lengths the search below :data:`_HIGH_RATE_FPS` tries, in order (the first is
     ``segment_frames``; the smallest stream wins, ties to the earlier): ``segment_frames``, half of it, and for a
     clip of up to :data:`_EVEN_SPLIT_CLIPS` x ``segment_frames`` frames the even splits ``ceil(F / k)`` of its frames
     into k segments of half to all of ``segment_frames`` (and one split finer, down to a quarter): no segment is

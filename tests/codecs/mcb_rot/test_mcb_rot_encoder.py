@@ -259,3 +259,29 @@ def test_rounding_search_keeps_the_smaller_stream_within_the_bound():
         if rounding == np.float32(0.45):
             assert data == plain
         assert metrics.max_joint_error(motion.positions(), searched.decode(data).positions) <= 0.1
+
+
+def test_at_60_fps_and_above_segments_and_chunks_are_at_most_high_rate_segment_frames():
+    """At 120 fps the default codes segments and chunks of high_rate_segment_frames (80: the unit a random pose
+    entropy-decodes), a config's shorter lengths are kept, 0 keeps the config's; the stream says its lengths and
+    decodes within eps. Below 60 fps the limit changes nothing: the same stream as without it."""
+    from mocapbench.codecs import container
+    from mocapbench.codecs.mcb_rot.stream import read_info
+
+    def lengths(data: bytes) -> tuple[int, int]:
+        header, payload = container.unpack(data, "mcb-rot")
+        settings = read_info(header, payload).settings
+        return settings.segment_frames, settings.chunk_frames
+
+    fast = sinusoidal_motion(num_frames=300, seed=9)
+    assert fast.fps == 120
+    data = create("mcb-rot", eps_cm=0.2).encode(fast)
+    assert lengths(data) == (80, 80)
+    assert metrics.max_joint_error(fast.positions(), create("mcb-rot").decode(data).positions) <= 0.2
+    assert lengths(create("mcb-rot", eps_cm=0.2, segment_frames=64, chunk_frames=300).encode(fast)) == (64, 80)
+    assert lengths(create("mcb-rot", eps_cm=0.2, high_rate_segment_frames=0).encode(fast)) == (128, 128)
+    assert lengths(create("mcb-rot", eps_cm=0.2, high_rate_segment_frames=100, chunk_frames=64).encode(fast)) == (
+        100, 64)
+    slow = fast.every(4)  # 30 fps
+    assert (create("mcb-rot", eps_cm=0.2).encode(slow)
+            == create("mcb-rot", eps_cm=0.2, high_rate_segment_frames=0).encode(slow))

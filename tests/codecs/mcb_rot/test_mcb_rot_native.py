@@ -87,7 +87,7 @@ def test_the_runtime_decodes_what_numpy_decodes_and_holds_the_bound(lib, seed, j
                                                                     segment, chunk, shell, power, slope):
     motion = random_motion(seed, joints, frames, zero_bones, speed)
     data = create("mcb-rot", eps_cm=eps, segment_frames=segment, chunk_frames=chunk, shell_cm=shell,
-                  allocation_power=power, frequency_slope=slope).encode(motion)
+                  allocation_power=power, frequency_slope=slope, high_rate_segment_frames=0).encode(motion)
     _assert_same(data)
     decoded = create("mcb-rot").decode(data)  # through the runtime
     assert metrics.max_joint_error(motion.positions(), decoded.positions) <= eps
@@ -336,3 +336,19 @@ def test_the_c_tables_are_the_python_tables():
     result = subprocess.run([sys.executable, str(ROOT / "runtime" / "tools" / "gen_tables.py"), "--check"],
                             capture_output=True, text=True, cwd=ROOT, env={"PYTHONPATH": str(ROOT)})
     assert result.returncode == 0, result.stderr
+
+
+def test_the_runtime_decodes_the_default_high_rate_streams_as_numpy_does(lib):
+    """At 120 fps the encoder's default segments and chunks are 80 frames (``high_rate_segment_frames``): the
+    runtime gives numpy's output on the whole clip and on ranges that start and end inside chunks or straddle them."""
+    motion = sinusoidal_motion(num_frames=333, seed=5)
+    assert motion.fps >= 60
+    data = create("mcb-rot", eps_cm=0.3).encode(motion)
+    header, payload = container.unpack(data, "mcb-rot")
+    settings = stream.read_info(header, payload).settings
+    assert (settings.segment_frames, settings.chunk_frames) == (80, 80)
+    _assert_same(data)
+    for start, stop in ((0, 1), (79, 81), (100, 250), (320, 333)):
+        _assert_same(data, start, stop)
+    decoded = create("mcb-rot").decode(data)  # through the runtime
+    assert metrics.max_joint_error(motion.positions(), decoded.positions) <= 0.3
