@@ -27,8 +27,8 @@ the overhead is most of the time. Here every network of a call is trained side b
     the gradient of eq. (3) at the solved output layer (the output layer's own gradient is 0 there).
   - *Fewer outputs to fit* (``rank_tolerance > 0``, opt-in). With the output layer
     solved, the targets enter the loss only through their row space: the hidden layers are fitted to the targets'
-    leading principal components (all but ``rank_tolerance`` of their energy, about half of the 97 outputs of a
-    CMU clip at 1e-8), and the output layer is solved on all outputs once at the end (:func:`_reduced_targets`).
+    leading principal components (all but ``rank_tolerance`` of their energy; how many on CMU clips: README,
+    "Timings"), and the output layer is solved on all outputs once at the end (:func:`_reduced_targets`).
   - *L-BFGS* (:func:`_lbfgs`) on those weights, each network with its own curvature pairs, step length and
     Armijo backtracking, one loss evaluation per iteration (and its gradient when some network accepts the
     point); accepted losses never rise. Its per-network numbers are kept in numpy, its vectors in torch (a step
@@ -495,7 +495,7 @@ def _reduced_targets(torch, targets, tolerance: float):
     With the output layer solved by least squares, the loss is ``min_W |W A − T|² / 2`` over the hidden
     activations A, and for ``W = U W'`` it equals ``|W' A − Uᵀ T|² / 2`` plus the left-out energy (a constant): the
     hidden layers can be fitted to ``Uᵀ T`` (r × N instead of m × N; the products over the outputs are most of a
-    step's arithmetic, r is about half of m on CMU clips). At a tolerance of 1e-8 the left-out part is below
+    step's arithmetic). At a tolerance of 1e-8 the left-out part is below
     float32's resolution of the initial loss. Networks with fewer components get zero rows (they add 0).
     Returns the reduced targets (B, r, N) and the offset per network (B,), on the targets' device and dtype.
     """

@@ -383,6 +383,27 @@ def test_default_trainer_reweights_each_round_and_meets_the_threshold_it_reports
 
 
 @pytest.mark.torch
+def test_int_reweight_passes_keep_the_lowest_linf_network():
+    """fourier-mlp-int with L-inf passes: the same first training, so its stream's L-inf is at most the plain one's
+    (each clip keeps the best of its passes), at the same size (K fixed); the stats say which pass it kept."""
+    motion = known_frequency_motion(num_frames=120)
+    settings = {"K": 3, "iterations_per_round": 30}
+    plain = create("fourier-mlp-int", reweight_passes=0, **settings)
+    weighted = create("fourier-mlp-int", reweight_passes=2, **settings)
+    plain_data, weighted_data = plain.encode(motion), weighted.encode(motion)
+    assert len(plain.last_training_log) == 1 and len(weighted.last_training_log) == 3  # one loss log per pass
+    assert len(weighted_data) == len(plain_data)
+    kept = weighted.last_encode_stats["kept_pass"]
+    assert kept in (0, 1, 2) and plain.last_encode_stats["kept_pass"] == 0
+    errors = [np.linalg.norm(c.decode(d).positions - motion.positions(), axis=-1).max()
+              for c, d in ((plain, plain_data), (weighted, weighted_data))]
+    assert errors[1] <= errors[0] * (1 + 1e-6)
+    assert weighted.last_encode_stats["encoder_max_err_cm"] == pytest.approx(errors[1], rel=1e-5)
+    if kept == 0:  # the unweighted fit is bit for bit the plain codec's
+        assert weighted_data == plain_data
+
+
+@pytest.mark.torch
 @pytest.mark.slow
 def test_decoding_needs_no_torch(tmp_path):
     """The decoder is numpy only: a fresh process decodes a stream and never imports torch."""

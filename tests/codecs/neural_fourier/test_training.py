@@ -172,12 +172,10 @@ def test_learning_rate_warms_up_then_decays_to_five_percent():
 @pytest.mark.parametrize("name", ["fourier-mlp-int", "fourier-mlp-dct"])
 def test_encode_many_gives_each_clip_its_own_stream_and_refuses_bad_ones_alone(name):
     pytest.importorskip("torch")
-    # Adam on eq. (3): L-BFGS's line search (and the L-inf passes of fourier-mlp-dct, which weight each frame by
-    # the error of the pass before) can grow a difference in the order of sums into another fit of about the same
-    # error; the test below checks the default trainer for that.
-    params = {**create(name).smoke_params, "optimizer": "adam", "solve_output": False}
-    if name == "fourier-mlp-dct":
-        params["reweight_passes"] = 0
+    # Adam on eq. (3): L-BFGS's line search (and the L-inf passes, which weight each frame by the error of the pass
+    # before) can grow a difference in the order of sums into another fit of about the same error; the test below
+    # checks the default trainer for that.
+    params = {**create(name).smoke_params, "optimizer": "adam", "solve_output": False, "reweight_passes": 0}
     codec = create(name, **params)
     good = [sinusoidal_motion(num_frames=f, seed=s) for f, s in ((50, 1), (80, 2))]
     results = codec.encode_many([good[0], "not a motion", good[1]])
