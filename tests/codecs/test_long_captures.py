@@ -280,7 +280,7 @@ def test_mcb_rot_codes_a_long_capture_window_by_window_within_eps(monkeypatch):
 
     motion = sinusoidal_motion(num_frames=768, seed=4)
     short = motion.slice(0, 200)
-    codec = create("mcb-rot", eps_cm=0.5)
+    codec = create("mcb-rot", eps_cm=0.5, high_rate_segment_frames=0)  # 128-frame segments at 120 fps, as below
     short_stream, whole = codec.encode(short), codec.encode(motion)
     module, windowed = _mcb_rot_windows(monkeypatch, 300)  # 768 frames: 3 windows, made equal: 256 frames each
     assert codec.encode(short) == short_stream  # up to a window: the bytes it always had
@@ -301,14 +301,14 @@ def test_mcb_rot_codes_a_long_capture_window_by_window_within_eps(monkeypatch):
     assert len(stream) <= 1.3 * len(whole)
     assert codec.describe_payload(header, payload)["windows of frames"] == "3 x 256 (first shown)"
     # A long stream written before windows existed (one payload) still decodes, whatever the window length.
-    assert np.array_equal(codec.decode(whole).positions, create("mcb-rot", eps_cm=0.5).decode(whole).positions)
+    assert np.array_equal(codec.decode(whole).positions, create("mcb-rot").decode(whole).positions)
     assert _error(codec, motion, whole).max() <= 0.5
 
 
 def test_mcb_rot_random_access_decodes_only_the_windows_holding_the_frames(monkeypatch):
     motion = sinusoidal_motion(num_frames=1000, seed=5)
     module, _ = _mcb_rot_windows(monkeypatch, 400)  # 1,000 frames: windows of 384, 384, 232 (whole segments)
-    codec = create("mcb-rot", eps_cm=1.0)
+    codec = create("mcb-rot", eps_cm=1.0, high_rate_segment_frames=0)  # segments of 128 frames at 120 fps
     stream = codec.encode(motion)
     decoded = codec.decode(stream)
     for start, stop in ((350, 850), (383, 385), (384, 768), (0, 1000), (999, 1000), (0, 1)):
@@ -342,7 +342,7 @@ def test_mcb_rot_windowed_stream_with_hostile_window_lengths_is_refused(monkeypa
 
     motion = sinusoidal_motion(num_frames=600, seed=1)
     _, windowed = _mcb_rot_windows(monkeypatch, 256)  # 600 frames: windows of 256, 256, 88
-    codec = create("mcb-rot", eps_cm=1.0)
+    codec = create("mcb-rot", eps_cm=1.0, high_rate_segment_frames=0)  # segments of 128 frames at 120 fps
     header, payload = container.unpack(codec.encode(motion), "mcb-rot")
     body = bytes(payload[4:])  # after the marker, the version and the 2-byte varint of 256
 

@@ -537,12 +537,14 @@ class McbRotCodec(Codec):
 
     def _stream_info(self, header: Header, payload: memoryview) -> StreamInfo:
         """The parsed payload header, kept for the last stream seen: an engine sampling one clip at many times
-        parses the skeleton, budgets and segment means once (the payload is compared byte for byte)."""
+        parses the skeleton, budgets and segment means once (the container header and the payload are compared,
+        the payload byte for byte: the same payload under another frame or joint count must be checked against
+        it again, not decoded into outputs sized by the new header)."""
         cached = getattr(self, "_last_info", None)
-        if cached is not None and cached[0] == payload:
-            return cached[1]
+        if cached is not None and cached[0] == header and cached[1] == payload:
+            return cached[2]
         info = read_info(header, payload, self._prior)
-        self._last_info = (bytes(payload), info)
+        self._last_info = (header, bytes(payload), info)
         return info
 
     def decode_frames(self, data: bytes, start: int, stop: int, *, limits: DecodeLimits | None = None) -> Decoded:

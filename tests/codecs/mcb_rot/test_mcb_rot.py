@@ -317,3 +317,19 @@ def test_decoding_is_the_same_whatever_the_block_size_and_buffers_reused(synthet
     for start, stop in [(0, 240), (33, 97), (200, 201)]:
         np.testing.assert_array_equal(codec.decode_frames(data, start, stop).positions, first.positions[start:stop])
     assert metrics.max_joint_error(synthetic_motion.positions(), first.positions) <= 0.3
+
+
+def test_the_parsed_header_kept_between_calls_is_not_reused_under_another_container_header():
+    """decode_frames keeps the last payload's parsed header; the same payload under a container header with another
+    joint count (CRC restamped, as a fuzzer's header mutation) is checked again and refused, never decoded into
+    outputs sized by the new header (numba's forward kinematics writes without bounds checks: it corrupted the
+    heap)."""
+    codec = create("mcb-rot", eps_cm=1.0, step_rel=8.0)
+    data = codec.encode(sinusoidal_motion(num_frames=200, seed=3))
+    header, payload = container.unpack(data, "mcb-rot")
+    assert codec.decode_frames(data, 10, 20).positions.shape == (10, header.num_joints, 3)  # parsed and kept
+    for joints in (header.num_joints - 1, header.num_joints + 1):
+        edited = container.pack("mcb-rot", header.num_frames, joints, header.fps, bytes(payload))
+        with pytest.raises(BitstreamError):
+            codec.decode_frames(edited, 10, 20)
+    assert np.array_equal(codec.decode_frames(data, 10, 20).positions, codec.decode(data).positions[10:20])
