@@ -54,7 +54,8 @@ Where this departs from the paper, and why
   function (its output layer re-solved with the new units: no higher loss, to the ridge) and never jumps back
   up. For ``fourier-mlp-int`` it gives the same streams at a lower mean L∞ than Adam. The naive
   baseline is trained once with ``iterations_per_round · (K + 1)`` iterations, the budget the adaptive codec
-  spends to reach K. ``rank_tolerance > 0`` (opt-in, off by default) fits the hidden layers to the targets'
+  spends to reach K (its default: 50 + 50 per round, the second pass L∞-weighted), then its own L∞-weighted pass
+  (``reweight_passes``, below: one more ``iterations_per_round``). ``rank_tolerance > 0`` (opt-in, off by default) fits the hidden layers to the targets'
   leading principal components only (less arithmetic per step: the products over the outputs are most of it)
   and solves the output layer on all of them at the end; it is off because at a tight bound the left-out
   components are what is missing (README, "Timings", the ``rank_tolerance`` item, has both measurements).
