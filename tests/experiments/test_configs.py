@@ -39,6 +39,12 @@ def test_codec_yaml_composes_and_instantiates_the_registered_class(compose_bench
     fields = {f.name for f in dataclasses.fields(CODECS[name].Config)}
     listed = set(cfg.codec) - {"_target_", "_convert_", "name"}
     assert listed == fields, f"configs/codec/{name}.yaml should list every Config field with its default"
+    defaults = dataclasses.asdict(CODECS[name].Config())
+    for field in sorted(fields):
+        value = cfg.codec[field]
+        value = tuple(value) if isinstance(defaults[field], tuple) else value
+        # a sweep (which composes the yaml) must measure the codec a user gets from create(name) or the CLI
+        assert value == defaults[field], f"configs/codec/{name}.yaml: {field} is {value!r}, the default {defaults[field]!r}"
 
 
 @pytest.mark.parametrize("name", [n for n in CODEC_YAMLS if (CONFIGS / "sweep" / f"rd_{n}.yaml").exists()])
