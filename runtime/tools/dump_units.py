@@ -6,7 +6,9 @@ the sign and raw bits). Run with ``MOCAPBENCH_NATIVE=0`` (the native runtime dec
 
     PYTHONPATH=. MOCAPBENCH_NATIVE=0 python runtime/tools/dump_units.py OUT.bin STREAM.mcb...
 
-``OUT.bin``, one record per unit: u32 values n | u32 bytes | n u8 classes | n i32 values (little-endian).
+``OUT.bin``, one record per unit: u32 values n | u32 bytes | n u8 classes | n i32 values (little-endian); before
+each stream's units a mark u32 0xFFFFFFFF | u32 the stream's index (so that a reader can replay a clip's units in
+the order random access meets them).
 """
 
 from __future__ import annotations
@@ -41,9 +43,10 @@ def main(argv: list[str]) -> None:
 
     decoder.decode_unit = recording
     with open(out, "xb") as file:
-        for path in argv[1:]:
+        for index, path in enumerate(argv[1:]):
             units.clear()
             create("mcb-rot").decode(Path(path).read_bytes())
+            file.write(struct.pack("<II", 0xFFFFFFFF, index))
             for classes, values, size in units:
                 file.write(struct.pack("<II", len(classes), size) + classes.tobytes() + values.tobytes())
             print(f"{path}: {len(units)} units, {sum(len(u[0]) for u in units)} values", file=sys.stderr)
