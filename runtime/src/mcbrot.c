@@ -64,6 +64,7 @@ typedef struct ctx_t {
     uint32_t segment_frames, chunk_frames;
     int dc_tilt, count_tilt, gap_class, value_class;
     uint32_t num_overrides, num_turned, unit_values, max_length, max_chunk_segments, max_chunk_frames;
+                            /* num_turned: joints off their principal axes (after open: those not the identity) */
     uint32_t num_tracks;    /* translation tracks (flags bit 10) */
     uint32_t still;         /* 1: a still root kept apart (flags bit 12): the outputs have joints + 1 joints */
     double still_offset[3], still_position[3]; /* cm */
@@ -83,6 +84,7 @@ typedef struct ctx_t {
     double *base_step;      /* C: multiplier x the channel's relative step */
     double *correction_step; /* J + 1 */
     int32_t *turned;        /* J: index into axes, or -1 */
+    uint32_t *turned_joint; /* num_turned: the joint of each axes entry (num_turned: the joints turned) */
     double *axes;           /* T x 9, row-major, columns are the axes */
     override_t *overrides;  /* sorted by (segment, joint) */
     uint32_t *seg_start;    /* S + 1 */
@@ -98,6 +100,7 @@ typedef struct ctx_t {
     uint32_t *blocks;       /* max_chunk_segments x (C / LANES + 1): where each block of a segment starts in values */
     uint32_t *longest;      /* max_chunk_segments: the most coefficients of a channel in each segment of the chunk */
     uint16_t *rank;         /* C: a channel's place in `order` (while a chunk is decoded) */
+    uint16_t *value_at;     /* C: a channel's place in a frame's values (see FRAME_DOUBLES) */
     uint32_t *corr_flat;    /* the chunk's corrections as frame * (J + 1) + slot from its first frame: in `values`,
                              * after the coefficients (a correction's slot and its 3 values take the 4 values the
                              * header's largest unit counts for it) */
@@ -124,9 +127,9 @@ typedef struct ctx_t {
     uint32_t previous_plus_one; /* the last frame synthesised, plus one (0: none yet) */
     int avx2;               /* the CPU runs AVX2 and FMA */
     double *block_rows;     /* (n + 1) x FRAME_BLOCK: the block's basis rows, frequency by frequency */
-    double *block_signal;   /* FRAME_BLOCK x (C rounded up to LANES): the block's channel values */
-    double *scratch;        /* two poses (J x 4 rotations, 3 root, J x 3 steps) for linear sampling, C channel
-                             * values, a row of n basis values */
+    double *block_signal;   /* FRAME_BLOCK x FRAME_DOUBLES(J): the block's frames' values */
+    double *scratch;        /* two poses (J x 4 rotations, 3 root, J x 3 steps) for linear sampling, a frame's
+                             * values (FRAME_DOUBLES(J)), a row of n + 1 basis values */
     char message[MESSAGE_BYTES];
 } ctx_t;
 
@@ -1143,8 +1146,8 @@ static int unit_end(reader_t *r, unit_t *u, uint32_t count, const char *what) {
 /* layout of the context                                                                                       */
 
 typedef struct layout_t {
-    size_t parents, offsets, end_parents, base_step, correction_step, turned, axes, overrides, seg_start, chunk_first,
-        chunk_offset, class_table, dc, counts, values, order, blocks, longest, rank, cosines, block_rows, block_signal,
+    size_t parents, offsets, end_parents, base_step, correction_step, turned, turned_joint, axes, overrides, seg_start, chunk_first,
+        chunk_offset, class_table, dc, counts, values, order, blocks, longest, rank, value_at, cosines, block_rows, block_signal,
         bands, track_of, track_joint, track_step, track_base, track_reach, track_class, track_values, scratch,
         still_pose, scale_of, scale_joint, scale_step, scale_base, scale_peak, scale_class, scale_factor, scale_values,
         total;
@@ -1165,6 +1168,12 @@ static size_t place(size_t *at, size_t bytes) {
 /* Doubles of one pose in the scratch area: rotations (4 J), root (3), steps (3 J). */
 #define POSE_DOUBLES(J) (7 * (size_t)(J) + 3)
 
+/* A frame's channel values as the exponential maps read them: the root's three (and a zero), then the rotation
+ * vectors' x of every joint, their y, their z, each run padded with zeros to a multiple of four joints (AVX2 loads
+ * four joints' x, y and z as they are, without a transpose: JOINTS_PADDED). */
+#define JOINTS_PADDED(J) (((size_t)(J) + 3) & ~(size_t)3)
+#define FRAME_DOUBLES(J) (4 + 3 * JOINTS_PADDED(J))
+
 /* Sequential playback synthesises FRAME_BLOCK frames of a segment at once (the coefficients read once for all of
  * them), unless their tables would take a context that fits in MAX_CONTEXT bytes past it. */
 #define FRAME_BLOCK 4
@@ -1180,6 +1189,7 @@ static void layout_of(const header_t *h, uint32_t chunks, uint32_t max_chunk_seg
     l->base_step = place(&at, 8 * C);
     l->correction_step = place(&at, 8 * (J + 1));
     l->turned = place(&at, 4 * J);
+    l->turned_joint = place(&at, 4 * (size_t)h->num_turned);
     l->axes = place(&at, 72 * (size_t)h->num_turned);
     l->overrides = place(&at, sizeof(override_t) * (size_t)h->num_overrides);
     l->seg_start = place(&at, 4 * (S + 1));
@@ -1197,6 +1207,7 @@ static void layout_of(const header_t *h, uint32_t chunks, uint32_t max_chunk_seg
     l->blocks = place(&at, 4 * (size_t)max_chunk_segments * (B + 1));
     l->longest = place(&at, 4 * (size_t)max_chunk_segments);
     l->rank = place(&at, 2 * C);
+    l->value_at = place(&at, 2 * C);
     size_t slots = h->segments > 1 ? 2 : 1; /* one segment: one length */
     l->cosines = place(&at, slots * 8 * (2 * n + 1));
     l->bands = place(&at, slots * n);
@@ -1208,7 +1219,7 @@ static void layout_of(const header_t *h, uint32_t chunks, uint32_t max_chunk_seg
     l->track_reach = place(&at, 8 * T);
     l->track_class = place(&at, 3 * T);
     l->track_values = place(&at, 24 * T * (T ? max_chunk_frames : 0));
-    l->scratch = place(&at, 8 * (2 * POSE_DOUBLES(J) + 2 * C + LANES + n + 1));
+    l->scratch = place(&at, 8 * (2 * POSE_DOUBLES(J) + FRAME_DOUBLES(J) + n + 1));
     l->still_pose = place(&at, h->still ? 8 * POSE_DOUBLES(J + 1) : 0);
     size_t S3 = h->scales ? h->num_scales : 0, JS = S3 ? J : 0;
     l->scale_of = place(&at, 4 * JS);
@@ -1222,7 +1233,7 @@ static void layout_of(const header_t *h, uint32_t chunks, uint32_t max_chunk_seg
     /* the block tables, last: left out (frame_block 1) where they would take the context past MAX_CONTEXT */
     size_t without = (at + 15) & ~(size_t)15;
     l->block_rows = place(&at, 8 * FRAME_BLOCK * (n + 1));
-    l->block_signal = place(&at, 8 * FRAME_BLOCK * B * LANES);
+    l->block_signal = place(&at, 8 * FRAME_BLOCK * FRAME_DOUBLES(J));
     l->total = (at + 15) & ~(size_t)15;
     l->frame_block = FRAME_BLOCK;
     if (l->total > MAX_CONTEXT && without <= MAX_CONTEXT) {
@@ -1536,43 +1547,39 @@ static void exp_map_fast(double x, double y, double z, double *q) {
 }
 
 #if defined(MCBROT_AVX2)
-/* exp_map_fast of four joints at once (AVX2 + FMA: the same series, fused): q[4 j .. 4 j + 3] holds the rotation
- * vector (x y z) in, the quaternion out. Returns a mask of the joints past a half turn's series (left as they
- * were: exp_map_fast maps them). */
-static TARGET_AVX2 int exp_map_four(double *q) {
-    __m256d r0 = _mm256_loadu_pd(q), r1 = _mm256_loadu_pd(q + 4), r2 = _mm256_loadu_pd(q + 8),
-            r3 = _mm256_loadu_pd(q + 12);
-    /* transpose: X, Y, Z of the four joints */
-    __m256d t0 = _mm256_unpacklo_pd(r0, r1), t1 = _mm256_unpackhi_pd(r0, r1);
-    __m256d t2 = _mm256_unpacklo_pd(r2, r3), t3 = _mm256_unpackhi_pd(r2, r3);
-    __m256d X = _mm256_permute2f128_pd(t0, t2, 0x20), Y = _mm256_permute2f128_pd(t1, t3, 0x20);
-    __m256d Z = _mm256_permute2f128_pd(t0, t2, 0x31);
+/* exp_map_fast of four joints at once (AVX2 + FMA: the same series, fused), their rotation vectors' x, y and z in
+ * X, Y, Z; the quaternions (x y z w) out to q[0..16). Returns a mask of the joints past a half turn's series (their
+ * quaternions are not written: exp_map_fast maps them). */
+static TARGET_AVX2 ALWAYS_INLINE int exp_map_four(__m256d X, __m256d Y, __m256d Z, double *q) {
     __m256d squared = _mm256_fmadd_pd(Z, Z, _mm256_fmadd_pd(Y, Y, _mm256_mul_pd(X, X)));
     __m256d h2 = _mm256_mul_pd(_mm256_set1_pd(0.25), squared);
     int far = _mm256_movemask_pd(_mm256_cmp_pd(h2, _mm256_set1_pd(2.4674011002723395), _CMP_GT_OQ)) |
               _mm256_movemask_pd(_mm256_cmp_pd(h2, h2, _CMP_UNORD_Q));
-#define TERM(acc, k) acc = _mm256_fnmadd_pd(h2, acc, _mm256_set1_pd(k))
-    __m256d s = _mm256_set1_pd(1.0 / 51090942171709440000.0), c = _mm256_set1_pd(1.0 / 2432902008176640000.0);
-    TERM(s, 1.0 / 121645100408832000.0); TERM(c, 1.0 / 6402373705728000.0);
-    TERM(s, 1.0 / 355687428096000.0);    TERM(c, 1.0 / 20922789888000.0);
-    TERM(s, 1.0 / 1307674368000.0);      TERM(c, 1.0 / 87178291200.0);
-    TERM(s, 1.0 / 6227020800.0);         TERM(c, 1.0 / 479001600.0);
-    TERM(s, 1.0 / 39916800.0);           TERM(c, 1.0 / 3628800.0);
-    TERM(s, 1.0 / 362880.0);             TERM(c, 1.0 / 40320.0);
-    TERM(s, 1.0 / 5040.0);               TERM(c, 1.0 / 720.0);
-    TERM(s, 1.0 / 120.0);                TERM(c, 1.0 / 24.0);
-    TERM(s, 1.0 / 6.0);                  TERM(c, 0.5);
-    TERM(s, 1.0);                        TERM(c, 1.0);
-#undef TERM
+    /* the series in u = h2 by Estrin's scheme (pairs of terms, then pairs of pairs by u^2, u^4, u^8): a chain of
+     * five operations instead of Horner's eleven; sin h / h = sum (-u)^n / (2n + 1)!, cos h = sum (-u)^n / (2n)!,
+     * n = 0..10, the same sums up to float rounding) */
+    __m256d u = h2, u2 = _mm256_mul_pd(u, u), u4 = _mm256_mul_pd(u2, u2), u8 = _mm256_mul_pd(u4, u4);
+#define K(v) _mm256_set1_pd(v)
+#define PAIR(a, b) _mm256_fmadd_pd(K(b), u, K(a)) /* a + b u */
+    __m256d s = _mm256_fmadd_pd(_mm256_fmadd_pd(PAIR(1.0 / 6227020800.0, -1.0 / 1307674368000.0), u2,
+                                                PAIR(1.0 / 362880.0, -1.0 / 39916800.0)), u4,
+                                _mm256_fmadd_pd(PAIR(1.0 / 120.0, -1.0 / 5040.0), u2, PAIR(1.0, -1.0 / 6.0)));
+    s = _mm256_fmadd_pd(_mm256_fmadd_pd(K(1.0 / 51090942171709440000.0), u2,
+                                        PAIR(1.0 / 355687428096000.0, -1.0 / 121645100408832000.0)), u8, s);
+    __m256d c = _mm256_fmadd_pd(_mm256_fmadd_pd(PAIR(1.0 / 479001600.0, -1.0 / 87178291200.0), u2,
+                                                PAIR(1.0 / 40320.0, -1.0 / 3628800.0)), u4,
+                                _mm256_fmadd_pd(PAIR(1.0 / 24.0, -1.0 / 720.0), u2, PAIR(1.0, -0.5)));
+    c = _mm256_fmadd_pd(_mm256_fmadd_pd(K(1.0 / 2432902008176640000.0), u2,
+                                        PAIR(1.0 / 20922789888000.0, -1.0 / 6402373705728000.0)), u8, c);
+#undef PAIR
+#undef K
     __m256d scale = _mm256_mul_pd(_mm256_set1_pd(0.5), s);
     X = _mm256_mul_pd(X, scale);
     Y = _mm256_mul_pd(Y, scale);
     Z = _mm256_mul_pd(Z, scale);
-    /* transpose back: x y z w per joint */
-    t0 = _mm256_unpacklo_pd(X, Y);
-    t1 = _mm256_unpackhi_pd(X, Y);
-    t2 = _mm256_unpacklo_pd(Z, c);
-    t3 = _mm256_unpackhi_pd(Z, c);
+    /* transpose: x y z w per joint */
+    __m256d t0 = _mm256_unpacklo_pd(X, Y), t1 = _mm256_unpackhi_pd(X, Y);
+    __m256d t2 = _mm256_unpacklo_pd(Z, c), t3 = _mm256_unpackhi_pd(Z, c);
     __m256d o0 = _mm256_permute2f128_pd(t0, t2, 0x20), o1 = _mm256_permute2f128_pd(t1, t3, 0x20);
     __m256d o2 = _mm256_permute2f128_pd(t0, t2, 0x31), o3 = _mm256_permute2f128_pd(t1, t3, 0x31);
     if (!(far & 1)) _mm256_storeu_pd(q, o0);
@@ -1581,36 +1588,34 @@ static TARGET_AVX2 int exp_map_four(double *q) {
     if (!(far & 8)) _mm256_storeu_pd(q + 12, o3);
     return far;
 }
+
+/* exp_maps with AVX2: four joints at a time, read from the frame's runs of x, y and z as they lie (the last one to
+ * three joints through a padded copy of their quaternions: the runs are padded, the output is not). */
+static TARGET_AVX2 void exp_maps_avx2(const double *X, const double *Y, const double *Z, uint32_t J, double *q) {
+    for (uint32_t j = 0; j < J; j += 4) {
+        double tail[16];
+        double *out = j + 4 <= J ? q + 4 * j : tail;
+        int far = exp_map_four(_mm256_loadu_pd(X + j), _mm256_loadu_pd(Y + j), _mm256_loadu_pd(Z + j), out);
+        for (uint32_t k = 0; k < 4 && j + k < J; ++k)
+            if (far >> k & 1) exp_map_fast(X[j + k], Y[j + k], Z[j + k], out + 4 * k);
+        if (out == tail) memcpy(q + 4 * j, tail, 32 * (size_t)(J - j));
+    }
+}
 #endif
 
-/* Every joint's quaternion from its rotation vector: q[4 j .. 4 j + 2] holds the vector in (x y z), q[4 j ..
- * 4 j + 3] the quaternion out (exp_map_fast; four joints at a time with AVX2). */
-static void exp_maps(const ctx_t *x, double *q) {
-    uint32_t j = 0, J = x->joints;
+/* Every joint's quaternion (q, J x 4) from its rotation vector in a frame's values (`values`, FRAME_DOUBLES:
+ * exp_map_fast; four joints at a time with AVX2). */
+static void exp_maps(const ctx_t *x, const double *values, double *q) {
+    uint32_t J = x->joints;
+    size_t P = JOINTS_PADDED(J);
+    const double *X = values + 4, *Y = X + P, *Z = Y + P;
 #if defined(MCBROT_AVX2)
-    if (x->avx2)
-        for (; j + 4 <= J; j += 4) {
-            int far = exp_map_four(q + 4 * j);
-            for (int k = 0; k < 4; ++k)
-                if (far >> k & 1) {
-                    double *r = q + 4 * (j + k);
-                    exp_map_fast(r[0], r[1], r[2], r);
-                }
-        }
-    if (x->avx2 && j < J) { /* the last 1 to 3 joints through a copy padded to four */
-        double tail[16] = {0};
-        memcpy(tail, q + 4 * j, 32 * (size_t)(J - j));
-        int far = exp_map_four(tail);
-        for (uint32_t k = 0; k < J - j; ++k)
-            if (far >> k & 1) exp_map_fast(tail[4 * k], tail[4 * k + 1], tail[4 * k + 2], tail + 4 * k);
-        memcpy(q + 4 * j, tail, 32 * (size_t)(J - j));
+    if (x->avx2) {
+        exp_maps_avx2(X, Y, Z, J, q);
         return;
     }
 #endif
-    for (; j < J; ++j) {
-        double *r = q + 4 * j;
-        exp_map_fast(r[0], r[1], r[2], r);
-    }
+    for (uint32_t j = 0; j < J; ++j) exp_map_fast(X[j], Y[j], Z[j], q + 4 * j);
 }
 
 static void multiply(const double *a, const double *b, double *out) {
@@ -1660,6 +1665,7 @@ static int open_with(void *context, size_t context_bytes, container_t *given, co
     x->base_step = (double *)(base + l.base_step);
     x->correction_step = (double *)(base + l.correction_step);
     x->turned = (int32_t *)(base + l.turned);
+    x->turned_joint = (uint32_t *)(base + l.turned_joint);
     x->axes = (double *)(base + l.axes);
     x->overrides = (override_t *)(base + l.overrides);
     x->seg_start = (uint32_t *)(base + l.seg_start);
@@ -1673,6 +1679,9 @@ static int open_with(void *context, size_t context_bytes, container_t *given, co
     x->blocks = (uint32_t *)(base + l.blocks);
     x->longest = (uint32_t *)(base + l.longest);
     x->rank = (uint16_t *)(base + l.rank);
+    x->value_at = (uint16_t *)(base + l.value_at);
+    for (uint32_t ch = 0; ch < 3 + 3 * h.joints; ++ch) /* root x y z; joint j's x y z: 4 + j, 4 + Jp + j, 4 + 2 Jp + j */
+        x->value_at[ch] = (uint16_t)(ch < 3 ? ch : 4 + (ch - 3) % 3 * JOINTS_PADDED(h.joints) + (ch - 3) / 3);
     for (int slot = 0; slot < (h.segments > 1 ? 2 : 1); ++slot) {
         x->cosines_slot[slot] = (double *)(base + l.cosines) + (size_t)slot * (2 * h.max_length + 1);
         x->bands_slot[slot] = base + l.bands + (size_t)slot * h.max_length;
@@ -1821,8 +1830,10 @@ static int open_with(void *context, size_t context_bytes, container_t *given, co
             m[0] = 1 - 2 * (qy * qy + qz * qz); m[1] = 2 * (qx * qy - qz * qw); m[2] = 2 * (qx * qz + qy * qw);
             m[3] = 2 * (qx * qy + qz * qw); m[4] = 1 - 2 * (qx * qx + qz * qz); m[5] = 2 * (qy * qz - qx * qw);
             m[6] = 2 * (qx * qz - qy * qw); m[7] = 2 * (qy * qz + qx * qw); m[8] = 1 - 2 * (qx * qx + qy * qy);
+            x->turned_joint[t] = j;
             x->turned[j] = (int32_t)t++;
         }
+        x->num_turned = t;
     }
     /* classes */
     r.pos = h.classes_at;
@@ -2366,38 +2377,59 @@ static TARGET_AVX2 void basis_rows_avx2(const ctx_t *x, uint32_t n, uint32_t i, 
 }
 #endif
 
-/* Channel values (C, in channel order) from the AC sums of a segment's channels (in `order`): base step x (DC +
- * AC). */
-static void channel_signal(const ctx_t *x, uint32_t seg, const uint16_t *order, uint32_t n, const double *sums,
-                           double *signal) {
-    uint32_t C = x->channels;
-    double ac_scale = sqrt(2.0 / (double)n), dc_scale = 1.0 / sqrt((double)x->segment_frames);
-    const int64_t *dc = x->dc + (size_t)seg * C;
-    for (uint32_t c = 0; c < C; ++c) {
-        uint32_t ch = order[c];
-        signal[ch] = x->base_step[ch] * ((double)dc[ch] * dc_scale + ac_scale * sums[c]);
+/* A block's channels (order[0..lanes)) in `count` frames from their AC sums (sums[LANES f + lane]): base step x
+ * (DC + AC), each at its place in its frame's values (out + f stride + value_at). */
+static ALWAYS_INLINE void put_values(const ctx_t *x, const int64_t *dc, const uint16_t *order, uint32_t lanes, const double *sums,
+                       uint32_t count, double ac_scale, double dc_scale, double *out, size_t stride) {
+    for (uint32_t lane = 0; lane < lanes; ++lane) {
+        uint32_t ch = order[lane];
+        double step = x->base_step[ch], mean = (double)dc[ch] * dc_scale;
+        double *at = out + x->value_at[ch];
+        for (uint32_t f = 0; f < count; ++f) at[f * stride] = step * (mean + ac_scale * sums[LANES * f + lane]);
     }
 }
 
-/* The channel values (C) of frame f in segment `seg` of the cached chunk `chunk` (eq. of the inverse DCT: every
- * channel's sum at frame i, LANES channels at a time, their counts decreasing). Playback that moves one frame
- * forward or backward synthesises FRAME_BLOCK frames of the segment ahead at once, in the direction of play, and
- * keeps their values (block_signal): the values depend on the stream and the frame alone, so the block stays valid
- * whichever chunk is cached later. Any other access synthesises the frame alone. */
+/* The rest of `count` frames' values once every channel is put: the rotation vectors of the joints with principal
+ * axes turned back off them, zeros in the padding (the root's fourth value, the joints past J). */
+static ALWAYS_INLINE void finish_values(const ctx_t *x, uint32_t count, double *out, size_t stride) {
+    uint32_t J = x->joints;
+    size_t P = JOINTS_PADDED(J);
+    for (uint32_t f = 0; f < count; ++f) {
+        double *v = out + f * stride, *X = v + 4, *Y = X + P, *Z = Y + P;
+        v[3] = 0.0;
+        for (size_t j = J; j < P; ++j) X[j] = Y[j] = Z[j] = 0.0;
+        for (uint32_t t = 0; t < x->num_turned; ++t) {
+            uint32_t j = x->turned_joint[t];
+            const double *a = x->axes + 9 * (size_t)t;
+            double v0 = X[j], v1 = Y[j], v2 = Z[j];
+            X[j] = a[0] * v0 + a[1] * v1 + a[2] * v2;
+            Y[j] = a[3] * v0 + a[4] * v1 + a[5] * v2;
+            Z[j] = a[6] * v0 + a[7] * v1 + a[8] * v2;
+        }
+    }
+}
+
+/* The values (FRAME_DOUBLES) of frame f in segment `seg` of the cached chunk `chunk` (eq. of the inverse DCT: every
+ * channel's sum at frame i, LANES channels at a time, their counts decreasing, each block's sums put at once into
+ * the frame's values: the root, then the rotation vectors, turned off their principal axes). Playback that moves
+ * one frame forward or backward synthesises FRAME_BLOCK frames of the segment ahead at once, in the direction of
+ * play, and keeps their values (block_signal): the values depend on the stream and the frame alone, so the block
+ * stays valid whichever chunk is cached later. Any other access synthesises the frame alone. */
 static const double *channel_values(ctx_t *x, uint32_t seg, uint32_t chunk, uint32_t f) {
     uint32_t C = x->channels, J = x->joints, n = x->seg_start[seg + 1] - x->seg_start[seg];
     uint32_t i = f - x->seg_start[seg], had = x->previous_plus_one, previous = had - 1u;
     x->previous_plus_one = f + 1;
-    uint32_t B = (C + LANES - 1) / LANES, padded = B * LANES;
+    size_t stride = FRAME_DOUBLES(J);
     if (x->block_count && x->block_segment == seg && i - x->block_first < x->block_count)
-        return x->block_signal + (size_t)(i - x->block_first) * padded;
+        return x->block_signal + (size_t)(i - x->block_first) * stride;
     set_length(x, n);
-    uint32_t local = seg - x->chunk_first[chunk];
+    uint32_t B = (C + LANES - 1) / LANES, local = seg - x->chunk_first[chunk];
     const uint16_t *order = x->order + (size_t)local * B * LANES;
     const uint32_t *blocks = x->blocks + (size_t)local * (B + 1);
     uint32_t longest = x->longest[local];
-    double *signal = x->scratch + 2 * POSE_DOUBLES(J);
-    double *sums = signal + C;  /* C + LANES: the AC sums, channels in `order` */
+    double ac_scale = sqrt(2.0 / (double)n), dc_scale = 1.0 / sqrt((double)x->segment_frames);
+    const int64_t *dc = x->dc + (size_t)seg * C;
+    double sums[FRAME_BLOCK * LANES]; /* a block's sums, frame by frame */
     uint32_t first = i, count = 1;
     if (x->frame_block > 1 && had && previous + 1 == f) {
         count = n - i < FRAME_BLOCK ? n - i : FRAME_BLOCK;
@@ -2406,22 +2438,22 @@ static const double *channel_values(ctx_t *x, uint32_t seg, uint32_t chunk, uint
         count = i + 1 - first;
     }
     if (count == 1) {
-        double *row = sums + C + LANES; /* n + 1 */
+        double *signal = x->scratch + 2 * POSE_DOUBLES(J), *row = signal + stride; /* n + 1 */
 #if defined(MCBROT_AVX2)
         if (x->avx2) basis_row_avx2(x, n, i, longest, row);
         else
 #endif
             basis_row(x, n, i, longest, row, 1);
         for (uint32_t b = 0; b < B; ++b) {
+            uint32_t kmax = (blocks[b + 1] - blocks[b]) / LANES, lanes = C - LANES * b < LANES ? C - LANES * b : LANES;
 #if defined(MCBROT_AVX2)
-            if (x->avx2) {
-                synthesize_block_avx2(x->values + blocks[b], row, (blocks[b + 1] - blocks[b]) / LANES, sums + LANES * b);
-                continue;
-            }
+            if (x->avx2) synthesize_block_avx2(x->values + blocks[b], row, kmax, sums);
+            else
 #endif
-            synthesize_block(x->values + blocks[b], row, (blocks[b + 1] - blocks[b]) / LANES, sums + LANES * b);
+                synthesize_block(x->values + blocks[b], row, kmax, sums);
+            put_values(x, dc, order + LANES * b, lanes, sums, 1, ac_scale, dc_scale, signal, stride);
         }
-        channel_signal(x, seg, order, n, sums, signal);
+        finish_values(x, 1, signal, stride);
         return signal;
     }
     /* a block: frames past `count` are synthesised and dropped */
@@ -2432,24 +2464,19 @@ static const double *channel_values(ctx_t *x, uint32_t seg, uint32_t chunk, uint
 #endif
         basis_rows(x, n, first, longest, rows);
     for (uint32_t b = 0; b < B; ++b) {
+        uint32_t kmax = (blocks[b + 1] - blocks[b]) / LANES, lanes = C - LANES * b < LANES ? C - LANES * b : LANES;
 #if defined(MCBROT_AVX2)
-        if (x->avx2) {
-            synthesize_frames_avx2(x->values + blocks[b], rows, (blocks[b + 1] - blocks[b]) / LANES, out + LANES * b,
-                                   padded);
-            continue;
-        }
+        if (x->avx2) synthesize_frames_avx2(x->values + blocks[b], rows, kmax, sums, LANES);
+        else
 #endif
-        synthesize_frames(x->values + blocks[b], rows, (blocks[b + 1] - blocks[b]) / LANES, out + LANES * b, padded);
+            synthesize_frames(x->values + blocks[b], rows, kmax, sums, LANES);
+        put_values(x, dc, order + LANES * b, lanes, sums, FRAME_BLOCK, ac_scale, dc_scale, out, stride);
     }
-    for (uint32_t k = 0; k < count; ++k) { /* sums (in `order`) -> values (channel order), through `signal` */
-        double *frame = out + (size_t)k * padded;
-        channel_signal(x, seg, order, n, frame, signal);
-        memcpy(frame, signal, 8 * (size_t)C);
-    }
+    finish_values(x, FRAME_BLOCK, out, stride); /* every frame of the block (a constant count: unrolled) */
     x->block_segment = seg;
     x->block_first = first;
     x->block_count = count;
-    return out + (size_t)(i - first) * padded;
+    return out + (size_t)(i - first) * stride;
 }
 
 /* The pose of frame f: rotations (J x 4), root (3); with `steps` (J x 3, row 0 untouched) every other joint's
@@ -2460,25 +2487,11 @@ static int decode_frame(ctx_t *x, uint32_t f, double *rotations, double *root, d
     int s = load_chunk(x, chunk);
     if (s) return s;
     uint32_t J = x->joints;
-    const double *signal = channel_values(x, seg, chunk, f);
-    root[0] = signal[0];
-    root[1] = signal[1];
-    root[2] = signal[2];
-    for (uint32_t j = 0; j < J; ++j) {
-        const double *v = signal + 3 + 3 * j;
-        double rx = v[0], ry = v[1], rz = v[2];
-        if (x->turned[j] >= 0) {
-            const double *a = x->axes + 9 * (size_t)x->turned[j];
-            rx = a[0] * v[0] + a[1] * v[1] + a[2] * v[2];
-            ry = a[3] * v[0] + a[4] * v[1] + a[5] * v[2];
-            rz = a[6] * v[0] + a[7] * v[1] + a[8] * v[2];
-        }
-        double *q = rotations + 4 * j;
-        q[0] = rx;
-        q[1] = ry;
-        q[2] = rz;
-    }
-    exp_maps(x, rotations);
+    const double *values = channel_values(x, seg, chunk, f);
+    root[0] = values[0];
+    root[1] = values[1];
+    root[2] = values[2];
+    exp_maps(x, values, rotations);
     /* re-references of this segment (sorted: binary search for its first) */
     if (x->num_overrides) {
         uint32_t low = 0, high = x->num_overrides;
