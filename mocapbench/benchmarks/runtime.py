@@ -2,15 +2,26 @@
 
 One C++ harness (``runtime/bench/bench_vs_acl.cpp``) links ACL 2.1 (header-only, ``../shared/third_party``) and the
 runtime (``runtime/src/mcbrot.c``), both compiled here with the same compiler and flags (``-O2``, ACL's SSE4.1
-minimum on x86-64); it samples every clip one pose at a time through each library's native API (ACL:
-``decompression_context::seek`` + ``decompress_tracks``; mcb-rot: ``mcbrot_sample``, both nearest frame), in forward
-playback, backward playback and random access, each with a warm and a cold cache, and reports microseconds of thread
-CPU time per pose, the resident bytes (stream plus context) and the time to open a clip. The streams are made here
-from the clips: mcb-rot at each ε (``eps_cm``), ACL with ``precision_cm = ε`` (its other settings the codec's
-defaults); both decoded by Python once for their L∞ error (cm, max over joints and frames) and their ratio.
+minimum on x86-64); it samples every clip one whole pose at a time through each library's native API, both nearest
+frame: ACL's ``decompression_context::seek`` + ``decompress_tracks`` writes every joint's rotation and translation,
+and so does mcb-rot's ``mcbrot_sample_pose`` (rotations J x 4, translations J x 3: a game rig's translation tracks,
+the skeleton offsets elsewhere), in forward playback, backward playback and random access, each with a warm and a
+cold cache, and reports microseconds of thread CPU time per pose, the resident bytes (stream plus context) and the
+time to open a clip. The streams are made here from the clips: mcb-rot at each ε (``eps_cm``), ACL with
+``precision_cm = ε`` (its other settings the codec's defaults); both decoded by Python once for their L∞ error (cm,
+max over joints and frames) and their ratio. Each case ends with a check that both harness decoders give the pose
+Python decodes (one frame of every clip) and that ACL's translations are the clip's within ε.
 
     python -m mocapbench.benchmarks.runtime [--dataset cmu_test] [--eps 0.1 0.5 1] [--every 1 5] [--repeats 3]
-        [--set KEY=VALUE]
+        [--runs 1] [--sample] [--set KEY=VALUE] [--keep DIR]
+
+``--dataset`` is a CMU split (``cmu_test``, ..., 120 fps: ``--every 1 5`` gives 120 and 24 fps) or a Bandai Namco
+one (``bandai_test``, ``bandai_train``, ``bandai_all``: a 22-joint game rig at its native 30 fps, ``--every 1``
+by default). ``--runs N`` runs the harness N times on the same streams and takes each clip's median over the runs
+(each run itself the median of ``--repeats``). ``--sample`` also times ``mcbrot_sample`` (rotations and the root
+only, what the harness timed before it took whole poses) on the same contexts: the cost of the joints' translations.
+A clip that mcb-rot's encoder or a native decoder refuses is named in one line and left out of both decoders'
+figures (the exit status is then 1).
 
 ``--set`` sets an ``mcb-rot`` config field (e.g. ``--set segment_frames=64 --set chunk_frames=64``: shorter random
 access units), so that the speed of a setting is measured beside its bytes.
@@ -34,12 +45,16 @@ import numpy as np
 
 from mocapbench import metrics
 
-__all__ = ["main", "build_harness"]
+__all__ = ["main", "build_harness", "harness_poses", "HarnessError"]
 
 _RUNTIME = Path(__file__).resolve().parents[2] / "runtime"
 _HARNESS = _RUNTIME / "bench" / "bench_vs_acl.cpp"
 _FLAGS = ["-O2", "-DNDEBUG"] + (["-msse4.1"] if os.uname().machine in ("x86_64", "amd64") else [])
 _MODES = ("fwd_warm", "fwd_cold", "bwd_warm", "bwd_cold", "rnd_warm", "rnd_cold")
+
+
+class HarnessError(RuntimeError):
+    """The harness refused its manifest or its arguments (exit status 2); the message is its one line."""
 
 
 def build_harness() -> Path:
@@ -70,8 +85,11 @@ def build_harness() -> Path:
     return program
 
 
-def _streams(motions, eps: float, folder: Path, tag: str, settings: dict) -> tuple[list[str], dict]:
-    """Write each clip's mcb-rot stream and ACL buffer; manifest lines and the pooled ratios and errors."""
+def _streams(motions, eps: float, folder: Path, tag: str, settings: dict, frame: int = 0):
+    """Write each clip's mcb-rot stream and ACL buffer: the manifest lines, the pooled ratios and errors, each written
+    clip's pose at ``frame`` as each decoder's Python decode gives it (rotations (J, 4), translations (J, 3), the
+    source's beside them, by manifest stream path) and one line per clip that mcb-rot's encoder or decoder refused
+    (that clip is left out of both decoders' figures)."""
     from mocapbench.codecs import create
     from mocapbench.codecs.acl.codec import AclCodec  # noqa: F401 (the registry's ACL must be available)
     from mocapbench.entropy.bitio import ByteReader
@@ -79,16 +97,24 @@ def _streams(motions, eps: float, folder: Path, tag: str, settings: dict) -> tup
     from mocapbench.codecs.skeleton_blob import unpack_skeleton
 
     lines, raw, sizes, errors = [], 0, {"mcb-rot": 0, "acl": 0}, {"mcb-rot": 0.0, "acl": 0.0}
+    poses, refused = {}, []
     for index, motion in enumerate(motions):
-        raw += 12 * motion.num_frames * motion.num_joints
-        streams = {}
+        streams, decoded, pose_frame = {}, {}, min(frame, motion.num_frames - 1)
         for name, codec in (("mcb-rot", create("mcb-rot", **settings, eps_cm=eps)),
                             ("acl", create("acl", precision_cm=eps))):
-            data = codec.encode(motion)
-            streams[name] = data
+            try:
+                streams[name] = codec.encode(motion)
+                decoded[name] = create(name).decode(streams[name])
+            except Exception as error:  # a finding to report with the clip's name, not a reason to stop the table
+                refused.append(f"{name} refused clip {index} ({motion.name or 'unnamed'}, {motion.num_frames} frames)"
+                               f": {type(error).__name__}: {' '.join(str(error).split())}")
+                break
+        if len(decoded) < 2:
+            continue
+        raw += 12 * motion.num_frames * motion.num_joints
+        for name, data in streams.items():
             sizes[name] += len(data)
-            decoded = create(name).decode(data)
-            errors[name] = max(errors[name], metrics.max_joint_error(motion.positions(), decoded.positions))
+            errors[name] = max(errors[name], metrics.max_joint_error(motion.positions(), decoded[name].positions))
         mcb = folder / f"{tag}-{index:02d}.mcb"
         mcb.write_bytes(streams["mcb-rot"])
         _, payload = container.unpack(streams["acl"], "acl")
@@ -97,21 +123,89 @@ def _streams(motions, eps: float, folder: Path, tag: str, settings: dict) -> tup
         acl = folder / f"{tag}-{index:02d}.acl"
         acl.write_bytes(bytes(reader.read_blob("ACL buffer")))
         lines.append(f"{mcb} {acl}")
-    pooled = {name: {"ratio": raw / sizes[name], "bytes": sizes[name], "linf_cm": errors[name]} for name in sizes}
-    return lines, pooled
+        poses[str(mcb)] = {name: (d.motion.rotations[pose_frame], d.motion.local_translations()[pose_frame])
+                           for name, d in decoded.items()}
+        poses[str(mcb)]["source"] = (motion.rotations[pose_frame], motion.local_translations()[pose_frame])
+    pooled = {name: {"ratio": raw / max(sizes[name], 1), "bytes": sizes[name], "linf_cm": errors[name]}
+              for name in sizes}
+    return lines, pooled, poses, refused
 
 
-def _run(program: Path, lines: list[str], manifest: Path, repeats: int) -> list[dict]:
+def _harness(program: Path, manifest: Path, *options: str) -> subprocess.CompletedProcess:
+    """Run the harness; its refusal of the manifest or its arguments (exit 2) is a :class:`HarnessError`."""
+    result = subprocess.run([str(program), str(manifest), *options], capture_output=True, text=True)
+    if result.returncode == 2 or (result.returncode != 0 and not result.stdout.strip()):
+        lines = result.stderr.strip().splitlines() or [f"exit status {result.returncode}"]
+        raise HarnessError(f"{program.name}: {lines[0]}")
+    return result
+
+
+def _run(program: Path, lines: list[str], manifest: Path, repeats: int, *, runs: int = 1, sample: bool = False,
+         failures: list[str] | None = None) -> list[dict]:
+    """The harness's rows, one per clip and decoder (``mcb-rot``, ``acl``, with ``sample`` ``mcb-rot-sample``):
+    over ``runs`` runs each figure is the clip's median. A clip a native decoder refused is one line of the harness's
+    stderr, appended to ``failures``; the other clips' rows come back."""
     manifest.write_text("\n".join(lines) + "\n")
-    result = subprocess.run([str(program), str(manifest), str(repeats)], capture_output=True, text=True, check=True)
-    rows = []
+    per_run = []
+    for _ in range(runs):
+        result = _harness(program, manifest, str(repeats), *(["--sample"] if sample else []))
+        if failures is not None and result.returncode != 0:
+            failures.extend(line for line in result.stderr.splitlines() if line.strip())
+        rows = []
+        for line in result.stdout.splitlines():
+            fields = line.split()
+            row = {"decoder": fields[0], "clip": fields[1], "frames": int(fields[2]), "joints": int(fields[3]),
+                   "stream_bytes": int(fields[4]), "resident_bytes": int(fields[5]), "open_us": float(fields[6])}
+            row.update({mode: float(value) for mode, value in zip(_MODES, fields[7:13])})
+            rows.append(row)
+        per_run.append(rows)
+    rows = per_run[0]
+    for row in rows:
+        same = [other for rows_of_run in per_run for other in rows_of_run
+                if (other["decoder"], other["clip"]) == (row["decoder"], row["clip"])]
+        for key in ("open_us", *_MODES):
+            row[key] = statistics.median(other[key] for other in same)
+    return rows
+
+
+def harness_poses(program: Path, manifest: Path, frame: int) -> dict:
+    """Each clip's pose at ``frame`` (clamped to the clip) as the harness's two decoders give it: ``{(decoder,
+    stream path): (rotations (J, 4) x, y, z, w, translations (J, 3) cm)}`` (``mcb-rot``: ``mcbrot_sample_pose``;
+    ``acl``: ``decompress_tracks``, float32 widened)."""
+    result = _harness(program, manifest, "--pose", str(frame))
+    if result.returncode != 0:
+        raise HarnessError(f"{program.name}: {result.stderr.strip().splitlines()[0]}")
+    joints: dict = {}
     for line in result.stdout.splitlines():
         fields = line.split()
-        row = {"decoder": fields[0], "clip": fields[1], "frames": int(fields[2]), "joints": int(fields[3]),
-               "stream_bytes": int(fields[4]), "resident_bytes": int(fields[5]), "open_us": float(fields[6])}
-        row.update({mode: float(value) for mode, value in zip(_MODES, fields[7:13])})
-        rows.append(row)
-    return rows
+        joints.setdefault((fields[1], fields[2]), []).append([float(value) for value in fields[5:12]])
+    return {key: (np.array(rows)[:, :4], np.array(rows)[:, 4:]) for key, rows in joints.items()}
+
+
+def _rotation_gap(a: np.ndarray, b: np.ndarray) -> float:
+    """Largest difference between two sets of unit quaternions (J, 4), q and -q being one rotation."""
+    return float(np.minimum(np.abs(a - b).max(axis=1), np.abs(a + b).max(axis=1)).max())
+
+
+def _pose_check(program: Path, manifest: Path, frame: int, poses: dict, eps: float) -> str:
+    """One line: how far the harness's poses are from Python's decodes, and ACL's translations from the clip's."""
+    from mocapbench.codecs.mcb_rot import native
+
+    native_pose = harness_poses(program, manifest, frame)
+    gaps = {"mcb-rot": [0.0, 0.0], "acl": [0.0, 0.0]}
+    from_source = {"mcb-rot": 0.0, "acl": 0.0}
+    for clip, python in poses.items():
+        for decoder, gap in gaps.items():
+            rotations, translations = native_pose[(decoder, clip)]
+            gap[0] = max(gap[0], _rotation_gap(rotations, python[decoder][0]))
+            gap[1] = max(gap[1], float(np.abs(translations - python[decoder][1]).max()))
+            from_source[decoder] = max(from_source[decoder], float(np.abs(translations - python["source"][1]).max()))
+    path = "numpy" if native.library() is None else "the runtime through ctypes"
+    return (f"(pose check, frame {frame} of every clip: harness mcb-rot (mcbrot_sample_pose) vs Python's mcb-rot "
+            f"decode ({path}): |Δq| ≤ {gaps['mcb-rot'][0]:.1e}, |Δt| ≤ {gaps['mcb-rot'][1]:.1e} cm; harness ACL vs "
+            f"Python's ACL decode: |Δq| ≤ {gaps['acl'][0]:.1e}, |Δt| ≤ {gaps['acl'][1]:.1e} cm; every joint's "
+            f"translation from the clip's: mcb-rot ≤ {from_source['mcb-rot']:.3f} cm, ACL ≤ {from_source['acl']:.3f} "
+            f"cm at ε = {eps:g})")
 
 
 def _table(rows: list[dict], pooled: dict, label: str) -> None:
@@ -131,22 +225,42 @@ def _table(rows: list[dict], pooled: dict, label: str) -> None:
               f"{statistics.median(row['open_us'] for row in mine):.1f} |")
     print("| mcb-rot / acl | " + f"{pooled['mcb-rot']['ratio'] / pooled['acl']['ratio']:.2f} | | | "
           + " | ".join(f"{medians['mcb-rot'][mode] / medians['acl'][mode]:.2f}" for mode in _MODES) + " | | | |")
+    sampled = {row["clip"]: row for row in rows if row["decoder"] == "mcb-rot-sample"}
+    if sampled:
+        whole = {row["clip"]: row for row in rows if row["decoder"] == "mcb-rot"}
+        print("| mcb-rot, mcbrot_sample (rotations + root) | | | | "
+              + " | ".join(f"{statistics.median(row[mode] for row in sampled.values()):.3f}" for mode in _MODES)
+              + " | | | |")
+        print("| sample_pose − sample, µs (median over clips) | | | | "
+              + " | ".join(f"{statistics.median(whole[clip][mode] - row[mode] for clip, row in sampled.items()):+.3f}"
+                           for mode in _MODES) + " | | | |")
 
 
-def main(argv: list[str] | None = None) -> None:
+def _label(dataset: str, native_fps: float, step: int, eps: float) -> str:
+    rate = (f"{native_fps / step:g} fps (every {step}th frame of its {native_fps:g} fps)" if step > 1
+            else f"{native_fps:g} fps (its native rate, every frame)")
+    return f"{dataset} at {rate}, ε = {eps:g} cm"
+
+
+def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--dataset", default="cmu_test")
+    parser.add_argument("--dataset", default="cmu_test", help="a CMU split (cmu_test, ...) or a Bandai Namco one "
+                        "(bandai_test, bandai_train, bandai_all)")
     parser.add_argument("--data-dir", default=None)
     parser.add_argument("--eps", type=float, nargs="+", default=[0.1, 0.5, 1.0])
-    parser.add_argument("--every", type=int, nargs="+", default=[1, 5], help="frame steps (1: 120 fps, 5: 24 fps)")
+    parser.add_argument("--every", type=int, nargs="+", default=None,
+                        help="frame steps (CMU default 1 5: 120 and 24 fps; Bandai Namco default 1: 30 fps)")
     parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--runs", type=int, default=1, help="harness runs on the same streams (median per clip)")
+    parser.add_argument("--sample", action="store_true",
+                        help="also time mcbrot_sample (rotations and root only) beside mcbrot_sample_pose")
     parser.add_argument("--keep", default=None, help="folder to keep the streams and manifests in (else a temporary "
                         "one): rerun the harness on them with `<harness> <folder>/<case>.txt REPEATS`")
     parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                         help="an mcb-rot config field (Python literal), e.g. --set segment_frames=64")
     args = parser.parse_args(argv)
+    from mocapbench.benchmarks.mcb_rot.rd import _load
     from mocapbench.cli.arguments import CliError, parse_settings
-    from mocapbench.datasets.cmu import load_split
 
     from mocapbench.codecs import create
 
@@ -154,29 +268,50 @@ def main(argv: list[str] | None = None) -> None:
         settings = parse_settings(args.set)
         if "eps_cm" in settings:
             raise CliError("--set eps_cm: give the bounds with --eps")
+        if min(args.every or [1]) < 1 or args.repeats < 1 or args.runs < 1:
+            raise CliError("--every, --repeats and --runs take positive integers")
         create("mcb-rot", **settings)  # a field or value it refuses is one line here, not a traceback later
     except (CliError, TypeError, ValueError) as error:
         parser.error(str(error))
 
     program = build_harness()
-    motions = load_split(args.dataset, data_dir=args.data_dir)
-    print(f"# the mcb-rot runtime beside ACL 2.1 on {args.dataset} ({len(motions)} clips; load average "
-          f"{os.getloadavg()[0]:.1f}; flags {' '.join(_FLAGS)}; mcb-rot {settings or 'defaults'})")
+    motions = _load(args.dataset, args.data_dir)
+    steps = args.every or ([1] if args.dataset.startswith("bandai_") else [1, 5])
+    print(f"# the mcb-rot runtime beside ACL 2.1 on {args.dataset} ({len(motions)} clips, {motions[0].num_joints} "
+          f"joints; load average {os.getloadavg()[0]:.1f}; flags {' '.join(_FLAGS)}; mcb-rot {settings or 'defaults'}; "
+          f"whole poses: mcbrot_sample_pose beside ACL's decompress_tracks)")
+    refused_any = False
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(args.keep or tmp)
         folder.mkdir(parents=True, exist_ok=True)
-        print(f"(harness: {program})")
-        for step in args.every:
+        print(f"(harness: {program}; {args.runs} run(s) of {args.repeats} repeats per clip and mode)")
+        for step in steps:
             clips = [m.every(step) for m in motions] if step > 1 else motions
-            fps = clips[0].fps
+            frame = min(clip.num_frames for clip in clips) // 2
             for eps in args.eps:
                 wall, cpu = time.perf_counter(), time.process_time()
-                lines, pooled = _streams(clips, eps, folder, f"e{step}-{eps:g}", settings)
-                rows = _run(program, lines, folder / f"e{step}-{eps:g}.txt", args.repeats)
-                _table(rows, pooled, f"{args.dataset} at {fps:g} fps, ε = {eps:g} cm")
+                case = f"e{step}-{eps:g}"
+                lines, pooled, poses, refused = _streams(clips, eps, folder, case, settings, frame)
+                label = _label(args.dataset, motions[0].fps, step, eps)
+                for line in refused:
+                    print(f"({label}: {line})")
+                refused_any |= bool(refused)
+                if not lines:
+                    continue
+                failures: list[str] = []
+                rows = _run(program, lines, folder / f"{case}.txt", args.repeats, runs=args.runs,
+                            sample=args.sample, failures=failures)
+                _table(rows, pooled, label)
+                for line in dict.fromkeys(failures):  # a clip refused in every run: named once
+                    print(f"({label}: the harness refused {line})")
+                refused_any |= bool(failures)
+                print(_pose_check(program, folder / f"{case}.txt", frame, poses, eps))
                 print(f"({time.perf_counter() - wall:.0f} s wall, {time.process_time() - cpu:.0f} s CPU of this "
                       f"process beside the harness; load average {os.getloadavg()[0]:.1f})")
+    return 1 if refused_any else 0
 
 
 if __name__ == "__main__":
-    main()
+    from mocapbench.benchmarks.entry import run_script
+
+    raise SystemExit(run_script(main))

@@ -1,20 +1,28 @@
-// The runtime beside ACL 2.1, measured the way ACL's decompression benchmark measures itself: one pose per call
-// (every joint's local rotation and translation), forward playback, backward playback and random access, each
-// with a warm cache (the clip and the context stay in the CPU caches) and a cold one (a buffer larger than the
-// last-level cache is written before a timed pose, outside the timing; 48 poses spread over each clip's order are
-// timed so, the others played untimed). Thread CPU time, one core.
+// The runtime beside ACL 2.1, measured the way ACL's decompression benchmark measures itself: one whole pose per
+// call (every joint's local rotation and translation, as ACL's decompress_tracks writes them; mcb-rot:
+// mcbrot_sample_pose), forward playback, backward playback and random access, each with a warm cache (the clip and the
+// context stay in the CPU caches) and a cold one (a buffer larger than the last-level cache is written before a
+// timed pose, outside the timing; 48 poses spread over each clip's order are timed so, the others played untimed).
+// Thread CPU time, one core.
 //
-//   bench_vs_acl MANIFEST [REPEATS]
+//   bench_vs_acl MANIFEST [REPEATS] [--sample] [--pose FRAME]
 //
 // MANIFEST: one clip per line, "mcb_stream_path acl_buffer_path" (the .mcb stream of mcb-rot and ACL's
-// compressed_tracks buffer of the same clip). Prints one line per clip and decoder:
+// compressed_tracks buffer of the same clip); blank lines are skipped. Prints one line per clip and decoder:
 //   decoder clip frames joints stream_bytes resident_bytes open_us fwd_warm fwd_cold bwd_warm bwd_cold rnd_warm
 //   rnd_cold   (the last six in microseconds per pose, medians over REPEATS runs)
 // resident_bytes: what the decoder keeps while it samples: the stream (mcb-rot: the whole .mcb; ACL: its buffer)
 // plus the context (mcb-rot: mcbrot_context_size; ACL: sizeof its decompression_context).
+// --sample: one more line per clip, decoder "mcb-rot-sample", timing mcbrot_sample (rotations and the root's
+// translation only, no joint translations) on the same context: what the whole pose costs beside it.
+// --pose FRAME: no timing; each clip's pose at FRAME (nearest, clamped to the clip), both decoders, one line per
+// joint: "pose decoder clip frame joint qx qy qz qw tx ty tz" (%.17g; ACL's float32 values widened).
+// A manifest line that is not two readable files, or a stream a decoder refuses, is one line on stderr naming the
+// manifest line or the file; the exit status is then 2 (a bad manifest: nothing is timed) or 1 (a clip refused: ACL
+// is not timed on it either, the other clips still run).
 //
-// Built by mocapbench/benchmarks/runtime.py (g++ -O2, ACL's SSE4.1 minimum, the runtime compiled as C++ with the
-// same flags); standard library, ACL and rtm (header-only) only.
+// Built by mocapbench/benchmarks/runtime.py (g++ -O2, ACL's SSE4.1 minimum, the runtime compiled as C with the same
+// flags); standard library, ACL and rtm (header-only) only.
 
 #include <acl/core/ansi_allocator.h>
 #include <acl/core/compressed_tracks.h>
@@ -161,7 +169,34 @@ namespace
 		std::fflush(stdout);
 	}
 
-	int bench_mcbrot(const char* path, int repeats)
+	struct options
+	{
+		int repeats = 3;
+		bool sample = false;  // also time mcbrot_sample (rotations and root only): "mcb-rot-sample"
+		long pose = -1;       // >= 0: print the pose at this frame instead of timing
+	};
+
+	// One line per joint: the pose a decoder gave at `frame` (rotations x, y, z, w; translations cm).
+	template<class Real>
+	void print_pose(const char* decoder, const char* clip, uint32_t frame, uint32_t joints, const Real* rotations,
+		const Real* translations)
+	{
+		for (uint32_t j = 0; j < joints; ++j)
+		{
+			const Real* q = rotations + 4 * size_t(j);
+			const Real* t = translations + 3 * size_t(j);
+			std::printf("pose %s %s %u %u %.17g %.17g %.17g %.17g %.17g %.17g %.17g\n", decoder, clip, frame, j,
+				double(q[0]), double(q[1]), double(q[2]), double(q[3]), double(t[0]), double(t[1]), double(t[2]));
+		}
+		std::fflush(stdout);
+	}
+
+	uint32_t pose_frame(const options& opts, uint32_t frames)
+	{
+		return uint32_t(std::min<long>(opts.pose, long(frames) - 1));
+	}
+
+	int bench_mcbrot(const char* path, const options& opts)
 	{
 		std::vector<uint8_t> stream = read_file(path);
 		size_t size = 0;
@@ -173,7 +208,7 @@ namespace
 		}
 		void* context = std::aligned_alloc(16, (size + 15) & ~size_t(15));
 		std::vector<double> opens;
-		for (int r = 0; r < std::max(repeats, 5); ++r)
+		for (int r = 0; r < std::max(opts.repeats, 5); ++r)
 		{
 			const double start = thread_seconds();
 			const int status = mcbrot_open(context, size, stream.data(), stream.size());
@@ -187,42 +222,72 @@ namespace
 		}
 		mcbrot_clip_info info;
 		mcbrot_info(context, &info);
-		std::vector<double> rotations(4 * size_t(info.num_joints));
-		double root[3];
+		// The whole local pose, as ACL's writer gets it: every joint's rotation and translation.
+		std::vector<double> rotations(4 * size_t(info.num_joints)), translations(3 * size_t(info.num_joints));
+		const uint32_t first = opts.pose >= 0 ? pose_frame(opts, info.num_frames) : 0;
+		if (mcbrot_sample_pose(context, double(first) / info.fps, MCBROT_NEAREST, rotations.data(),
+			translations.data()) != MCBROT_OK)
+		{
+			std::fprintf(stderr, "%s: %s\n", path, mcbrot_message(context));
+			std::free(context);
+			return 1;
+		}
+		if (opts.pose >= 0)
+		{
+			print_pose("mcb-rot", path, first, info.num_joints, rotations.data(), translations.data());
+			std::free(context);
+			return 0;
+		}
 		double checksum = 0.0;
-		auto sample = [&](uint32_t frame) {
-			mcbrot_sample(context, double(frame) / info.fps, MCBROT_NEAREST, rotations.data(), root);
-			checksum += rotations[0];
+		auto sample_pose = [&](uint32_t frame) {
+			mcbrot_sample_pose(context, double(frame) / info.fps, MCBROT_NEAREST, rotations.data(),
+				translations.data());
+			checksum += rotations[0] + translations[0];
 		};
 		double modes[6];
 		for (int mode = 0; mode < 3; ++mode)
 			for (int cold = 0; cold < 2; ++cold)
-				modes[2 * mode + cold] = time_mode(sample, info.num_frames, mode, cold != 0, repeats);
+				modes[2 * mode + cold] = time_mode(sample_pose, info.num_frames, mode, cold != 0, opts.repeats);
 		report("mcb-rot", path, info.num_frames, info.num_joints, stream.size(), stream.size() + size, median(opens),
 			modes);
+		if (opts.sample)
+		{
+			double root[3];
+			auto sample = [&](uint32_t frame) {
+				mcbrot_sample(context, double(frame) / info.fps, MCBROT_NEAREST, rotations.data(), root);
+				checksum += rotations[0] + root[0];
+			};
+			for (int mode = 0; mode < 3; ++mode)
+				for (int cold = 0; cold < 2; ++cold)
+					modes[2 * mode + cold] = time_mode(sample, info.num_frames, mode, cold != 0, opts.repeats);
+			report("mcb-rot-sample", path, info.num_frames, info.num_joints, stream.size(), stream.size() + size,
+				median(opens), modes);
+		}
 		std::free(context);
 		return checksum == checksum ? 0 : 1;
 	}
 
-	int bench_acl(const char* path, const char* clip, int repeats)
+	int bench_acl(const char* path, const char* clip, const options& opts)
 	{
 		std::vector<uint8_t> file = read_file(path);
 		if (file.size() < 64)
 		{
-			std::fprintf(stderr, "%s: not an ACL buffer\n", path);
+			std::fprintf(stderr, "%s: not an ACL buffer (%zu bytes)\n", path, file.size());
 			return 1;
 		}
 		void* memory = std::aligned_alloc(16, (file.size() + 15) & ~size_t(15));
 		std::memcpy(memory, file.data(), file.size());
 		const acl::compressed_tracks* tracks = static_cast<const acl::compressed_tracks*>(memory);
-		if (tracks->is_valid(true).any())
+		const acl::error_result invalid = tracks->is_valid(true);
+		if (invalid.any())
 		{
-			std::fprintf(stderr, "%s: invalid ACL buffer\n", path);
+			std::fprintf(stderr, "%s: invalid ACL buffer (%s)\n", path, invalid.c_str());
+			std::free(memory);
 			return 1;
 		}
 		acl::decompression_context<acl::default_transform_decompression_settings> context;
 		std::vector<double> opens;
-		for (int r = 0; r < std::max(repeats, 5); ++r)
+		for (int r = 0; r < std::max(opts.repeats, 5); ++r)
 		{
 			const double start = thread_seconds();
 			context.initialize(*tracks);
@@ -238,39 +303,145 @@ namespace
 		auto sample = [&](uint32_t frame) {
 			context.seek(float(frame) / rate, acl::sample_rounding_policy::nearest);
 			context.decompress_tracks(writer);
-			checksum += rotations[0];
+			checksum += rotations[0] + translations[0];
 		};
+		if (opts.pose >= 0)
+		{
+			const uint32_t frame = pose_frame(opts, frames);
+			sample(frame);
+			print_pose("acl", clip, frame, joints, rotations.data(), translations.data());
+			std::free(memory);
+			return 0;
+		}
 		double modes[6];
 		for (int mode = 0; mode < 3; ++mode)
 			for (int cold = 0; cold < 2; ++cold)
-				modes[2 * mode + cold] = time_mode(sample, frames, mode, cold != 0, repeats);
+				modes[2 * mode + cold] = time_mode(sample, frames, mode, cold != 0, opts.repeats);
 		report("acl", clip, frames, joints, file.size(), file.size() + sizeof(context), median(opens), modes);
 		std::free(memory);
 		return checksum == checksum ? 0 : 1;
+	}
+
+	int usage(const char* program)
+	{
+		std::fprintf(stderr, "usage: %s MANIFEST [REPEATS] [--sample] [--pose FRAME]\n", program);
+		return 2;
+	}
+
+	bool parse_count(const char* text, long low, long& out)
+	{
+		char* end = nullptr;
+		const long value = std::strtol(text, &end, 10);
+		if (end == text || *end != '\0' || value < low || value > 1000000000L)
+			return false;
+		out = value;
+		return true;
+	}
+
+	bool readable(const std::string& path)
+	{
+		FILE* file = std::fopen(path.c_str(), "rb");
+		if (!file)
+			return false;
+		std::fclose(file);
+		return true;
+	}
+
+	// The manifest's clips, every line checked before anything is timed: false (and one line on stderr naming the
+	// manifest's line) when a line is not two readable files.
+	bool read_manifest(const char* manifest, std::vector<std::pair<std::string, std::string>>& clips)
+	{
+		FILE* file = std::fopen(manifest, "r");
+		if (!file)
+		{
+			std::fprintf(stderr, "%s: cannot read the manifest\n", manifest);
+			return false;
+		}
+		std::string line;
+		bool ok = true;
+		for (int number = 1, c = 0; ok && c != EOF; ++number)
+		{
+			line.clear();
+			while ((c = std::fgetc(file)) != EOF && c != '\n')
+				line.push_back(char(c));
+			std::vector<std::string> fields;
+			for (size_t at = 0; at < line.size();)
+			{
+				const size_t begin = line.find_first_not_of(" \t\r", at);
+				if (begin == std::string::npos)
+					break;
+				const size_t end = std::min(line.find_first_of(" \t\r", begin), line.size());
+				fields.push_back(line.substr(begin, end - begin));
+				at = end;
+			}
+			if (fields.empty())
+				continue;
+			if (fields.size() != 2)
+			{
+				std::fprintf(stderr, "%s, line %d: expected two paths (an mcb-rot stream and an ACL buffer), got %zu "
+					"fields\n", manifest, number, fields.size());
+				ok = false;
+			}
+			else if (!readable(fields[0]) || !readable(fields[1]))
+			{
+				std::fprintf(stderr, "%s, line %d: cannot read %s\n", manifest, number,
+					(readable(fields[0]) ? fields[1] : fields[0]).c_str());
+				ok = false;
+			}
+			else
+				clips.emplace_back(fields[0], fields[1]);
+		}
+		std::fclose(file);
+		if (ok && clips.empty())
+		{
+			std::fprintf(stderr, "%s: no clip (expected lines of two paths: an mcb-rot stream and an ACL buffer)\n",
+				manifest);
+			ok = false;
+		}
+		return ok;
 	}
 }
 
 int main(int argc, char** argv)
 {
-	if (argc < 2)
+	options opts;
+	const char* manifest = nullptr;
+	bool have_repeats = false;
+	for (int i = 1; i < argc; ++i)
 	{
-		std::fprintf(stderr, "usage: %s MANIFEST [REPEATS]\n", argv[0]);
-		return 2;
+		const std::string arg = argv[i];
+		long value = 0;
+		if (arg == "--sample")
+			opts.sample = true;
+		else if (arg == "--pose" && i + 1 < argc && parse_count(argv[i + 1], 0, value))
+		{
+			opts.pose = value;
+			++i;
+		}
+		else if (!arg.empty() && arg[0] == '-')
+			return usage(argv[0]);
+		else if (!manifest)
+			manifest = argv[i];
+		else if (!have_repeats && parse_count(argv[i], 1, value))
+		{
+			opts.repeats = int(value);
+			have_repeats = true;
+		}
+		else
+			return usage(argv[0]);
 	}
-	const int repeats = argc > 2 ? std::max(1, std::atoi(argv[2])) : 3;
-	FILE* manifest = std::fopen(argv[1], "r");
 	if (!manifest)
-	{
-		std::fprintf(stderr, "cannot read %s\n", argv[1]);
+		return usage(argv[0]);
+	std::vector<std::pair<std::string, std::string>> clips;
+	if (!read_manifest(manifest, clips))
 		return 2;
-	}
-	char mcb[4096], acl_path[4096];
 	int failures = 0;
-	while (std::fscanf(manifest, "%4095s %4095s", mcb, acl_path) == 2)
+	for (const auto& clip : clips)
 	{
-		failures += bench_mcbrot(mcb, repeats);
-		failures += bench_acl(acl_path, mcb, repeats);
+		if (bench_mcbrot(clip.first.c_str(), opts) != 0)
+			++failures;  // named on stderr; ACL is not timed on it either, so both decoders' clips stay the same
+		else
+			failures += bench_acl(clip.second.c_str(), clip.first.c_str(), opts);
 	}
-	std::fclose(manifest);
 	return failures ? 1 : 0;
 }

@@ -1,11 +1,18 @@
-"""The runtime benchmark's ``--set``: an mcb-rot field it cannot take is a usage line (exit 2) before anything is
-built or encoded, never a traceback after minutes of encoding."""
+"""The runtime benchmark (``python -m mocapbench.benchmarks.runtime`` and its C++ harness): ``--set`` checked before
+anything is built or encoded, the whole pose the harness times equal to Python's decode (mcb-rot and ACL, on a game
+rig), a bad manifest or a missing data folder one line and a non-zero exit, never a traceback."""
 
 from __future__ import annotations
 
+import sys
+from pathlib import Path
+
+import numpy as np
 import pytest
 
 from mocapbench.benchmarks import runtime
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 
 @pytest.mark.parametrize("pair, message", [
@@ -21,3 +28,96 @@ def test_a_setting_it_cannot_take_is_one_usage_line(monkeypatch, capsys, pair, m
     assert exit_info.value.code == 2
     error = capsys.readouterr().err.strip().splitlines()
     assert message in error[-1] and "Traceback" not in "\n".join(error)
+
+
+@pytest.fixture(scope="module")
+def harness(acl_codec, native_runtime):
+    """The harness, built once (ACL's headers, a C and a C++ compiler: skipped where the ACL fixture skips)."""
+    return runtime.build_harness()
+
+
+@pytest.mark.parametrize("rig", ["moving root", "still root"])
+def test_the_harness_samples_the_whole_pose_python_decodes(harness, tmp_path, monkeypatch, rig):
+    """The pose the harness times (mcb-rot: ``mcbrot_sample_pose``; ACL: ``decompress_tracks``) is the pose Python
+    decodes: mcb-rot's numpy reference decoder within 1e-9 (quaternions) and 1e-6 cm (translations), ACL's binding
+    within float32 rounding; and ACL's buffer carries the game rig's translation tracks (the pelvis is metres from
+    its offset, ACL's is within a centimetre of the clip's)."""
+    from game_rig import game_rig_motion, still_root_rig
+
+    from mocapbench.codecs import create
+    from mocapbench.codecs.mcb_rot import native
+
+    motion = game_rig_motion(75) if rig == "moving root" else still_root_rig(75)
+    lines, _, _, refused = runtime._streams([motion], 0.5, tmp_path, "case", {})
+    assert refused == [] and len(lines) == 1
+    manifest = tmp_path / "case.txt"
+    manifest.write_text(lines[0] + "\n")
+    frame = 41
+    poses = runtime.harness_poses(harness, manifest, frame)
+    mcb, acl = lines[0].split()
+    assert sorted(poses) == [("acl", mcb), ("mcb-rot", mcb)]
+
+    monkeypatch.setattr(native, "library", lambda: None)  # the numpy decoder, the reference
+    reference = create("mcb-rot").decode(Path(mcb).read_bytes()).motion
+    rotations, translations = poses[("mcb-rot", mcb)]
+    assert rotations.shape == (22, 4) and translations.shape == (22, 3)
+    np.testing.assert_allclose(rotations, reference.rotations[frame], rtol=0, atol=1e-9)
+    np.testing.assert_allclose(translations, reference.local_translations()[frame], rtol=0, atol=1e-6)
+
+    acl_rotations, acl_translations = poses[("acl", mcb)]
+    acl_stream = create("acl", precision_cm=0.5).encode(motion)
+    assert Path(acl).read_bytes() in acl_stream  # the buffer the harness read, in the stream Python decodes
+    acl_reference = create("acl").decode(acl_stream).motion
+    same_sign = np.sign(np.sum(acl_rotations * acl_reference.rotations[frame], axis=1))[:, None]
+    np.testing.assert_allclose(acl_rotations * same_sign, acl_reference.rotations[frame], rtol=0, atol=1e-6)
+    np.testing.assert_allclose(acl_translations, acl_reference.local_translations()[frame], rtol=0, atol=1e-4)
+    source = motion.local_translations()[frame]
+    hips = motion.skeleton.index("Hips")
+    assert np.abs(source[hips] - motion.skeleton.offsets[hips]).max() > 100.0
+    assert np.abs(acl_translations[hips] - source[hips]).max() < 1.0
+    assert np.abs(translations[hips] - source[hips]).max() < 1.0
+
+
+def test_a_bad_manifest_is_one_line_and_a_non_zero_exit(harness, tmp_path):
+    """A manifest line that is not two readable files stops the harness before anything is timed: one line naming
+    the manifest's line, exit 2 (and :class:`runtime.HarnessError` from Python); a stream a decoder refuses is one
+    line naming the file, exit 1, the other clips still measured (ACL's buffer of that clip left out too)."""
+    import subprocess
+
+    from game_rig import game_rig_motion
+
+    lines, _, _, _ = runtime._streams([game_rig_motion(30)], 1.0, tmp_path, "ok", {})
+    cases = {"one field": f"{lines[0]}\n{lines[0].split()[0]}\n",
+             "missing file": f"{lines[0]}\n{tmp_path / 'nowhere.mcb'} {lines[0].split()[1]}\n",
+             "three fields": f"{lines[0]} extra\n"}
+    expected = {"one field": "line 2: expected two paths", "missing file": "line 2: cannot read",
+                "three fields": "line 1: expected two paths"}
+    for case, text in cases.items():
+        manifest = tmp_path / f"{case.replace(' ', '-')}.txt"
+        manifest.write_text(text)
+        result = subprocess.run([str(harness), str(manifest), "1"], capture_output=True, text=True)
+        assert result.returncode == 2, case
+        assert result.stdout == "", case
+        assert result.stderr.count("\n") == 1 and expected[case] in result.stderr, (case, result.stderr)
+        with pytest.raises(runtime.HarnessError, match=expected[case]):
+            runtime.harness_poses(harness, manifest, 0)
+
+    garbage = tmp_path / "garbage.mcb"
+    garbage.write_bytes(b"MCB" + bytes(60))
+    manifest = tmp_path / "refused.txt"
+    manifest.write_text(f"{garbage} {lines[0].split()[1]}\n{lines[0]}\n")
+    result = subprocess.run([str(harness), str(manifest), "1"], capture_output=True, text=True)
+    assert result.returncode == 1
+    assert result.stderr.count("\n") == 1 and str(garbage) in result.stderr
+    decoders = [line.split()[0] for line in result.stdout.splitlines()]
+    assert decoders == ["mcb-rot", "acl"]  # the good clip only: ACL is not timed on the clip mcb-rot refused
+
+
+def test_a_missing_data_folder_is_one_line(monkeypatch, tmp_path, capsys):
+    from mocapbench.benchmarks.entry import run_script
+
+    monkeypatch.setattr(runtime, "build_harness", lambda: tmp_path / "no-harness")
+    monkeypatch.setenv("MOCAPBENCH_BANDAI_DIR", str(tmp_path / "no-bandai-here"))
+    assert run_script(lambda: runtime.main(["--dataset", "bandai_test"])) == 2
+    error = capsys.readouterr().err.strip().splitlines()
+    assert len(error) == 1 and str(tmp_path / "no-bandai-here") in error[0]
