@@ -14,7 +14,8 @@
 // resident_bytes: what the decoder keeps while it samples: the stream (mcb-rot: the whole .mcb; ACL: its buffer)
 // plus the context (mcb-rot: mcbrot_context_size; ACL: sizeof its decompression_context).
 // --sample: one more line per clip, decoder "mcb-rot-sample", timing mcbrot_sample (rotations and the root's
-// translation only, no joint translations) on the same context: what the whole pose costs beside it.
+// translation only, no joint translations) on the same context, taking turns with mcbrot_sample_pose repeat by
+// repeat: what the whole pose costs beside it.
 // --pose FRAME: no timing; each clip's pose at FRAME (nearest, clamped to the clip), both decoders, one line per
 // joint: "pose decoder clip frame joint qx qy qz qw tx ty tz" (%.17g; ACL's float32 values widened).
 // A manifest line that is not two readable files, or a stream a decoder refuses, is one line on stderr naming the
@@ -244,25 +245,35 @@ namespace
 				translations.data());
 			checksum += rotations[0] + translations[0];
 		};
-		double modes[6];
+		double root[3];
+		auto sample = [&](uint32_t frame) {
+			mcbrot_sample(context, double(frame) / info.fps, MCBROT_NEAREST, rotations.data(), root);
+			checksum += rotations[0] + root[0];
+		};
+		double modes[6], sampled[6];
 		for (int mode = 0; mode < 3; ++mode)
 			for (int cold = 0; cold < 2; ++cold)
-				modes[2 * mode + cold] = time_mode(sample_pose, info.num_frames, mode, cold != 0, opts.repeats);
+			{
+				if (!opts.sample)
+				{
+					modes[2 * mode + cold] = time_mode(sample_pose, info.num_frames, mode, cold != 0, opts.repeats);
+					continue;
+				}
+				// Side by side: the two calls take turns, one repeat each, so that both see the same load.
+				std::vector<double> pose_runs, sample_runs;
+				for (int r = 0; r < opts.repeats; ++r)
+				{
+					pose_runs.push_back(time_mode(sample_pose, info.num_frames, mode, cold != 0, 1));
+					sample_runs.push_back(time_mode(sample, info.num_frames, mode, cold != 0, 1));
+				}
+				modes[2 * mode + cold] = median(pose_runs);
+				sampled[2 * mode + cold] = median(sample_runs);
+			}
 		report("mcb-rot", path, info.num_frames, info.num_joints, stream.size(), stream.size() + size, median(opens),
 			modes);
 		if (opts.sample)
-		{
-			double root[3];
-			auto sample = [&](uint32_t frame) {
-				mcbrot_sample(context, double(frame) / info.fps, MCBROT_NEAREST, rotations.data(), root);
-				checksum += rotations[0] + root[0];
-			};
-			for (int mode = 0; mode < 3; ++mode)
-				for (int cold = 0; cold < 2; ++cold)
-					modes[2 * mode + cold] = time_mode(sample, info.num_frames, mode, cold != 0, opts.repeats);
 			report("mcb-rot-sample", path, info.num_frames, info.num_joints, stream.size(), stream.size() + size,
-				median(opens), modes);
-		}
+				median(opens), sampled);
 		std::free(context);
 		return checksum == checksum ? 0 : 1;
 	}

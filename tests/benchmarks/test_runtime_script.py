@@ -113,6 +113,16 @@ def test_a_bad_manifest_is_one_line_and_a_non_zero_exit(harness, tmp_path):
     assert decoders == ["mcb-rot", "acl"]  # the good clip only: ACL is not timed on the clip mcb-rot refused
 
 
+def test_sample_times_mcbrot_sample_beside_the_whole_pose(harness, tmp_path):
+    """``--sample``: a third row per clip (``mcb-rot-sample``), parsed by the script beside the two decoders'."""
+    from game_rig import game_rig_motion
+
+    lines, _, _, _ = runtime._streams([game_rig_motion(20)], 1.0, tmp_path, "ok", {})
+    rows = runtime._run(harness, lines, tmp_path / "ok.txt", 1, runs=2, sample=True)
+    assert [row["decoder"] for row in rows] == ["mcb-rot", "mcb-rot-sample", "acl"]
+    assert all(row["frames"] == 20 and row["joints"] == 22 and row["fwd_warm"] > 0 for row in rows)
+
+
 def test_a_missing_data_folder_is_one_line(monkeypatch, tmp_path, capsys):
     from mocapbench.benchmarks.entry import run_script
 
