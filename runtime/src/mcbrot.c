@@ -2214,7 +2214,7 @@ static inline void synthesize_block(const int32_t *block, const double *basis, u
 #if defined(MCBROT_AVX2)
 /* synthesize_block with AVX2 and FMA: the block's four channels in one register, even and odd frequencies apart
  * (the order of synthesize_frames_avx2: the same bits). */
-static TARGET_AVX2 void synthesize_block_avx2(const int32_t *block, const double *basis, uint32_t kmax, double *sums) {
+static TARGET_AVX2 ALWAYS_INLINE __m256d synthesize_block_avx2(const int32_t *block, const double *basis, uint32_t kmax) {
     const double *b = basis + 1;
 #define QUAD(p) _mm256_cvtepi32_pd(_mm_loadu_si128((const __m128i *)(p))) /* four int32 -> four doubles */
     __m256d a0 = _mm256_setzero_pd(), a1 = _mm256_setzero_pd();
@@ -2225,12 +2225,12 @@ static TARGET_AVX2 void synthesize_block_avx2(const int32_t *block, const double
         a1 = _mm256_fmadd_pd(_mm256_broadcast_sd(b + q + 1), QUAD(v + 4), a1);
     }
     if (q < kmax) a0 = _mm256_fmadd_pd(_mm256_broadcast_sd(b + q), QUAD(block + LANES * q), a0);
-    _mm256_storeu_pd(sums, _mm256_add_pd(a0, a1));
+    return _mm256_add_pd(a0, a1);
 }
 
 /* synthesize_frames with AVX2 and FMA: one register per frame, even and odd frequencies apart. */
-static TARGET_AVX2 void synthesize_frames_avx2(const int32_t *block, const double *rows, uint32_t kmax, double *sums,
-                                               size_t stride) {
+static TARGET_AVX2 ALWAYS_INLINE void synthesize_frames_avx2(const int32_t *block, const double *rows, uint32_t kmax,
+                                                             __m256d *sums) {
     const double *r = rows + FRAME_BLOCK;
     __m256d a0 = _mm256_setzero_pd(), a1 = _mm256_setzero_pd(), a2 = _mm256_setzero_pd(), a3 = _mm256_setzero_pd();
     __m256d b0 = _mm256_setzero_pd(), b1 = _mm256_setzero_pd(), b2 = _mm256_setzero_pd(), b3 = _mm256_setzero_pd();
@@ -2256,10 +2256,70 @@ static TARGET_AVX2 void synthesize_frames_avx2(const int32_t *block, const doubl
         a3 = _mm256_fmadd_pd(_mm256_broadcast_sd(c + 3), v, a3);
     }
 #undef QUAD
-    _mm256_storeu_pd(sums, _mm256_add_pd(a0, b0));
-    _mm256_storeu_pd(sums + stride, _mm256_add_pd(a1, b1));
-    _mm256_storeu_pd(sums + 2 * stride, _mm256_add_pd(a2, b2));
-    _mm256_storeu_pd(sums + 3 * stride, _mm256_add_pd(a3, b3));
+    sums[0] = _mm256_add_pd(a0, b0);
+    sums[1] = _mm256_add_pd(a1, b1);
+    sums[2] = _mm256_add_pd(a2, b2);
+    sums[3] = _mm256_add_pd(a3, b3);
+}
+
+/* A block's four channels' base steps, means (DC x its scale) and places in a frame's values; a padding lane past
+ * C (its `order` entry is 0) gets zeros and the root's fourth value, which finish_values clears. The vectors are
+ * built in registers (stored lanes read back as one vector would stall on the stores). */
+static TARGET_AVX2 ALWAYS_INLINE void lane_constants(const ctx_t *x, const int64_t *dc, const uint16_t *order,
+                                                    uint32_t lanes, double dc_scale, __m256d *step, __m256d *mean,
+                                                    size_t *at) {
+    uint32_t c0 = order[0], c1 = order[1], c2 = order[2], c3 = order[3];
+    const double *base = x->base_step;
+    *step = _mm256_setr_pd(base[c0], base[c1], base[c2], base[c3]);
+    *mean = _mm256_mul_pd(_mm256_setr_pd((double)dc[c0], (double)dc[c1], (double)dc[c2], (double)dc[c3]),
+                          _mm256_set1_pd(dc_scale));
+    at[0] = x->value_at[c0];
+    at[1] = x->value_at[c1];
+    at[2] = x->value_at[c2];
+    at[3] = x->value_at[c3];
+    if (lanes < LANES) {
+        double keep[LANES];
+        for (uint32_t lane = 0; lane < LANES; ++lane) {
+            keep[lane] = lane < lanes ? 1.0 : 0.0;
+            if (lane >= lanes) at[lane] = 3;
+        }
+        __m256d mask = _mm256_loadu_pd(keep);
+        *step = _mm256_mul_pd(*step, mask);
+        *mean = _mm256_mul_pd(*mean, mask);
+    }
+}
+
+/* put_values of one frame with AVX2 (base step x (mean + AC scale x sum), the inner product fused), the four lanes
+ * stored to their places. */
+static TARGET_AVX2 ALWAYS_INLINE void put_four(__m256d sums, __m256d step, __m256d mean, __m256d ac_scale,
+                                              const size_t *at, double *out) {
+    __m256d v = _mm256_mul_pd(step, _mm256_fmadd_pd(ac_scale, sums, mean));
+    __m128d low = _mm256_castpd256_pd128(v), high = _mm256_extractf128_pd(v, 1);
+    _mm_storel_pd(out + at[0], low);
+    _mm_storeh_pd(out + at[1], low);
+    _mm_storel_pd(out + at[2], high);
+    _mm_storeh_pd(out + at[3], high);
+}
+
+/* Every block of a segment with AVX2: frame values (FRAME_DOUBLES) of one frame from its basis row (frames == 1),
+ * or of FRAME_BLOCK frames from their rows (out + f stride); finish_values is the caller's. */
+static TARGET_AVX2 void segment_values_avx2(const ctx_t *x, const int32_t *values, const uint32_t *blocks,
+                                            const uint16_t *order, const int64_t *dc, const double *rows,
+                                            uint32_t frames, double ac, double dc_scale, double *out, size_t stride) {
+    uint32_t C = x->channels, B = (C + LANES - 1) / LANES;
+    __m256d ac_scale = _mm256_set1_pd(ac);
+    for (uint32_t b = 0; b < B; ++b) {
+        uint32_t kmax = (blocks[b + 1] - blocks[b]) / LANES, lanes = C - LANES * b < LANES ? C - LANES * b : LANES;
+        __m256d step, mean, sums[FRAME_BLOCK];
+        size_t at[LANES];
+        lane_constants(x, dc, order + LANES * b, lanes, dc_scale, &step, &mean, at);
+        if (frames == 1) {
+            put_four(synthesize_block_avx2(values + blocks[b], rows, kmax), step, mean, ac_scale, at, out);
+            continue;
+        }
+        synthesize_frames_avx2(values + blocks[b], rows, kmax, sums);
+        for (uint32_t f = 0; f < FRAME_BLOCK; ++f) put_four(sums[f], step, mean, ac_scale, at, out + f * stride);
+    }
 }
 #endif
 
@@ -2444,15 +2504,16 @@ static const double *channel_values(ctx_t *x, uint32_t seg, uint32_t chunk, uint
         else
 #endif
             basis_row(x, n, i, longest, row, 1);
-        for (uint32_t b = 0; b < B; ++b) {
-            uint32_t kmax = (blocks[b + 1] - blocks[b]) / LANES, lanes = C - LANES * b < LANES ? C - LANES * b : LANES;
 #if defined(MCBROT_AVX2)
-            if (x->avx2) synthesize_block_avx2(x->values + blocks[b], row, kmax, sums);
-            else
+        if (x->avx2) segment_values_avx2(x, x->values, blocks, order, dc, row, 1, ac_scale, dc_scale, signal, stride);
+        else
 #endif
+            for (uint32_t b = 0; b < B; ++b) {
+                uint32_t kmax = (blocks[b + 1] - blocks[b]) / LANES;
                 synthesize_block(x->values + blocks[b], row, kmax, sums);
-            put_values(x, dc, order + LANES * b, lanes, sums, 1, ac_scale, dc_scale, signal, stride);
-        }
+                put_values(x, dc, order + LANES * b, C - LANES * b < LANES ? C - LANES * b : LANES, sums, 1, ac_scale,
+                           dc_scale, signal, stride);
+            }
         finish_values(x, 1, signal, stride);
         return signal;
     }
@@ -2463,15 +2524,16 @@ static const double *channel_values(ctx_t *x, uint32_t seg, uint32_t chunk, uint
     else
 #endif
         basis_rows(x, n, first, longest, rows);
-    for (uint32_t b = 0; b < B; ++b) {
-        uint32_t kmax = (blocks[b + 1] - blocks[b]) / LANES, lanes = C - LANES * b < LANES ? C - LANES * b : LANES;
 #if defined(MCBROT_AVX2)
-        if (x->avx2) synthesize_frames_avx2(x->values + blocks[b], rows, kmax, sums, LANES);
-        else
+    if (x->avx2) segment_values_avx2(x, x->values, blocks, order, dc, rows, FRAME_BLOCK, ac_scale, dc_scale, out, stride);
+    else
 #endif
+        for (uint32_t b = 0; b < B; ++b) {
+            uint32_t kmax = (blocks[b + 1] - blocks[b]) / LANES;
             synthesize_frames(x->values + blocks[b], rows, kmax, sums, LANES);
-        put_values(x, dc, order + LANES * b, lanes, sums, FRAME_BLOCK, ac_scale, dc_scale, out, stride);
-    }
+            put_values(x, dc, order + LANES * b, C - LANES * b < LANES ? C - LANES * b : LANES, sums, FRAME_BLOCK,
+                       ac_scale, dc_scale, out, stride);
+        }
     finish_values(x, FRAME_BLOCK, out, stride); /* every frame of the block (a constant count: unrolled) */
     x->block_segment = seg;
     x->block_first = first;
