@@ -2212,55 +2212,91 @@ static inline void synthesize_block(const int32_t *block, const double *basis, u
 }
 
 #if defined(MCBROT_AVX2)
-/* synthesize_block with AVX2 and FMA: the block's four channels in one register, even and odd frequencies apart
- * (the order of synthesize_frames_avx2: the same bits). */
-static TARGET_AVX2 ALWAYS_INLINE __m256d synthesize_block_avx2(const int32_t *block, const double *basis, uint32_t kmax) {
-    const double *b = basis + 1;
 #define QUAD(p) _mm256_cvtepi32_pd(_mm_loadu_si128((const __m128i *)(p))) /* four int32 -> four doubles */
-    __m256d a0 = _mm256_setzero_pd(), a1 = _mm256_setzero_pd();
+
+/* The AVX2 sums of a segment's blocks two at a time, b and b + 1 (k0 >= k1 coefficients each, as the blocks of a
+ * segment are sorted; k1 = 0: block b alone), one register per block and frame. The order of each lane's products,
+ * the same in synthesize_pair_avx2 (one frame) and synthesize_frames_avx2 (FRAME_BLOCK frames: a frame has the same
+ * bits alone or in a block): q < k1 into one accumulator in increasing q; block b's q >= k1 in two, the even and the
+ * odd q - k1, added to the first at the end (first + even, then + odd). In the shared range two loads of
+ * coefficients and four of the rows feed eight multiply-adds. */
+static TARGET_AVX2 ALWAYS_INLINE void synthesize_pair_avx2(const int32_t *p0, const int32_t *p1, uint32_t k0,
+                                                          uint32_t k1, const double *basis, __m256d *s0,
+                                                          __m256d *s1) {
+    const double *b = basis + 1;
+    __m256d a = _mm256_setzero_pd(), c = _mm256_setzero_pd(), e = _mm256_setzero_pd();
     uint32_t q = 0;
-    for (; q + 2 <= kmax; q += 2) {
-        const int32_t *v = block + LANES * q;
-        a0 = _mm256_fmadd_pd(_mm256_broadcast_sd(b + q), QUAD(v), a0);
-        a1 = _mm256_fmadd_pd(_mm256_broadcast_sd(b + q + 1), QUAD(v + 4), a1);
+    for (; q < k1; ++q) {
+        __m256d row = _mm256_broadcast_sd(b + q);
+        a = _mm256_fmadd_pd(row, QUAD(p0 + LANES * q), a);
+        c = _mm256_fmadd_pd(row, QUAD(p1 + LANES * q), c);
     }
-    if (q < kmax) a0 = _mm256_fmadd_pd(_mm256_broadcast_sd(b + q), QUAD(block + LANES * q), a0);
-    return _mm256_add_pd(a0, a1);
+    __m256d d = _mm256_setzero_pd();
+    for (; q + 2 <= k0; q += 2) {
+        d = _mm256_fmadd_pd(_mm256_broadcast_sd(b + q), QUAD(p0 + LANES * q), d);
+        e = _mm256_fmadd_pd(_mm256_broadcast_sd(b + q + 1), QUAD(p0 + LANES * q + LANES), e);
+    }
+    if (q < k0) d = _mm256_fmadd_pd(_mm256_broadcast_sd(b + q), QUAD(p0 + LANES * q), d);
+    *s0 = _mm256_add_pd(_mm256_add_pd(a, d), e);
+    *s1 = c;
 }
 
-/* synthesize_frames with AVX2 and FMA: one register per frame, even and odd frequencies apart. */
-static TARGET_AVX2 ALWAYS_INLINE void synthesize_frames_avx2(const int32_t *block, const double *rows, uint32_t kmax,
-                                                             __m256d *sums) {
+static TARGET_AVX2 ALWAYS_INLINE void synthesize_frames_avx2(const int32_t *p0, const int32_t *p1, uint32_t k0,
+                                                             uint32_t k1, const double *rows, __m256d *s0,
+                                                             __m256d *s1) {
     const double *r = rows + FRAME_BLOCK;
     __m256d a0 = _mm256_setzero_pd(), a1 = _mm256_setzero_pd(), a2 = _mm256_setzero_pd(), a3 = _mm256_setzero_pd();
     __m256d b0 = _mm256_setzero_pd(), b1 = _mm256_setzero_pd(), b2 = _mm256_setzero_pd(), b3 = _mm256_setzero_pd();
     uint32_t q = 0;
-    for (; q + 2 <= kmax; q += 2) {
-        __m256d v = QUAD(block + LANES * q), w = QUAD(block + LANES * q + LANES);
-        const double *c = r + FRAME_BLOCK * q, *d = c + FRAME_BLOCK;
-        a0 = _mm256_fmadd_pd(_mm256_broadcast_sd(c), v, a0);
-        a1 = _mm256_fmadd_pd(_mm256_broadcast_sd(c + 1), v, a1);
-        a2 = _mm256_fmadd_pd(_mm256_broadcast_sd(c + 2), v, a2);
-        a3 = _mm256_fmadd_pd(_mm256_broadcast_sd(c + 3), v, a3);
-        b0 = _mm256_fmadd_pd(_mm256_broadcast_sd(d), w, b0);
-        b1 = _mm256_fmadd_pd(_mm256_broadcast_sd(d + 1), w, b1);
-        b2 = _mm256_fmadd_pd(_mm256_broadcast_sd(d + 2), w, b2);
-        b3 = _mm256_fmadd_pd(_mm256_broadcast_sd(d + 3), w, b3);
+    for (; q < k1; ++q) {
+        __m256d v = QUAD(p0 + LANES * q), w = QUAD(p1 + LANES * q), c;
+        const double *row = r + FRAME_BLOCK * q;
+        c = _mm256_broadcast_sd(row);
+        a0 = _mm256_fmadd_pd(c, v, a0);
+        b0 = _mm256_fmadd_pd(c, w, b0);
+        c = _mm256_broadcast_sd(row + 1);
+        a1 = _mm256_fmadd_pd(c, v, a1);
+        b1 = _mm256_fmadd_pd(c, w, b1);
+        c = _mm256_broadcast_sd(row + 2);
+        a2 = _mm256_fmadd_pd(c, v, a2);
+        b2 = _mm256_fmadd_pd(c, w, b2);
+        c = _mm256_broadcast_sd(row + 3);
+        a3 = _mm256_fmadd_pd(c, v, a3);
+        b3 = _mm256_fmadd_pd(c, w, b3);
     }
-    if (q < kmax) {
-        __m256d v = QUAD(block + LANES * q);
+    s1[0] = b0;
+    s1[1] = b1;
+    s1[2] = b2;
+    s1[3] = b3;
+    /* block b's own frequencies: even and odd q - k1 apart (b0..b3 are free again) */
+    __m256d d0 = _mm256_setzero_pd(), d1 = _mm256_setzero_pd(), d2 = _mm256_setzero_pd(), d3 = _mm256_setzero_pd();
+    b0 = b1 = b2 = b3 = _mm256_setzero_pd();
+    for (; q + 2 <= k0; q += 2) {
+        __m256d v = QUAD(p0 + LANES * q), w = QUAD(p0 + LANES * q + LANES);
+        const double *c = r + FRAME_BLOCK * q, *n = c + FRAME_BLOCK;
+        d0 = _mm256_fmadd_pd(_mm256_broadcast_sd(c), v, d0);
+        d1 = _mm256_fmadd_pd(_mm256_broadcast_sd(c + 1), v, d1);
+        d2 = _mm256_fmadd_pd(_mm256_broadcast_sd(c + 2), v, d2);
+        d3 = _mm256_fmadd_pd(_mm256_broadcast_sd(c + 3), v, d3);
+        b0 = _mm256_fmadd_pd(_mm256_broadcast_sd(n), w, b0);
+        b1 = _mm256_fmadd_pd(_mm256_broadcast_sd(n + 1), w, b1);
+        b2 = _mm256_fmadd_pd(_mm256_broadcast_sd(n + 2), w, b2);
+        b3 = _mm256_fmadd_pd(_mm256_broadcast_sd(n + 3), w, b3);
+    }
+    if (q < k0) {
+        __m256d v = QUAD(p0 + LANES * q);
         const double *c = r + FRAME_BLOCK * q;
-        a0 = _mm256_fmadd_pd(_mm256_broadcast_sd(c), v, a0);
-        a1 = _mm256_fmadd_pd(_mm256_broadcast_sd(c + 1), v, a1);
-        a2 = _mm256_fmadd_pd(_mm256_broadcast_sd(c + 2), v, a2);
-        a3 = _mm256_fmadd_pd(_mm256_broadcast_sd(c + 3), v, a3);
+        d0 = _mm256_fmadd_pd(_mm256_broadcast_sd(c), v, d0);
+        d1 = _mm256_fmadd_pd(_mm256_broadcast_sd(c + 1), v, d1);
+        d2 = _mm256_fmadd_pd(_mm256_broadcast_sd(c + 2), v, d2);
+        d3 = _mm256_fmadd_pd(_mm256_broadcast_sd(c + 3), v, d3);
     }
-#undef QUAD
-    sums[0] = _mm256_add_pd(a0, b0);
-    sums[1] = _mm256_add_pd(a1, b1);
-    sums[2] = _mm256_add_pd(a2, b2);
-    sums[3] = _mm256_add_pd(a3, b3);
+    s0[0] = _mm256_add_pd(_mm256_add_pd(a0, d0), b0);
+    s0[1] = _mm256_add_pd(_mm256_add_pd(a1, d1), b1);
+    s0[2] = _mm256_add_pd(_mm256_add_pd(a2, d2), b2);
+    s0[3] = _mm256_add_pd(_mm256_add_pd(a3, d3), b3);
 }
+#undef QUAD
 
 /* A block's four channels' base steps, means (DC x its scale) and places in a frame's values; a padding lane past
  * C (its `order` entry is 0) gets zeros and the root's fourth value, which finish_values clears. The vectors are
@@ -2301,24 +2337,28 @@ static TARGET_AVX2 ALWAYS_INLINE void put_four(__m256d sums, __m256d step, __m25
     _mm_storeh_pd(out + at[3], high);
 }
 
-/* Every block of a segment with AVX2: frame values (FRAME_DOUBLES) of one frame from its basis row (frames == 1),
- * or of FRAME_BLOCK frames from their rows (out + f stride); finish_values is the caller's. */
+/* Every block of a segment with AVX2, two at a time: frame values (FRAME_DOUBLES) of one frame from its basis row
+ * (frames == 1), or of FRAME_BLOCK frames from their rows (out + f stride); finish_values is the caller's. */
 static TARGET_AVX2 void segment_values_avx2(const ctx_t *x, const int32_t *values, const uint32_t *blocks,
                                             const uint16_t *order, const int64_t *dc, const double *rows,
                                             uint32_t frames, double ac, double dc_scale, double *out, size_t stride) {
     uint32_t C = x->channels, B = (C + LANES - 1) / LANES;
     __m256d ac_scale = _mm256_set1_pd(ac);
-    for (uint32_t b = 0; b < B; ++b) {
-        uint32_t kmax = (blocks[b + 1] - blocks[b]) / LANES, lanes = C - LANES * b < LANES ? C - LANES * b : LANES;
-        __m256d step, mean, sums[FRAME_BLOCK];
-        size_t at[LANES];
-        lane_constants(x, dc, order + LANES * b, lanes, dc_scale, &step, &mean, at);
-        if (frames == 1) {
-            put_four(synthesize_block_avx2(values + blocks[b], rows, kmax), step, mean, ac_scale, at, out);
-            continue;
+    for (uint32_t b = 0; b < B; b += 2) {
+        uint32_t pair = b + 1 < B, k0 = (blocks[b + 1] - blocks[b]) / LANES;
+        uint32_t k1 = pair ? (blocks[b + 2] - blocks[b + 1]) / LANES : 0;
+        const int32_t *p0 = values + blocks[b], *p1 = values + blocks[b + pair];
+        __m256d sums[2 * FRAME_BLOCK];
+        if (frames == 1) synthesize_pair_avx2(p0, p1, k0, k1, rows, sums, sums + FRAME_BLOCK);
+        else synthesize_frames_avx2(p0, p1, k0, k1, rows, sums, sums + FRAME_BLOCK);
+        for (uint32_t k = 0; k <= pair; ++k) {
+            uint32_t first = LANES * (b + k), lanes = C - first < LANES ? C - first : LANES;
+            __m256d step, mean;
+            size_t at[LANES];
+            lane_constants(x, dc, order + first, lanes, dc_scale, &step, &mean, at);
+            for (uint32_t f = 0; f < frames; ++f)
+                put_four(sums[FRAME_BLOCK * k + f], step, mean, ac_scale, at, out + f * stride);
         }
-        synthesize_frames_avx2(values + blocks[b], rows, kmax, sums);
-        for (uint32_t f = 0; f < FRAME_BLOCK; ++f) put_four(sums[f], step, mean, ac_scale, at, out + f * stride);
     }
 }
 #endif
