@@ -95,6 +95,9 @@ typedef struct ctx_t {
     uint16_t *counts;       /* S x C */
     /* the cache of one chunk */
     int64_t cached_chunk;
+    uint32_t last_segment;  /* the segment of the last frame decoded (a hint: checked before use) */
+    uint32_t next_slot, next_correction; /* after a frame of the cached chunk: its end as frame x (J + 1) from the
+                             * chunk's first frame, and the first correction at or past it (UINT32_MAX: none kept) */
     int32_t *values;        /* the chunk's coefficients, segment by segment in blocks (LANES), then correction values */
     uint16_t *order;        /* max_chunk_segments x C: each segment's channels by decreasing coefficient count */
     uint32_t *blocks;       /* max_chunk_segments x (C / LANES + 1): where each block of a segment starts in values */
@@ -2068,6 +2071,7 @@ static int load_scales(ctx_t *x, reader_t *r, uint32_t k, uint32_t frames) {
 static int load_chunk(ctx_t *x, uint32_t k) {
     if (x->cached_chunk == (int64_t)k) return MCBROT_OK;
     x->cached_chunk = -1;
+    x->next_slot = UINT32_MAX;
     char what[48];
     snprintf(what, sizeof what, "chunk %u", k);
     reader_t r = {x->payload, x->chunk_offset[k], x->chunk_offset[k + 1], x->message, MESSAGE_BYTES};
@@ -2584,8 +2588,13 @@ static const double *channel_values(ctx_t *x, uint32_t seg, uint32_t chunk, uint
 /* The pose of frame f: rotations (J x 4), root (3); with `steps` (J x 3, row 0 untouched) every other joint's
  * translation from its parent: its track's value, else its skeleton offset. */
 static int decode_frame(ctx_t *x, uint32_t f, double *rotations, double *root, double *steps) {
-    uint32_t seg = upper_bound(x->seg_start, x->segments + 1, f) - 1;
-    uint32_t chunk = upper_bound(x->chunk_first, x->chunks + 1, seg) - 1;
+    uint32_t seg = x->last_segment, chunk;
+    if (!(seg < x->segments && x->seg_start[seg] <= f && f < x->seg_start[seg + 1])) /* playback stays in a segment */
+        seg = x->last_segment = upper_bound(x->seg_start, x->segments + 1, f) - 1;
+    if (x->cached_chunk >= 0 && x->chunk_first[x->cached_chunk] <= seg && seg < x->chunk_first[x->cached_chunk + 1])
+        chunk = (uint32_t)x->cached_chunk;
+    else
+        chunk = upper_bound(x->chunk_first, x->chunks + 1, seg) - 1;
     int s = load_chunk(x, chunk);
     if (s) return s;
     uint32_t J = x->joints;
@@ -2622,13 +2631,17 @@ static int decode_frame(ctx_t *x, uint32_t f, double *rotations, double *root, d
         uint32_t slots = J + 1;
         uint32_t local = f - x->seg_start[x->chunk_first[chunk]];
         uint32_t first = local * slots, last = first + slots;
-        uint32_t low = 0, high = x->num_corrections;
-        while (low < high) {
-            uint32_t mid = low + (high - low) / 2;
-            if (x->corr_flat[mid] < first) low = mid + 1;
-            else high = mid;
+        uint32_t low = 0, high = x->num_corrections, c;
+        if (x->next_slot == first) { /* the frame after the last one decoded: its first correction is known */
+            low = x->next_correction;
+        } else {
+            while (low < high) {
+                uint32_t mid = low + (high - low) / 2;
+                if (x->corr_flat[mid] < first) low = mid + 1;
+                else high = mid;
+            }
         }
-        for (uint32_t c = low; c < x->num_corrections && x->corr_flat[c] < last; ++c) {
+        for (c = low; c < x->num_corrections && x->corr_flat[c] < last; ++c) {
             uint32_t slot = x->corr_flat[c] - first;
             const int32_t *v = x->values + x->corr_values_at + 3 * (size_t)c;
             double step = x->correction_step[slot];
@@ -2644,6 +2657,8 @@ static int decode_frame(ctx_t *x, uint32_t f, double *rotations, double *root, d
                 memcpy(q, out, sizeof out);
             }
         }
+        x->next_slot = last;
+        x->next_correction = c;
     }
     return MCBROT_OK;
 }
