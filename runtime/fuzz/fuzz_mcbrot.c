@@ -48,6 +48,17 @@ static void exercise(void *context, const uint8_t *data, size_t size) {
     t = info.duration_s * (double)((bits >> 17) & 0x7fff) / 32767.0;
     (void)mcbrot_sample_pose_f32(context, t, (int)(bits >> 30), narrow, narrow + 4 * joints);
     (void)mcbrot_sample_scales(context, t, (int)(bits >> 15) & 3, roots + 6); /* (scale tracks, flag bit 13) */
+    if (info.num_frames > 1) { /* playback: frames one after another, forward then backward, from a frame the input
+                                  * picks (the blocks of four frames in either direction, the last frame's segment
+                                  * and chunk taken again, segment and chunk edges crossed) */
+        uint32_t last = info.num_frames - 1, first = (bits >> 3) % info.num_frames;
+        for (uint32_t k = 0; k < 6 && first + k <= last; ++k)
+            (void)mcbrot_sample(context, info.duration_s * (double)(first + k) / (double)last, MCBROT_NEAREST,
+                                rotations, roots);
+        for (uint32_t k = 0; k < 6 && k <= first; ++k)
+            (void)mcbrot_sample_pose(context, info.duration_s * (double)(first - k) / (double)last, MCBROT_NEAREST,
+                                     rotations, roots + 6); /* translations: J x 3 */
+    }
     (void)mcbrot_sample(context, -1.0, MCBROT_LINEAR, rotations, roots);
     (void)mcbrot_sample(context, NAN, MCBROT_NEAREST, rotations, roots);
     free(narrow);
