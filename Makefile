@@ -8,13 +8,16 @@ STAMP := $(VENV)/.installed-stamp
 # Extra pip arguments for torch, e.g. a CPU-only wheel index on a machine without a local CPU wheel.
 TORCH_PIP_ARGS ?=
 
-.PHONY: run test bench test-cmu test-fuzz test-browser clean-venv
+.PHONY: venv run test bench test-cmu test-fuzz test-browser clean-venv
 
 $(STAMP): pyproject.toml constraints.txt
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet torch==2.13.0 $(TORCH_PIP_ARGS)
 	$(PY) -m pip install --quiet -c constraints.txt -e '.[neural,cluster,test]'
 	touch $(STAMP)
+
+# The venv alone (.ci/run installs it while the runtime's C tests run).
+venv: $(STAMP)
 
 run: $(STAMP)
 	$(PY) -m mocapbench.experiments.main
