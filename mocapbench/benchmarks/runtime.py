@@ -13,7 +13,7 @@ max over joints and frames) and their ratio. Each case ends with a check that bo
 Python decodes (one frame of every clip) and that ACL's translations are the clip's within ε.
 
     python -m mocapbench.benchmarks.runtime [--dataset cmu_test] [--eps 0.1 0.5 1] [--every 1 5] [--repeats 3]
-        [--runs 1] [--sample] [--set KEY=VALUE] [--keep DIR]
+        [--runs 1] [--sample] [--set KEY=VALUE] [--keep DIR [--force]]
 
 ``--dataset`` is a CMU split (``cmu_test``, ..., 120 fps: ``--every 1 5`` gives 120 and 24 fps) or a Bandai Namco
 one (``bandai_test``, ``bandai_train``, ``bandai_all``: a 22-joint game rig at its native 30 fps, ``--every 1``
@@ -45,6 +45,7 @@ from pathlib import Path
 import numpy as np
 
 from mocapbench import metrics
+from mocapbench.io.safe_output import write_bytes, write_text
 
 __all__ = ["main", "build_harness", "harness_poses", "HarnessError"]
 
@@ -117,12 +118,12 @@ def _streams(motions, eps: float, folder: Path, tag: str, settings: dict, frame:
             sizes[name] += len(data)
             errors[name] = max(errors[name], metrics.max_joint_error(motion.positions(), decoded[name].positions))
         mcb = folder / f"{tag}-{index:02d}.mcb"
-        mcb.write_bytes(streams["mcb-rot"])
+        write_bytes(mcb, streams["mcb-rot"], force=True)  # the folder was checked (main): a link is replaced
         _, payload = container.unpack(streams["acl"], "acl")
         reader = ByteReader(payload)
         unpack_skeleton(reader)  # the payload: skeleton blob, then ACL's buffer (varint length + bytes)
         acl = folder / f"{tag}-{index:02d}.acl"
-        acl.write_bytes(bytes(reader.read_blob("ACL buffer")))
+        write_bytes(acl, bytes(reader.read_blob("ACL buffer")), force=True)
         lines.append(f"{mcb} {acl}")
         poses[str(mcb)] = {name: (d.motion.rotations[pose_frame], d.motion.local_translations()[pose_frame])
                            for name, d in decoded.items()}
@@ -146,7 +147,7 @@ def _run(program: Path, lines: list[str], manifest: Path, repeats: int, *, runs:
     """The harness's rows, one per clip and decoder (``mcb-rot``, ``acl``, with ``sample`` ``mcb-rot-sample``):
     over ``runs`` runs each figure is the clip's median. A clip a native decoder refused is one line of the harness's
     stderr, appended to ``failures``; the other clips' rows come back."""
-    manifest.write_text("\n".join(lines) + "\n")
+    write_text(manifest, "\n".join(lines) + "\n", force=True)
     per_run = []
     for _ in range(runs):
         result = _harness(program, manifest, str(repeats), *(["--sample"] if sample else []))
@@ -259,6 +260,7 @@ def main(argv: list[str] | None = None) -> int:
                         help="also time mcbrot_sample (rotations and root only) beside mcbrot_sample_pose")
     parser.add_argument("--keep", default=None, help="folder to keep the streams and manifests in (else a temporary "
                         "one): rerun the harness on them with `<harness> <folder>/<case>.txt REPEATS`")
+    parser.add_argument("--force", action="store_true", help="with --keep: replace what a folder already holds")
     parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                         help="an mcb-rot config field (Python literal), e.g. --set segment_frames=64")
     args = parser.parse_args(argv)
@@ -274,6 +276,8 @@ def main(argv: list[str] | None = None) -> int:
         if min(args.every or [1]) < 1 or args.repeats < 1 or args.runs < 1:
             raise CliError("--every, --repeats and --runs take positive integers")
         create("mcb-rot", **settings)  # a field or value it refuses is one line here, not a traceback later
+        if args.keep:
+            _check_keep(Path(args.keep), args.force)
     except (CliError, TypeError, ValueError) as error:
         parser.error(str(error))
 
@@ -284,6 +288,19 @@ def main(argv: list[str] | None = None) -> int:
     except HarnessError as error:  # the harness refused what this script gave it: a bug here, said in one line
         print(f"mocapbench.benchmarks.runtime: {error}", file=sys.stderr)
         return 2
+
+
+def _check_keep(folder: Path, force: bool) -> None:
+    """Refuse a ``--keep`` folder that is a link or not a folder, or that holds anything unless ``force``: its
+    streams and manifests are replaced (each file by a new one, never written through a link)."""
+    from mocapbench.cli.arguments import CliError
+
+    if folder.is_symlink():
+        raise CliError(f"--keep {folder} is a link; give a folder")
+    if folder.exists() and not folder.is_dir():
+        raise CliError(f"--keep {folder} is not a folder")
+    if folder.is_dir() and not force and any(folder.iterdir()):
+        raise CliError(f"--keep {folder} is not empty; pass --force to replace the streams and manifests in it")
 
 
 def _measure(program: Path, motions: list, args: argparse.Namespace, settings: dict) -> int:

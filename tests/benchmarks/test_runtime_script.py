@@ -1,6 +1,6 @@
 """The runtime benchmark (``python -m mocapbench.benchmarks.runtime`` and its C++ harness): ``--set`` checked before
 anything is built or encoded, the whole pose the harness times equal to Python's decode (mcb-rot and ACL, on a game
-rig), a bad manifest or a missing data folder one line and a non-zero exit, never a traceback."""
+rig), a bad manifest or a missing data folder or a --keep folder it would overwrite one line and a non-zero exit, never a traceback."""
 
 from __future__ import annotations
 
@@ -28,6 +28,48 @@ def test_a_setting_it_cannot_take_is_one_usage_line(monkeypatch, capsys, pair, m
     assert exit_info.value.code == 2
     error = capsys.readouterr().err.strip().splitlines()
     assert message in error[-1] and "Traceback" not in "\n".join(error)
+
+
+@pytest.mark.parametrize("kind, message", [
+    ("full", "is not empty; pass --force"),
+    ("link", "is a link"),
+    ("file", "is not a folder"),
+])
+def test_a_keep_folder_it_would_overwrite_is_refused_before_anything_runs(monkeypatch, capsys, tmp_path, kind,
+                                                                         message):
+    monkeypatch.setattr(runtime, "build_harness", lambda: pytest.fail("built before --keep was checked"))
+    keep = tmp_path / "keep"
+    if kind == "full":
+        keep.mkdir()
+        (keep / "e1-0.5.txt").write_text("a manifest of an earlier run\n")
+    elif kind == "link":
+        (tmp_path / "elsewhere").mkdir()
+        keep.symlink_to(tmp_path / "elsewhere")
+    else:
+        keep.write_text("not a folder")
+    with pytest.raises(SystemExit) as exit_info:
+        runtime.main(["--keep", str(keep)])
+    assert exit_info.value.code == 2
+    error = capsys.readouterr().err.strip().splitlines()
+    assert message in error[-1] and "Traceback" not in "\n".join(error)
+    if kind == "full":
+        assert (keep / "e1-0.5.txt").read_text() == "a manifest of an earlier run\n"
+
+
+def test_force_lets_a_full_keep_folder_through_the_check(monkeypatch, tmp_path):
+    keep = tmp_path / "keep"
+    keep.mkdir()
+    (keep / "e1-0.5.txt").write_text("old")
+
+    class Built(Exception):
+        pass
+
+    def build():
+        raise Built  # the check passed: the script went on to build its harness
+
+    monkeypatch.setattr(runtime, "build_harness", build)
+    with pytest.raises(Built):
+        runtime.main(["--keep", str(keep), "--force"])
 
 
 @pytest.fixture(scope="module")
