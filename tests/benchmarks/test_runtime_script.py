@@ -1,6 +1,7 @@
 """The runtime benchmark (``python -m mocapbench.benchmarks.runtime`` and its C++ harness): ``--set`` checked before
 anything is built or encoded, the whole pose the harness times equal to Python's decode (mcb-rot and ACL, on a game
-rig), a bad manifest or a missing data folder or a --keep folder it would overwrite one line and a non-zero exit, never a traceback."""
+rig), a bad manifest, a missing data folder or a ``--keep`` folder it would overwrite one line and a non-zero exit,
+never a traceback."""
 
 from __future__ import annotations
 
