@@ -482,9 +482,14 @@ def _worker(connection, name: str, motions: Sequence[Motion], plan: _Plan, store
     connection.close()
 
 
-def _start_worker(process) -> None:
-    """Start ``process`` with SIGINT ignored from its first instruction on (a spawned child keeps an ignored signal,
-    and Python then installs no handler), so that a Ctrl-C while it starts is the parent's alone."""
+def _start_worker(process) -> bool:
+    """Start ``process``; True when a Ctrl-C came meanwhile: the caller raises it once the worker is one it stops.
+
+    The parent used to ignore SIGINT while a worker started (so that the spawned child, which keeps an ignored
+    signal, ignored it from its first instruction), and a Ctrl-C that landed then was lost: the run went on to its
+    end. It is now noted instead. The child then starts with SIGINT at its default, until :func:`_worker` ignores
+    it: a Ctrl-C in the second of its imports ends it with a traceback of its own, beside the parent's interrupt.
+    """
     import signal
     import threading
 
@@ -492,12 +497,14 @@ def _start_worker(process) -> None:
     # Only the main thread sets handlers; a handler not set from Python (None) could not be put back.
     if threading.current_thread() is not threading.main_thread() or before is None:
         process.start()
-        return
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
+        return False
+    noted: list[int] = []
+    signal.signal(signal.SIGINT, lambda signum, frame: noted.append(signum))
     try:
         process.start()
     finally:
-        signal.signal(signal.SIGINT, before)
+        signal.signal(signal.SIGINT, before)  # (a signal caught but not yet handled goes to the note first)
+    return bool(noted) and before is not signal.SIG_IGN
 
 
 def _ended_without_outcome(name: str, exitcode: int | None) -> CodecOutcome:
@@ -553,9 +560,11 @@ def _compare_in_pool(names: Sequence[str], motions: Sequence[Motion], plan: _Pla
                 reader, writer = context.Pipe(duplex=False)
                 process = context.Process(target=_worker, args=(writer, name, list(motions), plan, store),
                                           name=f"compare {name}", daemon=True)
-                _start_worker(process)
+                interrupted = _start_worker(process)
                 writer.close()  # the worker holds the write end: the pipe closes when it ends
                 running[reader] = (name, process)
+                if interrupted:
+                    raise KeyboardInterrupt
             for reader in wait(list(running)):
                 try:
                     method, arguments = reader.recv()

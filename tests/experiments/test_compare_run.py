@@ -379,3 +379,19 @@ class _BrokenStore(RowStore):
 def test_an_error_outside_a_codec_stops_the_run_in_a_worker_as_in_this_process(tmp_path, workers):
     with pytest.raises(OSError, match="cannot read the rows of svd"):
         compare(_clips()[:2], 1.0, ["raw-zstd", "svd"], store=_BrokenStore(tmp_path, "svd"), workers=workers)
+
+
+def test_a_ctrl_c_while_a_worker_starts_is_noted_not_lost():
+    import os
+    import signal
+    import time
+
+    class Starting:  # a process whose start takes a Ctrl-C (a spawned worker's start takes a second)
+        def start(self):
+            os.kill(os.getpid(), signal.SIGINT)
+            time.sleep(0.05)
+
+    before = signal.getsignal(signal.SIGINT)
+    assert compare_run._start_worker(Starting()) is True
+    assert signal.getsignal(signal.SIGINT) is before
+
