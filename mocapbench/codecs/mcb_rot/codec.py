@@ -209,7 +209,7 @@ class McbRotCodec(Codec):
     @dataclass(frozen=True)
     class Config(CodecConfig):
         eps_cm: float = param(1.0, low=1e-3, high=100.0, unit="cm", doc="guaranteed L-inf bound on every joint and end site")
-        segment_frames: int = param(128, low=1, high=4096, unit="frames", doc="DCT segment length (the latency)")
+        segment_frames: int = param(128, low=1, high=4096, unit="frames", doc="DCT segment length")
         chunk_frames: int = param(
             128, low=1, high=1 << 20, unit="frames", doc="random-access unit: segments are coded in chunks this long"
         )
@@ -271,7 +271,11 @@ class McbRotCodec(Codec):
 
     @property
     def latency_frames(self) -> int:
-        return self.config.segment_frames
+        """The whole clip (-1): the encoder sees every frame before it writes one. The rate search picks one step
+        multiplier for the stream, the entropy classes (channel scales, band tilts) are fitted on all of its values,
+        and a still root is a property of the whole clip; a segment bounds what a random pose decodes, not what
+        the encoder waits for."""
+        return -1
 
     # -- learned state: the prior ---------------------------------------------------------------------
     def fit(self, motions: Sequence[Motion]) -> "McbRotCodec":
@@ -649,7 +653,7 @@ def _segment_lengths(num_frames: int, segment_frames: int) -> list[int]:
     ``segment_frames``; the smallest stream wins, ties to the earlier): ``segment_frames``, half of it, and for a
     clip of up to :data:`_EVEN_SPLIT_CLIPS` x ``segment_frames`` frames the even splits ``ceil(F / k)`` of its frames
     into k segments of half to all of ``segment_frames`` (and one split finer, down to a quarter): no segment is
-    ever longer than ``segment_frames``, so the latency stays the config's. Each length is any varint of the
+    ever longer than ``segment_frames``, so the unit a random pose decodes stays the config's. Each length is any varint of the
     settings (the decoder reads the grid from the stream); the split is even when the clip has no cut."""
     lengths = [segment_frames]
     if segment_frames // 2 >= _MIN_SEARCHED_SEGMENT:
