@@ -2639,12 +2639,20 @@ static int decode_frame(ctx_t *x, uint32_t f, double *rotations, double *root, d
             memcpy(q, out, sizeof out);
         }
     }
-    if (steps) {
+    if (steps && J > 1) {
+        /* a clip without translation tracks (most): the skeleton's offsets in one block; else joint by joint, the
+         * context's arrays in locals (a store through `steps` could change them as far as the compiler knows) */
         uint32_t T = x->num_tracks;
-        const double *values = T ? x->track_values + (size_t)(f - x->seg_start[x->chunk_first[chunk]]) * 3 * T : NULL;
-        for (uint32_t j = 1; j < J; ++j) {
-            int32_t t = x->track_of[j];
-            memcpy(steps + 3 * j, t >= 0 ? values + 3 * t : x->offsets + 3 * j, 3 * sizeof(double));
+        const double *offsets = x->offsets;
+        if (!T) {
+            memcpy(steps + 3, offsets + 3, 3 * sizeof(double) * (J - 1));
+        } else {
+            const double *values = x->track_values + (size_t)(f - x->seg_start[x->chunk_first[chunk]]) * 3 * T;
+            const int32_t *track_of = x->track_of;
+            for (uint32_t j = 1; j < J; ++j) {
+                int32_t t = track_of[j];
+                memcpy(steps + 3 * j, t >= 0 ? values + 3 * t : offsets + 3 * j, 3 * sizeof(double));
+            }
         }
     }
     /* corrections of this frame */
