@@ -16,6 +16,14 @@ $(STAMP): pyproject.toml constraints.txt
 	$(PY) -m pip install --quiet -c constraints.txt -e '.[neural,cluster,test]'
 	touch $(STAMP)
 
+# The tests run one BLAS / OpenMP thread per process (unless the environment says otherwise): several test
+# processes run at once (workers, subprocesses, CI's two lanes), and an idle OpenBLAS or OpenMP worker thread
+# waits by spinning, taking the cycles another process needs (.ci/run says what it cost). The tests of a result
+# that could depend on the thread count set the count themselves.
+test test-cmu test-fuzz test-browser: export OPENBLAS_NUM_THREADS ?= 1
+test test-cmu test-fuzz test-browser: export OMP_NUM_THREADS ?= 1
+test test-cmu test-fuzz test-browser: export MKL_NUM_THREADS ?= 1
+
 # The venv alone (.ci/run installs it while the runtime's C tests run).
 venv: $(STAMP)
 

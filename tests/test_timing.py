@@ -43,14 +43,18 @@ def test_single_thread_limits_the_pools_and_restores_them(monkeypatch):
     import sys
     import types
 
-    from threadpoolctl import threadpool_info
+    from threadpoolctl import threadpool_info, threadpool_limits
 
     from mocapbench.metrics import timing
 
-    before = [(pool["filepath"], pool["num_threads"]) for pool in threadpool_info()]
-    with timing.single_thread(1):
-        assert all(pool["num_threads"] == 1 for pool in threadpool_info())
-    assert [(pool["filepath"], pool["num_threads"]) for pool in threadpool_info()] == before
+    # Two threads first, so that the limit and the restore each change something whatever the environment sets
+    # (the Makefile and CI run the tests with one BLAS / OpenMP thread).
+    with threadpool_limits(limits=2):
+        before = [(pool["filepath"], pool["num_threads"]) for pool in threadpool_info()]
+        assert all(threads == 2 for _, threads in before)
+        with timing.single_thread(1):
+            assert all(pool["num_threads"] == 1 for pool in threadpool_info())
+        assert [(pool["filepath"], pool["num_threads"]) for pool in threadpool_info()] == before
     first = timing._controller()
     assert timing._controller() is first  # the loaded libraries are listed once while no module is imported
     monkeypatch.setitem(sys.modules, "_a_module_imported_later", types.ModuleType("_a_module_imported_later"))
