@@ -1622,7 +1622,8 @@ static TARGET_AVX2 void exp_maps_avx2(const double *X, const double *Y, const do
         int far = exp_map_four(_mm256_loadu_pd(X + j), _mm256_loadu_pd(Y + j), _mm256_loadu_pd(Z + j), out);
         for (uint32_t k = 0; k < 4 && j + k < J; ++k)
             if (far >> k & 1) exp_map_fast(X[j + k], Y[j + k], Z[j + k], out + 4 * k);
-        if (out == tail) memcpy(q + 4 * j, tail, 32 * (size_t)(J - j));
+        if (out == tail) /* quaternion by quaternion (a memcpy of a variable size was a call) */
+            for (uint32_t k = 0; j + k < J; ++k) _mm256_storeu_pd(q + 4 * (j + k), _mm256_loadu_pd(tail + 4 * k));
     }
 }
 #endif
@@ -2522,7 +2523,15 @@ static ALWAYS_INLINE void finish_values(const ctx_t *x, uint32_t count, double *
     for (uint32_t f = 0; f < count; ++f) {
         double *v = out + f * stride, *X = v + 4, *Y = X + P, *Z = Y + P;
         v[3] = 0.0;
-        for (size_t j = J; j < P; ++j) X[j] = Y[j] = Z[j] = 0.0;
+        /* the padding (P - J < 4 joints) written one by one: as a loop the compiler made it three calls of
+         * memset per frame */
+        if (J < P) {
+            X[J] = Y[J] = Z[J] = 0.0;
+            if (J + 1 < P) {
+                X[J + 1] = Y[J + 1] = Z[J + 1] = 0.0;
+                if (J + 2 < P) X[J + 2] = Y[J + 2] = Z[J + 2] = 0.0;
+            }
+        }
         for (uint32_t t = 0; t < x->num_turned; ++t) {
             uint32_t j = x->turned_joint[t];
             const double *a = x->axes + 9 * (size_t)t;
