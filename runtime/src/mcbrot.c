@@ -1101,7 +1101,7 @@ static ALWAYS_INLINE uint64_t be64_at(const uint8_t *p) {
 /* The 8 bytes at data + at as a big-endian number; the bytes at or past `limit` read as zeros (a copy to a zeroed
  * local: no read at or past the limit; bytes, not a type-punned load). */
 static ALWAYS_INLINE uint64_t bit_window(const uint8_t *data, size_t at, size_t limit) {
-    if (LIKELY(limit >= 8 && at <= limit - 8)) return be64_at(data + at);
+    if (LIKELY(at + 8 <= limit)) return be64_at(data + at);
     uint8_t bytes[8] = {0};
     if (at < limit) memcpy(bytes, data + at, limit - at);
     return be64_at(bytes);
@@ -1122,11 +1122,22 @@ static ALWAYS_INLINE int unit_next(unit_t *u, uint32_t k, int32_t *out) {
         freq = mcbrot_freq[k][token];
     }
     uint32_t value = freq * (x >> PRECISION) + slot - start;
-    /* the renormalization keeps its branch (a two-byte window cost more at 0.5-1 cm, where it predicts well, than
-     * it saved at 0.1 cm) */
-    while (value < RANS_LOW) {
-        if (u->pos >= u->end) return 1;
-        value = value << 8 | u->data[u->pos++];
+    /* the renormalization without a branch on its byte count: a state >= 2^23 leaves value >= 2^8, so at most two
+     * bytes, both read (where two are left) and shifted in by the count the two comparisons give (a third of the
+     * values take a byte, at every ε, with no pattern a chunk decoded once lets the predictor learn); the loop
+     * after it reads what is left to read (the unit's last byte, or a corrupt stream's states), as before */
+    {
+        uint32_t bytes = (value < RANS_LOW) + (value < (RANS_LOW >> 8));
+        size_t left = u->end - u->pos;
+        if (LIKELY(left >= 2)) {
+            uint32_t two = (uint32_t)u->data[u->pos] << 8 | u->data[u->pos + 1];
+            value = (uint32_t)((uint64_t)value << (8 * bytes)) | (two >> (16 - 8 * bytes));
+            u->pos += bytes;
+        }
+        while (value < RANS_LOW) {
+            if (u->pos >= u->end) return 1;
+            value = value << 8 | u->data[u->pos++];
+        }
     }
     u->x[0] = u->x[1];
     u->x[1] = value;
