@@ -1,8 +1,10 @@
 """The native ``mcb-rot`` runtime beside ACL 2.1's own decoder, measured as ACL measures itself.
 
 One C++ harness (``runtime/bench/bench_vs_acl.cpp``) links ACL 2.1 (header-only, ``../shared/third_party``) and the
-runtime (``runtime/src/mcbrot.c``), both compiled here with the same compiler and flags (``-O2``, ACL's SSE4.1
-minimum on x86-64); it samples every clip one whole pose at a time through each library's native API, both nearest
+runtime (``runtime/src/mcbrot.c``), both compiled here with the same compiler and flags (``-O2``) for the same
+instruction set (``--isa``, x86-64: ``avx2`` with FMA, the default where the CPU has them, or ``sse4.1``, ACL's
+minimum; mcb-rot's runtime, which picks its AVX2 sums at open from the CPU, is built without them for ``sse4.1``, so
+neither decoder runs wider instructions than the other); it samples every clip one whole pose at a time through each library's native API, both nearest
 frame: ACL's ``decompression_context::seek`` + ``decompress_tracks`` writes every joint's rotation and translation,
 and so does mcb-rot's ``mcbrot_sample_pose`` (rotations J x 4, translations J x 3: a game rig's translation tracks,
 the skeleton offsets elsewhere), in forward playback, backward playback and random access, each with a warm and a
@@ -13,7 +15,7 @@ max over joints and frames) and their ratio. Each case ends with a check that bo
 Python decodes (one frame of every clip) and that ACL's translations are the clip's within ε.
 
     python -m mocapbench.benchmarks.runtime [--dataset cmu_test] [--eps 0.1 0.5 1] [--every 1 5] [--repeats 3]
-        [--runs 1] [--sample] [--set KEY=VALUE] [--keep DIR [--force]]
+        [--runs 1] [--sample] [--set KEY=VALUE] [--isa avx2 sse4.1] [--keep DIR [--force]]
 
 ``--dataset`` is a CMU split (``cmu_test``, ..., 120 fps: ``--every 1 5`` gives 120 and 24 fps) or a Bandai Namco
 one (``bandai_test``, ``bandai_train``, ``bandai_all``: a 22-joint game rig at its native 30 fps, ``--every 1``
@@ -51,7 +53,13 @@ __all__ = ["main", "build_harness", "harness_poses", "HarnessError"]
 
 _RUNTIME = Path(__file__).resolve().parents[2] / "runtime"
 _HARNESS = _RUNTIME / "bench" / "bench_vs_acl.cpp"
-_FLAGS = ["-O2", "-DNDEBUG"] + (["-msse4.1"] if os.uname().machine in ("x86_64", "amd64") else [])
+_FLAGS = ["-O2", "-DNDEBUG"]
+_X86 = os.uname().machine in ("x86_64", "amd64")
+# The instruction set both decoders are built for on x86-64 (--isa): (flags of both, flags of mcb-rot's runtime only).
+# ACL and rtm choose their SSE4.1 or AVX code from the compiler's target; mcb-rot's runtime chooses its AVX2 + FMA
+# sums at open from the CPU, so an SSE4.1 build leaves them out (MCBROT_NO_AVX2): either way both decoders run the
+# same instruction set.
+ISA_FLAGS = {"sse4.1": (["-msse4.1"], ["-DMCBROT_NO_AVX2"]), "avx2": (["-mavx2", "-mfma"], [])}
 _MODES = ("fwd_warm", "fwd_cold", "bwd_warm", "bwd_cold", "rnd_warm", "rnd_cold")
 
 
@@ -59,12 +67,36 @@ class HarnessError(RuntimeError):
     """The harness refused its manifest or its arguments (exit status 2); the message is its one line."""
 
 
-def build_harness() -> Path:
-    """The harness, compiled once into the build cache (keyed by its sources, ACL's folder and the flags)."""
+def cpu_isas() -> list[str]:
+    """The ``--isa`` values this CPU runs (``avx2`` where /proc/cpuinfo lists avx2 and fma); none off x86-64."""
+    if not _X86:
+        return []
+    try:
+        flags = next((line.split(":", 1)[1].split() for line in Path("/proc/cpuinfo").read_text().splitlines()
+                      if line.startswith("flags")), [])
+    except OSError:
+        flags = []
+    return ["sse4.1"] + (["avx2"] if {"avx2", "fma"} <= set(flags) else [])
+
+
+def harness_flags(isa: str | None) -> tuple[list[str], list[str]]:
+    """(flags of both decoders, flags of mcb-rot's runtime only) for ``isa`` (None: no ISA flag, off x86-64)."""
+    if isa is None:
+        return list(_FLAGS), []
+    common, runtime_only = ISA_FLAGS[isa]
+    return _FLAGS + common, list(runtime_only)
+
+
+def build_harness(isa: str | None = None) -> Path:
+    """The harness for ``isa`` (an :data:`ISA_FLAGS` key; None: the best this CPU runs), compiled once into the build
+    cache (keyed by its sources, ACL's folder and the flags)."""
     from mocapbench.codecs.acl.build import find_acl_headers, find_compiler
     from mocapbench.codecs.native_build import cache_root
     from mocapbench.codecs.mcb_rot.native import _compiler
 
+    if isa is None and cpu_isas():
+        isa = cpu_isas()[-1]
+    flags, runtime_flags = harness_flags(isa)
     headers = find_acl_headers()
     cxx, cc = find_compiler(), _compiler()
     if cc is None:
@@ -72,16 +104,16 @@ def build_harness() -> Path:
     sources = [_HARNESS, _RUNTIME / "src" / "mcbrot.c", _RUNTIME / "src" / "mcbrot_tables.h",
                _RUNTIME / "include" / "mcbrot.h"]
     key = hashlib.sha256(b"".join(path.read_bytes() for path in sources) + str(headers.root).encode()
-                         + " ".join(_FLAGS + [cc, cxx]).encode()).hexdigest()[:16]
+                         + " ".join(flags + runtime_flags + [cc, cxx]).encode()).hexdigest()[:16]
     folder = cache_root() / f"runtime-bench-{key}"
     program = folder / "bench_vs_acl"
     if program.is_file():
         return program
     folder.mkdir(parents=True, exist_ok=True)
     include = ["-I", str(_RUNTIME / "include")]
-    subprocess.run([cc, *_FLAGS, "-std=c99", *include, "-c", str(sources[1]), "-o", str(folder / "mcbrot.o")],
-                   check=True)
-    subprocess.run([cxx, *_FLAGS, "-std=c++17", *include, "-I", str(headers.acl_include), "-I",
+    subprocess.run([cc, *flags, *runtime_flags, "-std=c99", *include, "-c", str(sources[1]), "-o",
+                    str(folder / "mcbrot.o")], check=True)
+    subprocess.run([cxx, *flags, "-std=c++17", *include, "-I", str(headers.acl_include), "-I",
                     str(headers.rtm_include), str(_HARNESS), str(folder / "mcbrot.o"), "-o", str(program), "-lm"],
                    check=True)
     return program
@@ -263,6 +295,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--force", action="store_true", help="with --keep: replace what a folder already holds")
     parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                         help="an mcb-rot config field (Python literal), e.g. --set segment_frames=64")
+    parser.add_argument("--isa", nargs="+", default=None, choices=sorted(ISA_FLAGS),
+                        help="x86-64: the instruction sets to build both decoders for, one table each (default: the "
+                             "widest this CPU runs, avx2 where it has AVX2 and FMA)")
     args = parser.parse_args(argv)
     from mocapbench.benchmarks.mcb_rot.rd import _load
     from mocapbench.cli.arguments import CliError, parse_settings
@@ -278,16 +313,33 @@ def main(argv: list[str] | None = None) -> int:
         create("mcb-rot", **settings)  # a field or value it refuses is one line here, not a traceback later
         if args.keep:
             _check_keep(Path(args.keep), args.force)
+        isas = _isas(args.isa)
     except (CliError, TypeError, ValueError) as error:
         parser.error(str(error))
 
-    program = build_harness()
+    programs = {isa: build_harness(isa) for isa in isas}
     motions = _load(args.dataset, args.data_dir)
     try:
-        return _measure(program, motions, args, settings)
+        return _measure(programs, motions, args, settings)
     except HarnessError as error:  # the harness refused what this script gave it: a bug here, said in one line
         print(f"mocapbench.benchmarks.runtime: {error}", file=sys.stderr)
         return 2
+
+
+def _isas(asked: list[str] | None) -> list:
+    """The instruction sets to measure: ``asked`` in order without repeats, each one this CPU runs (CliError
+    naming one it does not); by default the widest it runs; ``[None]`` off x86-64 (no ISA flag)."""
+    from mocapbench.cli.arguments import CliError
+
+    runs = cpu_isas()
+    if not runs:
+        if asked:
+            raise CliError(f"--isa {' '.join(asked)}: this machine is {os.uname().machine}, not x86-64")
+        return [None]
+    for isa in asked or []:
+        if isa not in runs:
+            raise CliError(f"--isa {isa}: this CPU does not run it (it runs {', '.join(runs)})")
+    return list(dict.fromkeys(asked)) if asked else [runs[-1]]
 
 
 def _check_keep(folder: Path, force: bool) -> None:
@@ -303,17 +355,27 @@ def _check_keep(folder: Path, force: bool) -> None:
         raise CliError(f"--keep {folder} is not empty; pass --force to replace the streams and manifests in it")
 
 
-def _measure(program: Path, motions: list, args: argparse.Namespace, settings: dict) -> int:
-    """Every case (frame step x ε): streams, the harness's table, the pose check; 1 if a clip was refused."""
+def _isa_text(isa: str | None) -> str:
+    """The flags a harness was built with, said in words."""
+    flags, runtime_only = harness_flags(isa)
+    return (f"{isa or 'no ISA flag'}: {' '.join(flags)} for both decoders"
+            + (f", {' '.join(runtime_only)} for mcb-rot's runtime" if runtime_only else ""))
+
+
+def _measure(programs: dict, motions: list, args: argparse.Namespace, settings: dict) -> int:
+    """Every case (frame step x ε): streams, then for each instruction set (``programs``: ISA -> harness) the
+    harness's table and the pose check; 1 if a clip was refused."""
     steps = args.every or ([1] if args.dataset.startswith("bandai_") else [1, 5])
     print(f"# the mcb-rot runtime beside ACL 2.1 on {args.dataset} ({len(motions)} clips, {motions[0].num_joints} "
-          f"joints; load average {os.getloadavg()[0]:.1f}; flags {' '.join(_FLAGS)}; mcb-rot {settings or 'defaults'}; "
+          f"joints; load average {os.getloadavg()[0]:.1f}; mcb-rot {settings or 'defaults'}; "
           f"whole poses: mcbrot_sample_pose beside ACL's decompress_tracks)")
     refused_any = False
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(args.keep or tmp)
         folder.mkdir(parents=True, exist_ok=True)
-        print(f"(harness: {program}; {args.runs} run(s) of {args.repeats} repeats per clip and mode)")
+        for isa, program in programs.items():
+            print(f"(harness for {_isa_text(isa)}: {program}; {args.runs} run(s) of {args.repeats} repeats per clip "
+                  f"and mode)")
         for step in steps:
             clips = [m.every(step) for m in motions] if step > 1 else motions
             frame = min(clip.num_frames for clip in clips) // 2
@@ -327,15 +389,17 @@ def _measure(program: Path, motions: list, args: argparse.Namespace, settings: d
                 refused_any |= bool(refused)
                 if not lines:
                     continue
-                failures: list[str] = []
-                rows = _run(program, lines, folder / f"{case}.txt", args.repeats, runs=args.runs,
-                            sample=args.sample, failures=failures)
-                if {row["decoder"] for row in rows} >= {"mcb-rot", "acl"}:
-                    _table(rows, pooled, label)
-                for line in dict.fromkeys(failures):  # a clip refused in every run: named once
-                    print(f"({label}: the harness refused {line})")
-                refused_any |= bool(failures)
-                print(_pose_check(program, folder / f"{case}.txt", frame, poses, eps))
+                for isa, program in programs.items():
+                    title = f"{label}, {isa}" if len(programs) > 1 else label
+                    failures: list[str] = []
+                    rows = _run(program, lines, folder / f"{case}.txt", args.repeats, runs=args.runs,
+                                sample=args.sample, failures=failures)
+                    if {row["decoder"] for row in rows} >= {"mcb-rot", "acl"}:
+                        _table(rows, pooled, title)
+                    for line in dict.fromkeys(failures):  # a clip refused in every run: named once
+                        print(f"({title}: the harness refused {line})")
+                    refused_any |= bool(failures)
+                    print(_pose_check(program, folder / f"{case}.txt", frame, poses, eps))
                 print(f"({time.perf_counter() - wall:.0f} s wall, {time.process_time() - cpu:.0f} s CPU of this "
                       f"process beside the harness; load average {os.getloadavg()[0]:.1f})")
     return 1 if refused_any else 0

@@ -1,5 +1,5 @@
 """The runtime benchmark (``python -m mocapbench.benchmarks.runtime`` and its C++ harness): ``--set`` checked before
-anything is built or encoded, the whole pose the harness times equal to Python's decode (mcb-rot and ACL, on a game
+anything is built or encoded, both decoders built for the same instruction set, the whole pose the harness times equal to Python's decode (mcb-rot and ACL, on a game
 rig), a bad manifest, a missing data folder or a ``--keep`` folder it would overwrite one line and a non-zero exit,
 never a traceback."""
 
@@ -23,7 +23,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
     ("eps_cm=0.5", "--eps"),
 ])
 def test_a_setting_it_cannot_take_is_one_usage_line(monkeypatch, capsys, pair, message):
-    monkeypatch.setattr(runtime, "build_harness", lambda: pytest.fail("built before the settings were checked"))
+    monkeypatch.setattr(runtime, "build_harness", lambda *_: pytest.fail("built before the settings were checked"))
     with pytest.raises(SystemExit) as exit_info:
         runtime.main(["--set", pair])
     assert exit_info.value.code == 2
@@ -38,7 +38,7 @@ def test_a_setting_it_cannot_take_is_one_usage_line(monkeypatch, capsys, pair, m
 ])
 def test_a_keep_folder_it_would_overwrite_is_refused_before_anything_runs(monkeypatch, capsys, tmp_path, kind,
                                                                          message):
-    monkeypatch.setattr(runtime, "build_harness", lambda: pytest.fail("built before --keep was checked"))
+    monkeypatch.setattr(runtime, "build_harness", lambda *_: pytest.fail("built before --keep was checked"))
     keep = tmp_path / "keep"
     if kind == "full":
         keep.mkdir()
@@ -65,12 +65,57 @@ def test_force_lets_a_full_keep_folder_through_the_check(monkeypatch, tmp_path):
     class Built(Exception):
         pass
 
-    def build():
+    def build(*_):
         raise Built  # the check passed: the script went on to build its harness
 
     monkeypatch.setattr(runtime, "build_harness", build)
     with pytest.raises(Built):
         runtime.main(["--keep", str(keep), "--force"])
+
+
+@pytest.mark.parametrize("cpu, asked, message", [
+    (["sse4.1"], "avx2", "--isa avx2: this CPU does not run it (it runs sse4.1)"),
+    ([], "sse4.1", "not x86-64"),
+])
+def test_an_instruction_set_the_cpu_lacks_is_one_usage_line(monkeypatch, capsys, cpu, asked, message):
+    monkeypatch.setattr(runtime, "cpu_isas", lambda: cpu)
+    monkeypatch.setattr(runtime, "build_harness", lambda *_: pytest.fail("built for an instruction set refused"))
+    with pytest.raises(SystemExit) as exit_info:
+        runtime.main(["--isa", asked])
+    assert exit_info.value.code == 2
+    error = capsys.readouterr().err.strip().splitlines()
+    assert message in error[-1] and "Traceback" not in "\n".join(error)
+
+
+@pytest.mark.parametrize("isa, both, runtime_only", [
+    ("sse4.1", ["-msse4.1"], ["-DMCBROT_NO_AVX2"]),
+    ("avx2", ["-mavx2", "-mfma"], []),
+])
+def test_both_decoders_are_compiled_for_the_one_instruction_set(monkeypatch, tmp_path, isa, both, runtime_only):
+    """The C runtime and the C++ harness (ACL's headers) get the same ISA flags; an SSE4.1 build leaves mcb-rot's
+    runtime-dispatched AVX2 sums out, so neither decoder runs wider instructions than the other."""
+    from types import SimpleNamespace
+
+    from mocapbench.codecs import native_build
+    from mocapbench.codecs.acl import build
+    from mocapbench.codecs.mcb_rot import native
+
+    commands = []
+    monkeypatch.setattr(native_build, "cache_root", lambda: tmp_path)
+    monkeypatch.setattr(build, "find_compiler", lambda: "c++")
+    monkeypatch.setattr(native, "_compiler", lambda: "cc")
+    monkeypatch.setattr(build, "find_acl_headers", lambda: SimpleNamespace(
+        root=tmp_path, acl_include=tmp_path / "acl", rtm_include=tmp_path / "rtm"))
+    monkeypatch.setattr(runtime.subprocess, "run", lambda command, **_: commands.append(command))
+    runtime.build_harness(isa)
+    compile_c, link_cxx = commands
+    assert compile_c[0] == "cc" and link_cxx[0] == "c++"
+    for flag in both:
+        assert flag in compile_c and flag in link_cxx
+    for flag in runtime_only:
+        assert flag in compile_c and flag not in link_cxx
+    other = {"sse4.1": "-mavx2", "avx2": "-DMCBROT_NO_AVX2"}[isa]
+    assert other not in compile_c + link_cxx
 
 
 @pytest.fixture(scope="module")
@@ -169,7 +214,7 @@ def test_sample_times_mcbrot_sample_beside_the_whole_pose(harness, tmp_path):
 def test_a_missing_data_folder_is_one_line(monkeypatch, tmp_path, capsys):
     from mocapbench.benchmarks.entry import run_script
 
-    monkeypatch.setattr(runtime, "build_harness", lambda: tmp_path / "no-harness")
+    monkeypatch.setattr(runtime, "build_harness", lambda *_: tmp_path / "no-harness")
     monkeypatch.setenv("MOCAPBENCH_BANDAI_DIR", str(tmp_path / "no-bandai-here"))
     assert run_script(lambda: runtime.main(["--dataset", "bandai_test"])) == 2
     error = capsys.readouterr().err.strip().splitlines()
