@@ -30,8 +30,9 @@ venv: $(STAMP)
 run: $(STAMP)
 	$(PY) -m mocapbench.experiments.main
 
+# PYTEST_FILES: test files or folders to run instead of all of them (.ci/run runs a few in its second lane).
 test: $(STAMP)
-	$(PY) -m pytest -q
+	$(PY) -m pytest -q $(PYTEST_FILES)
 
 test-cmu: $(STAMP)
 	$(PY) -m pytest -q -m cmu
