@@ -16,6 +16,16 @@ from mocapbench.benchmarks import runtime
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 
+def assert_refused_before_building(monkeypatch, capsys, argv: list[str], message: str) -> None:
+    """``main(argv)`` exits 2 with ``message`` in its one usage line, no traceback, and builds no harness."""
+    monkeypatch.setattr(runtime, "build_harness", lambda *_: pytest.fail(f"built before {argv} was refused"))
+    with pytest.raises(SystemExit) as exit_info:
+        runtime.main(argv)
+    assert exit_info.value.code == 2
+    error = capsys.readouterr().err.strip().splitlines()
+    assert message in error[-1] and "Traceback" not in "\n".join(error)
+
+
 @pytest.mark.parametrize("pair, message", [
     ("segment_frames", "expects key=value"),
     ("no_such_field=3", "Unknown parameter"),
@@ -23,12 +33,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
     ("eps_cm=0.5", "--eps"),
 ])
 def test_a_setting_it_cannot_take_is_one_usage_line(monkeypatch, capsys, pair, message):
-    monkeypatch.setattr(runtime, "build_harness", lambda *_: pytest.fail("built before the settings were checked"))
-    with pytest.raises(SystemExit) as exit_info:
-        runtime.main(["--set", pair])
-    assert exit_info.value.code == 2
-    error = capsys.readouterr().err.strip().splitlines()
-    assert message in error[-1] and "Traceback" not in "\n".join(error)
+    assert_refused_before_building(monkeypatch, capsys, ["--set", pair], message)
 
 
 @pytest.mark.parametrize("kind, message", [
@@ -38,7 +43,6 @@ def test_a_setting_it_cannot_take_is_one_usage_line(monkeypatch, capsys, pair, m
 ])
 def test_a_keep_folder_it_would_overwrite_is_refused_before_anything_runs(monkeypatch, capsys, tmp_path, kind,
                                                                          message):
-    monkeypatch.setattr(runtime, "build_harness", lambda *_: pytest.fail("built before --keep was checked"))
     keep = tmp_path / "keep"
     if kind == "full":
         keep.mkdir()
@@ -48,11 +52,7 @@ def test_a_keep_folder_it_would_overwrite_is_refused_before_anything_runs(monkey
         keep.symlink_to(tmp_path / "elsewhere")
     else:
         keep.write_text("not a folder")
-    with pytest.raises(SystemExit) as exit_info:
-        runtime.main(["--keep", str(keep)])
-    assert exit_info.value.code == 2
-    error = capsys.readouterr().err.strip().splitlines()
-    assert message in error[-1] and "Traceback" not in "\n".join(error)
+    assert_refused_before_building(monkeypatch, capsys, ["--keep", str(keep)], message)
     if kind == "full":
         assert (keep / "e1-0.5.txt").read_text() == "a manifest of an earlier run\n"
 
@@ -79,12 +79,7 @@ def test_force_lets_a_full_keep_folder_through_the_check(monkeypatch, tmp_path):
 ])
 def test_an_instruction_set_the_cpu_lacks_is_one_usage_line(monkeypatch, capsys, cpu, asked, message):
     monkeypatch.setattr(runtime, "cpu_isas", lambda: cpu)
-    monkeypatch.setattr(runtime, "build_harness", lambda *_: pytest.fail("built for an instruction set refused"))
-    with pytest.raises(SystemExit) as exit_info:
-        runtime.main(["--isa", asked])
-    assert exit_info.value.code == 2
-    error = capsys.readouterr().err.strip().splitlines()
-    assert message in error[-1] and "Traceback" not in "\n".join(error)
+    assert_refused_before_building(monkeypatch, capsys, ["--isa", asked], message)
 
 
 @pytest.mark.parametrize("isa, both, runtime_only", [
