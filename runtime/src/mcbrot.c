@@ -1111,9 +1111,9 @@ static ALWAYS_INLINE uint64_t bit_window(const uint8_t *data, size_t at, size_t 
  * raw bits without a branch on the data, 0 with branches. The same values and codes either way. A chunk that
  * playback reaches is decoded once a pass: its branches have no pattern the predictor learns (a third of the
  * values take a renormalization byte, a fifth to two fifths are zero, at every ε), and without them a chunk's
- * decoding at 0.1 cm takes 13-16 % less. Random access that keeps returning to a clip's few chunks (as a benchmark
- * does) has the predictor learn their branches: there the branches are faster (the branch-free reads took 25-70 %
- * more at 0.5 and 1 cm, 120 fps). */
+ * decoding is faster. Random access that keeps returning to a clip's few chunks (as a benchmark does) has the
+ * predictor learn their branches: there the branches are faster. Both measured in runtime/README.md ("Design"),
+ * where the figures are kept. */
 static ALWAYS_INLINE int unit_value(unit_t *u, uint32_t k, int32_t *out, const int once) {
     /* value i uses state i & 1: the state in x[0], the other moves in front of it (no index to keep) */
     uint32_t x = u->x[0];
