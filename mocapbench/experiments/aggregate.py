@@ -154,7 +154,8 @@ def curve_points(data: pd.DataFrame) -> pd.DataFrame:
         **{c: (c, "sum") for c in _SUMS if c in frame},
         **{c: (c, "max") for c in _MAXES if c in frame},
         **{c: (c, "min") for c in _MINS if c in frame},
-    ).reset_index()
+    ).copy().reset_index()  # the copy consolidates the aggregation's block per column (over a hundred with the
+    # params), or pandas warns at each column inserted from here on (a PerformanceWarning in every `make run`)
     out["compression_ratio"] = out["raw_bytes"] / out["bitstream_bytes"]
     out["bits_per_joint_frame"] = 8 * out["bitstream_bytes"] / out["joint_frames"]
     out["mean_err_cm"] = out["w_mean"] / out["frames"]

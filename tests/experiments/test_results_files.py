@@ -95,3 +95,16 @@ def test_mocapbench_plot_draws_one_figure_per_dataset_and_grows_with_its_legend(
         assert f"{dataset}: bits/joint/frame" in svg and "quant-delta-zstd-9 [run-b]" in svg
         height, width = matplotlib.image.imread(out / f"rd_max_err_cm_{dataset}.png").shape[:2]
         assert height > 0.8 * width  # 40 legend lines: taller than the 10 x 6 in default, the axes keep their size
+
+
+def test_curve_points_of_a_sweep_with_many_settings_warns_nothing(rows):
+    """A sweep over every codec has a column per setting of any codec (over a hundred): pooling it must not make
+    pandas warn (a PerformanceWarning per derived column was printed by every ``make run``)."""
+    import warnings
+
+    wide = pd.concat([rows, pd.DataFrame({f"param_setting_{i}": [float(i)] * len(rows) for i in range(150)},
+                                         index=rows.index)], axis=1)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", pd.errors.PerformanceWarning)
+        points = curve_points(wide)
+    assert len(points) == 3 and (points["param_setting_149"] == 149.0).all()
