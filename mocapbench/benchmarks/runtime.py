@@ -94,8 +94,8 @@ def build_harness(isa: str | None = None) -> Path:
     from mocapbench.codecs.native_build import cache_root
     from mocapbench.codecs.mcb_rot.native import _compiler
 
-    if isa is None and cpu_isas():
-        isa = cpu_isas()[-1]
+    if isa is None:
+        isa = (cpu_isas() or [None])[-1]
     flags, runtime_flags = harness_flags(isa)
     headers = find_acl_headers()
     cxx, cc = find_compiler(), _compiler()
