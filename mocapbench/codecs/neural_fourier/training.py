@@ -24,7 +24,9 @@ the overhead is most of the time. Here every network of a call is trained side b
     ``[W2 | b2]`` is set to the least-squares fit of eq. (3) on the current hidden activations ``[a2; 1]`` (per
     output row, normal equations of size h + 1, in float64 with a tiny relative ridge), and only ``[W0 | b0]``
     and ``[W1 | b1]`` are optimized: the loss is then a function of the hidden layers alone, and its gradient is
-    the gradient of eq. (3) at the solved output layer (the output layer's own gradient is 0 there).
+    the gradient of eq. (3) at the solved output layer (the output layer's own gradient is 0 there). The round
+    ends with one more solve at the hidden layers it kept: its last evaluation was a trial point, which the line
+    search may have rejected, and an output layer solved there does not fit the kept hidden layers.
   - *Fewer outputs to fit* (``rank_tolerance > 0``, opt-in). With the output layer
     solved, the targets enter the loss only through their row space: the hidden layers are fitted to the targets'
     leading principal components (all but ``rank_tolerance`` of their energy; how many on CMU clips: README,
@@ -474,8 +476,12 @@ def _train_group(networks: Sequence[Network], omegas: Sequence[Sequence[float]],
     else:
         losses, stopped = _adam(torch, params, gradient, evaluate, iterations, settings, networks[0].rounds,
                                 stopping)
-    if not fit["full"]:
-        # The output layer on every target component, at the accepted hidden layers.
+    if settings.solve_output:
+        # The output layer solved once more, at the hidden layers the optimizer kept and on every target component.
+        # The last evaluation was L-BFGS's last trial point, which its line search may have rejected: the output
+        # layer solved there belongs to hidden layers the network does not keep (the stored network's loss is then
+        # not the one reported, and can be far above it); with reduced targets it covers their leading components
+        # only. Evaluating the kept point again repeats its arithmetic, so the stored network is the reported one.
         fit.update(targets=targets, offset=0.0, full=True)
         evaluate(with_gradient=False)
     step = len(losses) - 1

@@ -347,3 +347,23 @@ def test_lbfgs_bookkeeping_gives_the_same_bits_with_its_numbers_copied_to_the_de
         for wa, wb in zip(a.weights, b.weights):
             np.testing.assert_array_equal(wa, wb)
         assert a.loss_history[0][-1] < a.loss_history[0][0]  # it trained
+
+
+@pytest.mark.torch
+def test_lbfgs_output_layer_is_solved_at_the_accepted_point_when_the_last_trial_is_rejected():
+    """The stored output layer is the least-squares fit on the hidden layers L-BFGS accepted, whatever the last
+    trial point was. A round ends after its last iteration's trial, which the line search may have rejected; the
+    output layer solved there belongs to hidden layers the network does not keep (with it, the stored network's
+    loss is not the loss the round reports, and can be far above it). Every round length from 1 to 12 at a
+    first step large enough to be rejected: some of them end on a rejected trial on any CPU."""
+    pytest.importorskip("torch")
+    omegas = [1.0, 2.5]
+    bold = dataclasses.replace(LBFGS, learning_rate=1.0)
+    ended_on_a_rejection = 0
+    for iterations in range(1, 13):
+        network = _network(90)
+        train_round([network], [omegas], iterations, bold)
+        history = network.loss_history[0]
+        ended_on_a_rejection += len(history) == iterations + 1 and history[-1] == history[-2]
+        _assert_output_layer_solved(network, omegas)
+    assert ended_on_a_rejection > 0  # the case under test happened
