@@ -27,7 +27,8 @@ L∞ that the stream delivers is the one that was checked.
 After ``encode``, ``last_encode_stats`` holds ``K``, ``omegas`` (Ω), ``train_s`` (training wall time, s),
 ``num_parameters`` (|α|), ``paper_compression_ratio`` (F·m / |α|) and ``encoder_max_err_cm`` (the L∞ of the
 stream); ``fourier-mlp-dct`` adds ``threshold_cm``, ``threshold_met`` and per round (K = 0, 1, …)
-``round_max_err_cm``, ``round_payload_bytes`` and ``round_train_s`` (cumulative). ``last_training_log`` holds
+``round_max_err_cm``, ``round_payload_bytes``, ``round_kept_pass`` (which pass of the round it kept, 0: the fit of
+eq. (3)) and ``round_train_s`` (cumulative). ``last_training_log`` holds
 the loss before every optimizer step and after the last one, one array per training pass (one per round, and
 ``reweight_passes`` more per round for ``fourier-mlp-dct``, after the one for ``fourier-mlp-int``); ``fourier-mlp-int``
 adds ``kept_pass`` (which of its passes the stream holds, 0: the unweighted fit).
@@ -68,7 +69,9 @@ Where this departs from the paper, and why
   reweighted least squares toward the minimax fit; the error is measured as the stopping test measures it, on
   the quantized network through FK). Every round starts from the unweighted eq. (3); the residual whose DCT
   peak Algorithm 1 adds is that of the unweighted fit (the weighted fit's residual is shaped by the weights, and
-  on a clean two-sinusoid test motion its peaks miss the true frequencies). The weights of a pass follow the errors of the one before, so a
+  on a clean two-sinusoid test motion its peaks miss the true frequencies). A pass is not guaranteed to lower
+  the L∞, so each round keeps, for its stream and as the next round's start, the pass of lowest L∞ (the fit of
+  eq. (3) or one of its weighted passes; every pass is measured anyway, so this costs only copies). The weights of a pass follow the errors of the one before, so a
   difference in the order of floating-point sums (a clip trained alone or beside others) can grow into another
   fit of about the same error, as Adam's tens of thousands of steps do at K = 10 (README). ``reweight_passes=0`` with ``optimizer="adam"``,
   ``solve_output=False`` and ``iterations_per_round=2000`` is the plain schedule below. ``fourier-mlp-int`` has the
@@ -552,8 +555,8 @@ class FourierMlpDctCodec(_FourierMlpCodec):
         config = self.config
         settings = TrainingSettings.from_config(config)
         networks = self._networks(preps)
-        state = [{"limit": self.threshold_cm(motion), "omegas": [], "used": set(), "errors": [], "bytes": [],
-                  "seconds": [], "stored": None} for motion in motions]
+        state = [{"limit": self.threshold_cm(motion), "omegas": [], "used": set(), "errors": [], "kept": [],
+                  "bytes": [], "seconds": [], "stored": None} for motion in motions]
         searching = list(range(len(motions)))
         with _TorchThreads():
             while searching:
@@ -563,26 +566,34 @@ class FourierMlpDctCodec(_FourierMlpCodec):
                     network.frame_weights = None  # every round starts from eq. (3) itself
                 train_round(group, group_omegas, config.iterations_per_round, settings)
                 plain_fit = {}  # the fit of eq. (3) itself, before the L-inf passes: its residual picks the frequency
-                for reweighting in range(config.reweight_passes):
+                best = {}  # per clip, (L-inf cm, stored weights, float32 weights, pass) of the round's best pass so far
+                for reweighting in range(config.reweight_passes + 1):
+                    if reweighting:
+                        train_round(group, group_omegas, config.iterations_per_round, settings, same_round=True)
                     for i in searching:
-                        _, fit, _ = self._evaluate(preps[i], motions[i], networks[i].weights64(), state[i]["omegas"])
+                        network, omegas = networks[i], state[i]["omegas"]
+                        stored, fit, error = self._evaluate(preps[i], motions[i], network.weights64(), omegas)
                         if reweighting == 0:
                             plain_fit[i] = fit
-                        networks[i].reweight_frames(self._last_frame_errors, config.reweight_power)
-                    train_round(group, group_omegas, config.iterations_per_round, settings, same_round=True)
+                        if i not in best or error < best[i][0]:
+                            best[i] = (error, stored, [w.copy() for w in network.weights], reweighting)
+                        if reweighting < config.reweight_passes:
+                            network.reweight_frames(self._last_frame_errors, config.reweight_power)
                 still = []
                 for i in searching:
                     motion, prep, clip = motions[i], preps[i], state[i]
-                    stored, y_hat, error = self._evaluate(prep, motion, networks[i].weights64(), clip["omegas"])
+                    error, stored, weights, kept = best[i]
+                    networks[i].weights = weights  # the round's best pass: the stream, and the next round's start
                     clip["stored"] = stored
                     clip["errors"].append(error)
+                    clip["kept"].append(kept)
                     # What the stream would be if Algorithm 1 stopped here (a larger threshold stops exactly here:
                     # training does not depend on the threshold), for rate-distortion curves from a single run.
                     clip["bytes"].append(len(self._serialize(motion, prep, clip["omegas"], stored)))
                     clip["seconds"].append(time.perf_counter() - self._start)
                     if error <= clip["limit"] or len(clip["omegas"]) >= config.K_max:  # line 5
                         continue
-                    index = _dominant_dct_index(prep["y"] - plain_fit.get(i, y_hat), prep["w"], clip["used"])  # 7-9
+                    index = _dominant_dct_index(prep["y"] - plain_fit[i], prep["w"], clip["used"])  # 7-9
                     if index is None:
                         continue
                     clip["used"].add(index)
@@ -597,6 +608,7 @@ class FourierMlpDctCodec(_FourierMlpCodec):
                 "threshold_met": bool(clip["errors"][-1] <= clip["limit"]),
                 "round_max_err_cm": [round(e, 4) for e in clip["errors"]],
                 "round_payload_bytes": clip["bytes"],
+                "round_kept_pass": clip["kept"],
                 "round_train_s": [round(t, 3) for t in clip["seconds"]],
             }
             out.append((clip["omegas"], clip["stored"], clip["errors"][-1], extra))
