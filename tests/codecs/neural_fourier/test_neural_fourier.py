@@ -374,12 +374,13 @@ def test_default_trainer_reweights_each_round_and_meets_the_threshold_it_reports
 
     What holds on every CPU and kernel: two loss logs per round, none rising (the line search accepts no higher
     loss); the stream decodes to the L-inf it reports, and its threshold flag says whether that is under 0.5 cm;
-    the frequencies are the motion's own within one DCT bin. Which of two neighbouring bins wins is not: the first
-    frequency comes from the residual of a network of t alone, whose DCT has the true bin 6 and bin 7 within about
-    15 % of each other, and which one is on top follows the rounding of that network's L-BFGS trajectory (on one
-    Xeon: bin 6 under torch's AVX-512 kernels and MKL's AVX2 and SSE4.2 paths, 0.42-0.57 cm; bin 7 under torch's
-    default kernels, 4.9-11 cm, a network that cannot be exact). So the error is bounded tightly when both true
-    frequencies were found, and otherwise only as a large drop from the first round's (a network of t alone).
+    the first frequency is the motion's dominant one within one DCT bin. Which of two neighbouring bins wins is
+    not: it comes from the residual of a network of t alone, whose DCT has the true bin 6 and bin 7 within about
+    15 % of each other, and which one is on top follows the rounding of that network's L-BFGS trajectory (bin 6
+    under torch's AVX-512 kernels here, bin 7 under its default ones). A first pick one bin off leaves leakage that
+    the second pick may chase instead of the weaker true frequency, and a network without both true frequencies
+    cannot be exact (0.1-11 cm over ten seeds and four kernel choices, against 0.1-0.6 cm with both). So the
+    error is bounded tightly when both were found, and otherwise as a large drop from the first round's.
     """
     motion = known_frequency_motion()
     codec = create("fourier-mlp-dct", K_max=2, threshold=0.5, threshold_unit="cm")
@@ -394,12 +395,11 @@ def test_default_trainer_reweights_each_round_and_meets_the_threshold_it_reports
     assert error == pytest.approx(stats["encoder_max_err_cm"], rel=1e-5)  # block-wise decode: see above
     assert stats["threshold_met"] == (error <= 0.5)
     bin_width = dct_index_to_omega(1, motion.num_frames)
-    found = sorted(round(omega / bin_width) for omega in stats["omegas"])  # as DCT indices
-    true_indices = [round(cycles / bin_width) for cycles in TRUE_CYCLES]
+    picked = [round(omega / bin_width) for omega in stats["omegas"]]  # as DCT indices, in the order added
+    true_indices = [round(cycles / bin_width) for cycles in TRUE_CYCLES]  # the dominant one first
     assert stats["K"] == 2
-    for index in found:
-        assert min(abs(index - true) for true in true_indices) <= 1, f"DCT indices {found}, the motion's {true_indices}"
-    if found == true_indices:
+    assert abs(picked[0] - true_indices[0]) <= 1, f"DCT indices {picked}, the motion's {true_indices}"
+    if sorted(picked) == sorted(true_indices):
         assert error < 2.0, f"L-inf {error:.3f} cm with the true frequencies"
     assert error < stats["round_max_err_cm"][0] / 2, stats["round_max_err_cm"]
 
