@@ -124,26 +124,48 @@ def test_networks_trained_together_match_each_trained_alone():
             np.testing.assert_allclose(a, b, atol=1e-3)
 
 
+def _first_stop(history: np.ndarray, settings: TrainingSettings, iterations: int) -> int:
+    """The step at which Adam's stopping test first holds on ``history`` alone (the test :func:`_adam` runs: every
+    50 steps after the warm-up and a window, the loss changed by at most the tolerance over the window), else
+    ``iterations``. Done in float32 as the trainer does."""
+    losses = history.astype(np.float32)
+    warmup = max(1, int(round(settings.warmup_fraction * iterations)))
+    for step in range(warmup + settings.stop_window, min(len(losses), iterations), 50):
+        before, now = losses[step - settings.stop_window], losses[step]
+        if abs(before - now) <= np.float32(settings.stop_tolerance) * before:
+            return step
+    return iterations
+
+
 @pytest.mark.torch
 def test_each_network_stops_on_its_own_loss_whatever_shares_its_batch():
+    """Each network of a batch stops at the first check where its own loss meets the test, as it does alone.
+
+    Together and alone differ only in the order of sums, so the loss curves start identical to rounding (below
+    1e-6 relative over the first 300 steps, under every MKL, OpenBLAS and ATen kernel tried); but 1,500 Adam steps
+    can amplify that rounding: on MKL's AVX and COMPATIBLE paths the 45-frame network's curves part between steps
+    300 and 500 (8 % apart at step 500, 4 % at the end) and its output weights by up to 20 %. So the weights are not
+    compared; what holds whatever the kernel is asserted: the early curve, the stop as a function of the network's
+    own history (the first check that passes, none before it), and the same depth at the end. A network stopped by
+    its neighbour (or with the batch) fails the stop rule on its own history; one trained on its neighbour's loss
+    parts from its curve alone at the first steps.
+    """
     pytest.importorskip("torch")
     stopping = TrainingSettings(**{**SETTINGS.__dict__, "stop_tolerance": 1e-2, "stop_window": 50})
     together = [_network(60, 5), _network(45, 5)]
     train_round(together, [[1.0], [1.0]], 1500, stopping)
     lengths = [len(n.loss_history[0]) for n in together]
-    assert min(lengths) < 1501  # the test fired
+    assert min(lengths) < 1501 and lengths[0] != lengths[1]  # the test fired, at different steps for the two
     for network in together:
         alone = _network(network.num_frames, 5)
         train_round([alone], [[1.0]], 1500, stopping)
-        # The same stop up to the order of sums, which moves the loss curve by a few 1e-4 over 1,500 steps and
-        # depends on the BLAS kernel and the batch's shape; the stop may then fall a few steps apart, so the
-        # weights agree to about 1 % of their size, not to a fixed number of digits. A network trained on its
-        # neighbour's loss, or stopped by it, lands much further away.
-        assert abs(len(alone.loss_history[0]) - len(network.loss_history[0])) <= 100
-        np.testing.assert_allclose(alone.weights[4], network.weights[4], rtol=2e-2, atol=2e-2)
-        history = network.loss_history[0]
-        if len(history) < 1501:  # it stopped where its loss changed by at most 1 % over 50 steps
-            assert abs(history[-51] - history[-1]) <= 1e-2 * history[-51]
+        history, reference = network.loss_history[0], alone.loss_history[0]
+        np.testing.assert_allclose(history[:300], reference[:300], rtol=1e-4)
+        assert len(history) - 1 == _first_stop(history, stopping, 1500)
+        assert len(reference) - 1 == _first_stop(reference, stopping, 1500)
+        assert abs(len(reference) - len(history)) <= 100  # checks fall every 50 steps; measured: the same check
+        assert 0.8 < history[-1] / reference[-1] < 1.25  # measured 0.96-1.0
+        assert history[-1] < 0.05 * history[0]
 
 
 @settings(max_examples=60, deadline=None)
