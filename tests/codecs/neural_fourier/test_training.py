@@ -293,21 +293,31 @@ def test_lbfgs_reaches_in_a_tenth_of_the_steps_a_lower_loss_than_adam():
 
 @pytest.mark.torch
 def test_lbfgs_networks_trained_together_match_each_trained_alone():
-    """Padded frames and outputs change nothing in the least-squares output layer or the line search."""
+    """Padded frames and outputs change nothing in the least-squares output layer or the line search.
+
+    Together and alone are equal in exact arithmetic and differ in the order of sums: the first loss (its output
+    layer solved on the initial hidden layers) agrees to 2e-5 relative, bit for bit on some kernels, and each
+    L-BFGS iteration amplifies the difference about tenfold (4e-4 at the second loss, 1-3 % at the third on MKL's
+    AVX2, AVX and COMPATIBLE paths), after which a line search may accept on one side what it shrinks on the other
+    (8-14 % apart at the end). So the first two losses are compared as tightly as that allows, then the end state:
+    the same depth, far below the start, and the output layer the least-squares fit on the network's own hidden
+    layers. A network trained with the padded frames in its loss, or on another's data, is off at the first loss.
+    """
     pytest.importorskip("torch")
+    omegas = [[1.0, 3.0]]
     shapes = [(40, 13), (75, 7), (120, 13)]
-    omegas = [[1.0, 3.0]] * len(shapes)
     together = [_network(f, m) for f, m in shapes]
-    train_round(together, omegas, 15, LBFGS)
+    train_round(together, omegas * len(shapes), 15, LBFGS)
     for (frames, outputs), network in zip(shapes, together):
         alone = _network(frames, outputs)
-        train_round([alone], omegas[:1], 15, LBFGS)
-        # The first iterations agree closely (the float32 least-squares solve amplifies the order of sums); later
-        # the line search's accept-or-shrink decisions can go apart on a rounding-level difference in a loss, so
-        # only the end is compared loosely. A network trained on another's data lands far outside both bounds.
-        np.testing.assert_allclose(network.loss_history[0][:6], alone.loss_history[0][:6], rtol=1e-2)
-        np.testing.assert_allclose(network.loss_history[0][-1], alone.loss_history[0][-1], rtol=0.25)
+        train_round([alone], omegas, 15, LBFGS)
+        history, reference = network.loss_history[0], alone.loss_history[0]
+        np.testing.assert_allclose(history[0], reference[0], rtol=2e-4)
+        np.testing.assert_allclose(history[1], reference[1], rtol=5e-3)
+        assert 0.67 < history[-1] / reference[-1] < 1.5  # measured 0.86-1.08
+        assert history[-1] < 0.1 * history[0]  # measured 0.013-0.025
         assert network.weights[4].shape == alone.weights[4].shape
+        _assert_output_layer_solved(network, omegas[0])
 
 
 @pytest.mark.torch
