@@ -84,13 +84,24 @@ def test_adaptive_step_finds_the_known_frequencies_within_one_dct_bin(adaptive_r
 
 @pytest.mark.torch
 def test_off_grid_frequencies_are_found_within_one_dct_bin():
-    motion = known_frequency_motion(cycles=(3.0, 7.0))
-    codec = create("fourier-mlp-dct", K_max=2, threshold=0.3, threshold_unit="cm", iterations_per_round=400,
-                   learning_rate=0.01)
+    """Frequencies between DCT bins (3.25 and 7.3 cycles: indices 6.53 and 14.67) are found within a bin.
+
+    On Adam's schedule, as the on-grid test: each round fits the frequencies it has and leaves the missing sinusoid
+    as the residual's peak (both found for seeds 0-9 under every MKL, OpenBLAS and ATen kernel tried). The default
+    trainer (L-BFGS, solved output layer, L-inf passes) reaches a lower L-inf at K = 1 (8-35 cm against Adam's
+    26-35 on 3 and 7 cycles), so its residual is no longer the missing sinusoid alone and its peak follows the
+    trajectory: both frequencies within a bin for 4 seeds of 10 on one Xeon, for 3 others under MKL's AVX2 path,
+    at a final L-inf of the same size (0.2-5.5 cm against Adam's 1.4-5.2). That is Algorithm 1's greedy choice on
+    another fit, not a frequency read wrongly; this test checks the reading.
+    """
+    cycles = (3.25, 7.3)
+    motion = known_frequency_motion(cycles=cycles)
+    codec = create("fourier-mlp-dct", K_max=2, threshold=0.3, threshold_unit="cm", **FAST)
     codec.encode(motion)
     found = codec.last_encode_stats["omegas"]
     bin_width = dct_index_to_omega(1, motion.num_frames)
-    for true in (3.0, 7.0):
+    assert len(found) == 2
+    for true in cycles:
         assert min(abs(f - true) for f in found) <= bin_width, f"{true} cycles not found: {found}"
 
 
