@@ -355,12 +355,12 @@ def test_lbfgs_on_the_leading_components_fits_as_the_full_targets_and_solves_eve
     train_round([reduced], [omegas], 30, dataclasses.replace(LBFGS, rank_tolerance=1e-8))
     # The two problems are equal in exact arithmetic (the left-out energy is below float32's resolution of the loss),
     # so their L-BFGS trajectories start together and drift apart with rounding: the same loss at the start (to the
-    # order of float32 sums); then each output layer solved from a float32 Gram matrix passes its rounding (about
-    # the matrix's condition number times float32's epsilon) into the gradient, and the difference grows about
-    # tenfold per iteration (1e-6, 1e-4, 1e-3 relative on one Xeon under eight torch and MKL kernel choices, below
-    # 1 % through the sixth loss); after that a line search may accept on one side what it shrinks on the other,
-    # and the losses differ by tens of percent. Both then end at the same depth: within a factor 2 of each other
-    # (0.77-1.08 measured), far below the start. Fitting the wrong components would be off at the first loss.
+    # order of float32 sums), then a difference that grows about tenfold per iteration (1e-6, 1e-4, 1e-3 relative
+    # on one Xeon under eight torch and MKL kernel choices, below 1 % through the sixth loss; the output layer's
+    # Gram matrix summed in float64 instead of float32 gives the same losses bit for bit, so its rounding is not
+    # the cause); after that a line search may accept on one side what it shrinks on the other, and the losses
+    # differ by tens of percent. Both then end at the same depth: within a factor 2 of each other (0.77-1.08
+    # measured), far below the start. Fitting the wrong components would be off at the first loss.
     reduced_losses, full_losses = reduced.loss_history[0], full.loss_history[0]
     np.testing.assert_allclose(reduced_losses[0], full_losses[0], rtol=1e-5)
     np.testing.assert_allclose(reduced_losses[:6], full_losses[:6], rtol=3e-2)
